@@ -1,0 +1,229 @@
+"""Servo-distributor static flow characteristic (ISO 6358), per 3-way valve.
+
+Each valve has a *supply path* (supply -> chamber) and an *exhaust path*
+(chamber -> exhaust). A path is an ISO 6358 restriction of sonic conductance
+C (m^3/s/Pa) and critical pressure ratio b:
+
+    q = C rho0 P_up sqrt(T_ref / T_up) phi(x),   x = P_down / P_up
+
+    phi(x) = 1                                    x <= b   (choked)
+    phi(x) = [1 - ((x - b) / (1 - b))^2]^m        b < x < x_l
+    phi(x) = phi(x_l) (1 - x) / (1 - x_l)         x_l <= x <= 1 (laminar tail)
+
+The ISO 6358 ellipse has an infinite slope at x -> 1; above x_l (0.995 by
+default) the flow is made linear in the pressure difference, as ISO
+6358-1:2013 does, so the right-hand side stays Lipschitz (physics notes).
+Flow reverses (sign and upstream temperature) when P_down > P_up, e.g. when a
+chamber exceeds supply pressure.
+
+Command dependence. For a command u (V), with overlap (dead band) u_0 and
+full opening at u_sat:
+
+    C_S(u) = C_S,max sat((u - u_0) / (u_sat - u_0)) + 2 C_leak sigma(+u / w)
+    C_E(u) = C_E,max sat((-u - u_0) / (u_sat - u_0)) + 2 C_leak sigma(-u / w)
+
+with sat(z) = min(max(z, 0), 1) and sigma the logistic function. The second
+term is the centre leakage through the overlapped lands: equal to C_leak on
+both paths at u = 0, and shifted towards the path that opens as the spool
+moves (the land on that side shortens, the other lengthens). It gives the
+valve its non-zero pressure gain at the centre, which sets the equilibrium
+pressures of the paper's eq. (10) and the gains of eq. (12).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from pneumafit.physics.air import RHO0, T_REF
+from pneumafit.physics.friction import FASTMATH
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def flow_function(x: float, b: float, m: float, x_lam: float) -> float:
+    """ISO 6358 flow function phi(x) with a linear laminar tail.
+
+    Parameters
+    ----------
+    x : float
+        Pressure ratio P_down / P_up (-), 0 <= x <= 1.
+    b : float
+        Critical pressure ratio (-), 0 <= b < x_lam.
+    m : float
+        Subsonic index (-); 0.5 in ISO 6358:1989.
+    x_lam : float
+        Ratio above which the flow is laminar, linear in (1 - x) (-).
+
+    Returns
+    -------
+    float
+        phi (-), 1 when choked, 0 at x = 1, continuous in x.
+    """
+    if x <= b:
+        return 1.0
+    xe = x if x < x_lam else x_lam
+    s = (xe - b) / (1.0 - b)
+    base = 1.0 - s * s
+    if m == 0.5:
+        phi = math.sqrt(base)
+    else:
+        phi = base**m
+    if x < x_lam:
+        return phi
+    return phi * (1.0 - x) / (1.0 - x_lam)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def restriction_flow(
+    conductance: float,
+    b: float,
+    m: float,
+    x_lam: float,
+    p_up: float,
+    rt_up: float,
+    p_down: float,
+) -> float:
+    """Mass flow through an ISO 6358 restriction, upstream to downstream.
+
+    Parameters
+    ----------
+    conductance : float
+        Sonic conductance C (m^3/s/Pa).
+    b, m, x_lam : float
+        Critical ratio, subsonic index, laminar onset ratio (-).
+    p_up, p_down : float
+        Upstream and downstream absolute pressures (Pa), p_up >= p_down.
+    rt_up : float
+        Temperature factor sqrt(T_ref / T_up) of the upstream gas (-).
+
+    Returns
+    -------
+    float
+        q (kg/s) >= 0.
+    """
+    x = p_down / p_up
+    return conductance * RHO0 * p_up * rt_up * flow_function(x, b, m, x_lam)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def path_flow(
+    conductance: float,
+    b: float,
+    m: float,
+    x_lam: float,
+    p_1: float,
+    t_1: float,
+    rt_1: float,
+    p_2: float,
+    t_2: float,
+    rt_2: float,
+) -> tuple[float, float]:
+    """Signed mass flow from node 1 to node 2 and the temperature it carries.
+
+    ``rt_i`` is sqrt(T_ref / t_i), passed in because the kernel reuses it.
+
+    Returns
+    -------
+    q : float
+        Mass flow from 1 to 2 (kg/s); negative when the flow reverses.
+    t_carried : float
+        Temperature of the flowing gas (K): the upstream node's temperature.
+    """
+    if p_1 >= p_2:
+        return restriction_flow(conductance, b, m, x_lam, p_1, rt_1, p_2), t_1
+    return -restriction_flow(conductance, b, m, x_lam, p_2, rt_2, p_1), t_2
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def opening(u: float, overlap: float, u_sat: float) -> float:
+    """Fraction of the full orifice area opened by command u (V), in [0, 1]."""
+    z = (u - overlap) / (u_sat - overlap)
+    if z <= 0.0:
+        return 0.0
+    if z >= 1.0:
+        return 1.0
+    return z
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def conductances(
+    u: float,
+    c_supply: float,
+    c_exhaust: float,
+    overlap: float,
+    u_sat: float,
+    c_leak: float,
+    leak_width: float,
+) -> tuple[float, float]:
+    """Sonic conductances (C_S(u), C_E(u)) of the supply and exhaust paths.
+
+    Parameters
+    ----------
+    u : float
+        Valve command (V); positive connects the chamber to supply.
+    c_supply, c_exhaust : float
+        Full-opening sonic conductances (m^3/s/Pa).
+    overlap : float
+        Dead band half-width u_0 (V).
+    u_sat : float
+        Command of full opening (V), > overlap.
+    c_leak : float
+        Centre leakage conductance of each path at u = 0 (m^3/s/Pa).
+    leak_width : float
+        Command scale w (V) over which the leakage shifts between paths.
+
+    Returns
+    -------
+    tuple of float
+        (C_S, C_E) in m^3/s/Pa.
+    """
+    e = math.exp(-u / leak_width)
+    sig_s = 1.0 / (1.0 + e)
+    sig_e = 1.0 - sig_s
+    c_s = c_supply * opening(u, overlap, u_sat) + 2.0 * c_leak * sig_s
+    c_e = c_exhaust * opening(-u, overlap, u_sat) + 2.0 * c_leak * sig_e
+    return c_s, c_e
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def valve_flows(
+    u: float,
+    p: float,
+    t: float,
+    p_supply: float,
+    t_supply: float,
+    p_exhaust: float,
+    t_exhaust: float,
+    rt_ambient: float,
+    c_supply: float,
+    b_supply: float,
+    c_exhaust: float,
+    b_exhaust: float,
+    m: float,
+    x_lam: float,
+    overlap: float,
+    u_sat: float,
+    c_leak: float,
+    leak_width: float,
+) -> tuple[float, float, float]:
+    """Flows of one 3-way servo-distributor into its chamber.
+
+    Supply and exhaust air are at ambient temperature; ``rt_ambient`` is
+    sqrt(T_ref / t_supply) (= sqrt(T_ref / t_exhaust)), computed once.
+
+    Returns
+    -------
+    q_net : float
+        Net mass flow into the chamber, q_S - q_E (kg/s).
+    h_in : float
+        Net enthalpy-carrying flow sum(q_i T_i) into the chamber (kg K/s):
+        inflows carry their upstream temperature, outflows the chamber's.
+    q_supply : float
+        Mass flow drawn from the supply through this valve (kg/s, signed).
+    """
+    c_s, c_e = conductances(u, c_supply, c_exhaust, overlap, u_sat, c_leak, leak_width)
+    rt = math.sqrt(T_REF / t)
+    q_s, t_s = path_flow(c_s, b_supply, m, x_lam, p_supply, t_supply, rt_ambient, p, t, rt)
+    q_e, t_e = path_flow(c_e, b_exhaust, m, x_lam, p, t, rt, p_exhaust, t_exhaust, rt_ambient)
+    return q_s - q_e, q_s * t_s - q_e * t_e, q_s

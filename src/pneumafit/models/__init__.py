@@ -1,0 +1,19 @@
+"""Model layer: parameter and state layouts, structures, compiled kernel."""
+
+from pneumafit.models.layout import CHANNELS, PARAMETER_NAMES, PARAMETER_SPECS, ParameterSpec
+from pneumafit.models.parameters import default_parameters, parameter_dict, parameter_vector
+from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure, get_structure
+
+__all__ = [
+    "CHANNELS",
+    "EFFECT_SLOTS",
+    "MODELS",
+    "PARAMETER_NAMES",
+    "PARAMETER_SPECS",
+    "ModelStructure",
+    "ParameterSpec",
+    "default_parameters",
+    "get_structure",
+    "parameter_dict",
+    "parameter_vector",
+]

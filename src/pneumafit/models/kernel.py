@@ -1,0 +1,841 @@
+"""Compiled right-hand side of the actuator models and its integrator.
+
+State (see :mod:`pneumafit.models.layout`): x = [y, v, P_N, P_P, T_N, T_P,
+m_supply, m_exhaust, Tw_N, Tw_P, us_N, us_P, dus_N, dus_P]; a structure uses a
+subset (the polytropic model keeps T = T_w, the optional states stay constant
+unless their effect is on).
+
+Chamber balance (paper eqs. 2-5 rewritten in P and T; the paper's eq. 9 drops
+the gas constant r from the flow terms, restored here). With H = sum q_i T_i
+the enthalpy-carrying flow into the chamber (inflows at their upstream
+temperature, outflows at T), q = sum q_i the net mass flow, V(y), dV/dt and
+Q = lambda A (T_w - T):
+
+    dP/dt = gamma r H / V - gamma P dV/dt / V + (gamma - 1) Q / V
+    dT/dt = T [dP/dt / P + dV/dt / V - r T q / (P V)]     (from P V = m r T)
+
+which expands to the paper's dT/dt line of eq. 9. Polytropic model (eq. 14):
+dP/dt = k r T_0 q / V - k P dV/dt / V, T = T_0 (T_0 = wall temperature).
+
+Mechanics (eq. 1): M dv/dt = S_P P_P - S_N P_N - F_ext - F_f + F_stop, with
+F_ext = P_atm (S_P - S_N) + F_load + M g sin(angle) and the switch model of
+stick-slip (:mod:`pneumafit.physics.friction`): the piston's mode (stuck,
+sliding forwards, sliding backwards) is a discrete state kept by the
+integrator, which locates the mode changes inside the step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from pneumafit.models.layout import (
+    C_AIRPROPS,
+    C_BLOCKED,
+    C_CHAMBER,
+    C_CHAMBER_LEAK,
+    C_EXTERNAL_LEAK,
+    C_FORCED_CONV,
+    C_HEAT,
+    C_INPUT,
+    C_SEAL_FRICTION,
+    C_STATIC_FLOW,
+    C_SUPPLY_DROP,
+    C_VALVE_ORDER,
+    C_WALL_MASS,
+    NX,
+    P_ANGLE,
+    P_BE,
+    P_BETA,
+    P_BORE,
+    P_BS,
+    P_CE,
+    P_CLEAK,
+    P_CS,
+    P_CSTOP,
+    P_FC,
+    P_FCG,
+    P_FEXT,
+    P_FS,
+    P_FV,
+    P_GCL,
+    P_GEL,
+    P_K,
+    P_KSTOP,
+    P_LAMBDA,
+    P_LEAKW,
+    P_LEN,
+    P_MASS,
+    P_OVERLAP,
+    P_PE,
+    P_PS,
+    P_ROD,
+    P_RSUP,
+    P_SEAL,
+    P_STROKE,
+    P_TAMB,
+    P_TW,
+    P_USAT,
+    P_V0N,
+    P_V0P,
+    P_VM,
+    P_VST,
+    P_VTAU,
+    P_VWN,
+    P_VZETA,
+    P_WCAP,
+    P_WOUT,
+    P_XI,
+    P_XLAM,
+    X_DUN,
+    X_DUP,
+    X_ME,
+    X_MS,
+    X_PN,
+    X_PP,
+    X_TN,
+    X_TP,
+    X_TWN,
+    X_TWP,
+    X_UN,
+    X_UP,
+    X_V,
+    X_Y,
+)
+from pneumafit.physics.air import G0, GAMMA, R_AIR, T_REF, conductivity, viscosity
+from pneumafit.physics.friction import FASTMATH, end_stop_force, next_mode, sliding_friction
+from pneumafit.physics.geometry import chamber_volumes, piston_areas
+from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
+from pneumafit.physics.valve import valve_flows
+
+# Derived per-simulation constants (array d), computed once by derive()
+D_SP, D_SN, D_FEXT, D_MU, D_KAIR, D_LAMC, D_GRC, D_RTA = 0, 1, 2, 3, 4, 5, 6, 7
+D_A0P, D_A0N, D_CAP, D_CAN = 8, 9, 10, 11
+ND = 12
+
+# Auxiliary outputs of one right-hand-side evaluation (array aux)
+A_QN, A_QP, A_UN, A_UP, A_LAMN, A_LAMP, A_FF, A_FD, A_FS = 0, 1, 2, 3, 4, 5, 6, 7, 8
+NAUX = 9
+
+# Simulation status codes
+STATUS_OK = 0
+STATUS_NONFINITE = 1
+STATUS_NONPHYSICAL = 2
+STATUS_BAD_PARAMETERS = 3
+STATUS_BAD_INPUT = 4
+
+_FM = FASTMATH
+
+
+@njit(cache=True)
+def check_parameters(p: np.ndarray) -> bool:
+    """Return True when the parameter vector is physically admissible."""
+    for i in range(p.shape[0]):
+        if not math.isfinite(p[i]):
+            return False
+    if p[P_BORE] <= 0.0 or p[P_ROD] < 0.0 or p[P_ROD] >= p[P_BORE]:
+        return False
+    if p[P_STROKE] <= 0.0 or p[P_V0P] <= 0.0 or p[P_V0N] <= 0.0 or p[P_MASS] <= 0.0:
+        return False
+    if p[P_PS] <= 0.0 or p[P_PE] <= 0.0 or p[P_TAMB] <= 0.0 or p[P_TW] <= 0.0:
+        return False
+    if p[P_CS] < 0.0 or p[P_CE] < 0.0 or p[P_CLEAK] < 0.0 or p[P_LEAKW] <= 0.0:
+        return False
+    if p[P_BS] < 0.0 or p[P_BE] < 0.0 or p[P_BS] >= p[P_XLAM] or p[P_BE] >= p[P_XLAM]:
+        return False
+    if p[P_XLAM] >= 1.0 or p[P_VM] <= 0.0 or p[P_USAT] <= p[P_OVERLAP] or p[P_OVERLAP] < 0.0:
+        return False
+    if p[P_K] < 1.0 or p[P_LAMBDA] < 0.0 or p[P_XI] < 0.0 or p[P_BETA] <= 0.0:
+        return False
+    if p[P_FS] < p[P_FC] or p[P_FC] < 0.0 or p[P_FV] < 0.0 or p[P_VST] <= 0.0:
+        return False
+    if p[P_LEN] <= 0.0 or p[P_GCL] < 0.0 or p[P_GEL] < 0.0 or p[P_VTAU] < 0.0:
+        return False
+    if p[P_WCAP] <= 0.0 or p[P_KSTOP] < 0.0 or p[P_CSTOP] < 0.0:
+        return False
+    return True
+
+
+@njit(cache=True)
+def derive(p: np.ndarray, d: np.ndarray) -> None:
+    """Fill the per-simulation constants d (areas, forces, scales) from p."""
+    bore = p[P_BORE]
+    rod = p[P_ROD]
+    s_p, s_n = piston_areas(bore, rod)
+    d[D_SP] = s_p
+    d[D_SN] = s_n
+    d[D_FEXT] = p[P_PE] * (s_p - s_n) + p[P_FEXT] + p[P_MASS] * G0 * math.sin(p[P_ANGLE])
+    mu = viscosity(p[P_TW])
+    k_air = conductivity(p[P_TW])
+    d[D_MU] = mu
+    d[D_KAIR] = k_air
+    length = p[P_LEN]
+    d[D_LAMC] = p[P_XI] * k_air / length
+    d[D_GRC] = G0 * length**3 / (R_AIR * mu) ** 2
+    d[D_RTA] = math.sqrt(T_REF / p[P_TAMB])
+    # exchange areas A_P = A0P + CAP y, A_N = A0N + CAN (L - y) (physics.geometry)
+    d[D_A0P] = 2.0 * s_p + math.pi * bore * p[P_V0P] / s_p
+    d[D_CAP] = math.pi * bore
+    d[D_A0N] = 2.0 * s_n + math.pi * (bore + rod) * p[P_V0N] / s_n
+    d[D_CAN] = math.pi * (bore + rod)
+
+
+@njit(cache=True, fastmath=_FM)
+def heat_coefficient(
+    heat: int,
+    p: np.ndarray,
+    d: np.ndarray,
+    sutherland: bool,
+    pres: float,
+    temp: float,
+    t_wall: float,
+) -> float:
+    """lambda (W/m^2/K) of one chamber for the configured heat law."""
+    if heat == 1:
+        return p[P_LAMBDA]
+    if heat == 2:
+        if sutherland:
+            return convection_coefficient(
+                p[P_XI], p[P_BETA], pres, temp, t_wall, p[P_LEN], viscosity(temp),
+                conductivity(temp),
+            )  # fmt: skip
+        return convection_coefficient_scaled(d[D_LAMC], d[D_GRC], p[P_BETA], pres, temp, t_wall)
+    return 0.0
+
+
+@njit(cache=True, fastmath=_FM)
+def chamber_rates(
+    heat: int,
+    k_poly: float,
+    t_0: float,
+    pres: float,
+    temp: float,
+    vol: float,
+    dvol: float,
+    q_net: float,
+    h_net: float,
+    q_wall: float,
+) -> tuple[float, float]:
+    """(dP/dt, dT/dt) of one chamber (Pa/s, K/s); see the module docstring."""
+    inv_v = 1.0 / vol
+    if heat == 0:
+        return k_poly * (R_AIR * t_0 * q_net - pres * dvol) * inv_v, 0.0
+    dp = (GAMMA * R_AIR * h_net - GAMMA * pres * dvol + (GAMMA - 1.0) * q_wall) * inv_v
+    dt = temp * (dp / pres + (dvol - R_AIR * temp * q_net / pres) * inv_v)
+    return dp, dt
+
+
+@njit(cache=True, fastmath=_FM)
+def _valve(u: float, pres: float, temp: float, p_s: float, p: np.ndarray, d: np.ndarray):
+    return valve_flows(
+        u, pres, temp, p_s, p[P_TAMB], p[P_PE], p[P_TAMB], d[D_RTA],
+        p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM],
+        p[P_OVERLAP], p[P_USAT], p[P_CLEAK], p[P_LEAKW],
+    )  # fmt: skip
+
+
+@njit(cache=True, fastmath=_FM)
+def rhs(
+    x: np.ndarray,
+    mode: int,
+    u_p_cmd: float,
+    u_n_cmd: float,
+    p: np.ndarray,
+    d: np.ndarray,
+    cfg: np.ndarray,
+    dx: np.ndarray,
+    aux: np.ndarray,
+) -> None:
+    """Right-hand side dx/dt of the configured actuator model (paper eq. 9).
+
+    Parameters
+    ----------
+    x : ndarray, shape (NX,)
+        State (SI units, layout in :mod:`pneumafit.models.layout`).
+    mode : {-1, 0, 1}
+        Friction mode: 0 stuck (v = 0, no motion), +-1 sliding direction.
+    u_p_cmd, u_n_cmd : float
+        Commands sent to the valves of chambers P and N (V).
+    p : ndarray, shape (NP,)
+        Parameters (SI).
+    d : ndarray, shape (ND,)
+        Per-simulation constants from :func:`derive`.
+    cfg : ndarray of int64, shape (NCFG,)
+        Structure configuration.
+    dx : ndarray, shape (NX,)
+        Output: time derivative of x.
+    aux : ndarray, shape (NAUX,)
+        Output: valve flows into the chambers (kg/s), effective commands (V),
+        heat-transfer coefficients (W/m^2/K), friction, driving force and
+        static friction (N).
+    """
+    heat = cfg[C_HEAT]
+    blocked = cfg[C_BLOCKED] == 1
+    y = x[X_Y]
+    v = x[X_V]
+    p_n = x[X_PN]
+    p_p = x[X_PP]
+    t_n = x[X_TN]
+    t_p = x[X_TP]
+    t_amb = p[P_TAMB]
+    p_e = p[P_PE]
+    for i in range(NX):
+        dx[i] = 0.0
+
+    # --- valve commands: static, or spool dynamics (effect valve_dynamics)
+    order = cfg[C_VALVE_ORDER]
+    if order == 0:
+        u_p = u_p_cmd
+        u_n = u_n_cmd
+    else:
+        u_p = x[X_UP]
+        u_n = x[X_UN]
+        if order == 1:
+            tau = p[P_VTAU]
+            dx[X_UP] = (u_p_cmd - u_p) / tau
+            dx[X_UN] = (u_n_cmd - u_n) / tau
+        else:
+            wn = p[P_VWN]
+            z2 = 2.0 * p[P_VZETA] * wn
+            dx[X_UP] = x[X_DUP]
+            dx[X_UN] = x[X_DUN]
+            dx[X_DUP] = wn * wn * (u_p_cmd - u_p) - z2 * x[X_DUP]
+            dx[X_DUN] = wn * wn * (u_n_cmd - u_n) - z2 * x[X_DUN]
+
+    # --- geometry
+    s_p = d[D_SP]
+    s_n = d[D_SN]
+    stroke = p[P_STROKE]
+    v_p, v_n = chamber_volumes(y, stroke, s_p, s_n, p[P_V0P], p[P_V0N])
+    dv_p = s_p * v
+    dv_n = -s_n * v
+
+    # --- valve flows (ISO 6358), optional supply-line pressure drop
+    p_s = p[P_PS]
+    q_p, h_p, qs_p = _valve(u_p, p_p, t_p, p_s, p, d)
+    q_n, h_n, qs_n = _valve(u_n, p_n, t_n, p_s, p, d)
+    if cfg[C_SUPPLY_DROP] == 1:
+        # supply pressure behind a line resistance: one fixed-point iteration of
+        # P_S' = P_S - R (q_sP + q_sN), flows first evaluated at P_S
+        q_draw = qs_p + qs_n
+        if q_draw < 0.0:
+            q_draw = 0.0
+        p_s = p_s - p[P_RSUP] * q_draw
+        if p_s < p_e:
+            p_s = p_e
+        q_p, h_p, qs_p = _valve(u_p, p_p, t_p, p_s, p, d)
+        q_n, h_n, qs_n = _valve(u_n, p_n, t_n, p_s, p, d)
+    if blocked:
+        if cfg[C_CHAMBER] == 1:
+            qs_n = 0.0
+            q_n = 0.0
+        else:
+            qs_p = 0.0
+            q_p = 0.0
+    qe_total = (qs_p - q_p) + (qs_n - q_n)
+    aux[A_QN] = q_n
+    aux[A_QP] = q_p
+    aux[A_UN] = u_n
+    aux[A_UP] = u_p
+
+    # --- leakages (effects)
+    if cfg[C_CHAMBER_LEAK] == 1:
+        q_l = p[P_GCL] * (p_p - p_n)  # from P to N across the piston seal
+        t_l = t_p if q_l > 0.0 else t_n
+        q_p -= q_l
+        h_p -= q_l * t_l
+        q_n += q_l
+        h_n += q_l * t_l
+    if cfg[C_EXTERNAL_LEAK] == 1:
+        q_l = p[P_GEL] * (p_p - p_e)
+        t_l = t_p if q_l > 0.0 else t_amb
+        q_p -= q_l
+        h_p -= q_l * t_l
+        q_l2 = p[P_GEL] * (p_n - p_e)
+        t_l2 = t_n if q_l2 > 0.0 else t_amb
+        q_n -= q_l2
+        h_n -= q_l2 * t_l2
+        qe_total += q_l + q_l2
+
+    # --- wall heat exchange (paper eqs. 6-8)
+    wall_mass = cfg[C_WALL_MASS] == 1
+    if wall_mass:
+        tw_p = x[X_TWP]
+        tw_n = x[X_TWN]
+    else:
+        tw_p = p[P_TW]
+        tw_n = p[P_TW]
+    sutherland = cfg[C_AIRPROPS] == 1
+    lam_p = heat_coefficient(heat, p, d, sutherland, p_p, t_p, tw_p)
+    lam_n = heat_coefficient(heat, p, d, sutherland, p_n, t_n, tw_n)
+    if cfg[C_FORCED_CONV] == 1 and heat != 0:
+        if qs_p > 0.0:
+            lam_p += p[P_FCG] * qs_p
+        if qs_n > 0.0:
+            lam_n += p[P_FCG] * qs_n
+    a_p = d[D_A0P] + d[D_CAP] * y
+    a_n = d[D_A0N] + d[D_CAN] * (stroke - y)
+    qw_p = lam_p * a_p * (tw_p - t_p)
+    qw_n = lam_n * a_n * (tw_n - t_n)
+    aux[A_LAMN] = lam_n
+    aux[A_LAMP] = lam_p
+    if wall_mass:
+        c_w = p[P_WCAP]
+        h_o = p[P_WOUT]
+        dx[X_TWP] = (lam_p * (t_p - tw_p) + h_o * (t_amb - tw_p)) / c_w
+        dx[X_TWN] = (lam_n * (t_n - tw_n) + h_o * (t_amb - tw_n)) / c_w
+
+    # --- chambers
+    t_0 = p[P_TW]
+    k_poly = p[P_K]
+    dp_p, dt_p = chamber_rates(heat, k_poly, t_0, p_p, t_p, v_p, dv_p, q_p, h_p, qw_p)
+    dp_n, dt_n = chamber_rates(heat, k_poly, t_0, p_n, t_n, v_n, dv_n, q_n, h_n, qw_n)
+
+    if blocked:
+        # piston clamped: only the chamber under test evolves
+        if cfg[C_CHAMBER] == 1:
+            dx[X_PP] = dp_p
+            dx[X_TP] = dt_p
+            dx[X_TWN] = 0.0
+        else:
+            dx[X_PN] = dp_n
+            dx[X_TN] = dt_n
+            dx[X_TWP] = 0.0
+        aux[A_FF] = 0.0
+        aux[A_FD] = 0.0
+        aux[A_FS] = 0.0
+    else:
+        dx[X_PP] = dp_p
+        dx[X_TP] = dt_p
+        dx[X_PN] = dp_n
+        dx[X_TN] = dt_n
+        f_stop = end_stop_force(y, v, stroke, p[P_KSTOP], p[P_CSTOP])
+        f_drive = s_p * p_p - s_n * p_n - d[D_FEXT] + f_stop
+        f_s = p[P_FS]
+        f_c = p[P_FC]
+        if cfg[C_SEAL_FRICTION] == 1:
+            extra = p[P_SEAL] * (p_p + p_n - 2.0 * p_e)
+            if extra > 0.0:
+                f_s += extra
+                f_c += extra
+        if mode == 0:
+            f_f = f_drive  # stuck: friction balances the drive, v stays 0
+        else:
+            f_f = sliding_friction(v, mode, f_s, f_c, p[P_FV], p[P_VST])
+            dx[X_Y] = v
+            dx[X_V] = (f_drive - f_f) / p[P_MASS]
+        aux[A_FF] = f_f
+        aux[A_FD] = f_drive
+        aux[A_FS] = f_s
+    dx[X_MS] = qs_p + qs_n
+    dx[X_ME] = qe_total
+
+
+@njit(cache=True, fastmath=_FM)
+def commands(
+    x: np.ndarray, inp: np.ndarray, k: int, w: float, cfg: np.ndarray, ctrl: np.ndarray
+) -> tuple[float, float]:
+    """Valve commands (u_P, u_N) (V) at fraction w of sample interval k.
+
+    Open loop: measured commands interpolated linearly between samples.
+    Closed loop (``pd``): u_P = clip(u0 + kp (y_ref - y) - kd v, -umax, umax),
+    u_N = -u_P, with y_ref interpolated linearly (campaign format).
+    """
+    k1 = k + 1 if k + 1 < inp.shape[0] else k
+    if cfg[C_INPUT] == 1:
+        y_ref = (1.0 - w) * inp[k, 2] + w * inp[k1, 2]
+        u = ctrl[2] + ctrl[0] * (y_ref - x[X_Y]) - ctrl[1] * x[X_V]
+        umax = ctrl[3]
+        if u > umax:
+            u = umax
+        elif u < -umax:
+            u = -umax
+        return u, -u
+    return (1.0 - w) * inp[k, 0] + w * inp[k1, 0], (1.0 - w) * inp[k, 1] + w * inp[k1, 1]
+
+
+@njit(cache=True, fastmath=_FM)
+def rk_step(
+    x: np.ndarray,
+    mode: int,
+    inp: np.ndarray,
+    k: int,
+    w0: float,
+    dw: float,
+    h: float,
+    p: np.ndarray,
+    d: np.ndarray,
+    cfg: np.ndarray,
+    ctrl: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    kk: np.ndarray,
+    xs: np.ndarray,
+    dx: np.ndarray,
+    aux: np.ndarray,
+    xn: np.ndarray,
+) -> None:
+    """One explicit Runge-Kutta step of size h (s) in a fixed friction mode.
+
+    The step starts at fraction w0 of sample interval k and spans dw of it;
+    xn receives the new state and aux the last stage's auxiliary values (the
+    last node is c = 1, the end of the step).
+    """
+    n_st = tab_b.shape[0]
+    for s in range(n_st):
+        for i in range(NX):
+            acc = x[i]
+            for r in range(s):
+                acc += h * tab_a[s, r] * kk[r, i]
+            xs[i] = acc
+        u_p, u_n = commands(xs, inp, k, w0 + tab_c[s] * dw, cfg, ctrl)
+        rhs(xs, mode, u_p, u_n, p, d, cfg, dx, aux)
+        for i in range(NX):
+            kk[s, i] = dx[i]
+    for i in range(NX):
+        acc = 0.0
+        for s in range(n_st):
+            acc += tab_b[s] * kk[s, i]
+        xn[i] = x[i] + h * acc
+
+
+@njit(cache=True)
+def _record(out: np.ndarray, row: int, x: np.ndarray, aux: np.ndarray, ch_sel: np.ndarray) -> None:
+    # layout.CHANNELS: y v p_N p_P T_N T_P | qm_N qm_P u_N u_P lambda_N lambda_P | m_supply
+    # m_exhaust | F_f  ->  states 0-5 | aux 0-5 | state X_MS | state X_ME | aux A_FF
+    for j in range(ch_sel.shape[0]):
+        c = ch_sel[j]
+        if c < 6:
+            out[row, j] = x[c]
+        elif c < 12:
+            out[row, j] = aux[c - 6]
+        elif c == 12:
+            out[row, j] = x[X_MS]
+        elif c == 13:
+            out[row, j] = x[X_ME]
+        else:
+            out[row, j] = aux[A_FF]
+
+
+@njit(cache=True)
+def _initial_state(x0: np.ndarray, p: np.ndarray, cfg: np.ndarray, x: np.ndarray) -> None:
+    for i in range(NX):
+        x[i] = x0[i]
+    t_w = p[P_TW]
+    if cfg[C_HEAT] == 0 or not math.isfinite(x[X_TN]):
+        x[X_TN] = t_w
+    if cfg[C_HEAT] == 0 or not math.isfinite(x[X_TP]):
+        x[X_TP] = t_w
+    if not math.isfinite(x[X_PN]):
+        x[X_PN] = p[P_PE]
+    if not math.isfinite(x[X_PP]):
+        x[X_PP] = p[P_PE]
+    if not math.isfinite(x[X_V]) or cfg[C_BLOCKED] == 1:
+        x[X_V] = 0.0
+    x[X_MS] = 0.0
+    x[X_ME] = 0.0
+    x[X_TWN] = t_w
+    x[X_TWP] = t_w
+    x[X_DUN] = 0.0
+    x[X_DUP] = 0.0
+
+
+@njit(cache=True)
+def _fail(out: np.ndarray, row: int, code: int) -> int:
+    out[row:, :] = np.nan
+    return code
+
+
+@njit(cache=True)
+def integrate(
+    t: np.ndarray,
+    inp: np.ndarray,
+    x0: np.ndarray,
+    p: np.ndarray,
+    cfg: np.ndarray,
+    ctrl: np.ndarray,
+    h_max: float,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+) -> int:
+    """Integrate one recording with a fixed-step explicit Runge-Kutta method.
+
+    Each sample interval [t_k, t_k+1] is split into ceil((t_k+1 - t_k) / h_max)
+    equal steps, so uneven sampling is followed exactly and the step never
+    depends on the parameters (a smooth log-likelihood; physics notes).
+    Friction mode changes (stick, slip, reversal) are located inside the step
+    by linear interpolation of v (slip -> rest) or of |F_d| - F_s (rest ->
+    slip); the step is then split at the event.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), strictly increasing.
+    inp : ndarray, shape (n, 4)
+        Inputs at the samples: u_P (V), u_N (V), y_ref (m), p_chamber (Pa).
+    x0 : ndarray, shape (NX,)
+        Initial state; NaN temperatures/pressures take the wall temperature /
+        exhaust pressure.
+    p, cfg, ctrl : ndarray
+        Parameters, configuration, controller gains [kp, kd, u0, umax].
+    h_max : float
+        Largest step (s).
+    tab_a, tab_b, tab_c : ndarray
+        Butcher tableau of the explicit method (s stages, last node c = 1).
+    ch_sel : ndarray of int64
+        Indices (into layout.CHANNELS) of the channels to record.
+    out : ndarray, shape (n, len(ch_sel))
+        Output, filled with NaN after a failure.
+
+    Returns
+    -------
+    int
+        Status code (0 ok; see the STATUS_* constants).
+    """
+    n = t.shape[0]
+    n_st = tab_b.shape[0]
+    d = np.empty(ND)
+    x = np.empty(NX)
+    xs = np.empty(NX)
+    xn = np.empty(NX)
+    xe = np.empty(NX)
+    kk = np.empty((n_st, NX))
+    aux = np.zeros(NAUX)
+    dx = np.empty(NX)
+    if not check_parameters(p):
+        return _fail(out, 0, STATUS_BAD_PARAMETERS)
+    derive(p, d)
+    _initial_state(x0, p, cfg, x)
+    need_aux = False
+    for j in range(ch_sel.shape[0]):
+        if 6 <= ch_sel[j] < 12 or ch_sel[j] == 14:
+            need_aux = True
+
+    if cfg[C_STATIC_FLOW] == 1:
+        # flow test: static characteristic q_m(P, u) at the measured chamber
+        # pressure (inp column 3) and command, gas at ambient temperature
+        on_p = cfg[C_CHAMBER] == 1
+        x[X_TP] = p[P_TAMB]
+        x[X_TN] = p[P_TAMB]
+        for k in range(n):
+            pres = inp[k, 3]
+            u = inp[k, 0] if on_p else inp[k, 1]
+            if not pres > 0.0:
+                return _fail(out, k, STATUS_BAD_INPUT)
+            q, _, _ = _valve(u, pres, p[P_TAMB], p[P_PS], p, d)
+            x[X_PP if on_p else X_PN] = pres
+            aux[A_QP if on_p else A_QN] = q
+            aux[A_UP if on_p else A_UN] = u
+            _record(out, k, x, aux, ch_sel)
+        return STATUS_OK
+
+    blocked = cfg[C_BLOCKED] == 1
+    u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
+    if cfg[C_VALVE_ORDER] > 0:
+        x[X_UP] = u_p
+        x[X_UN] = u_n
+    # initial friction mode
+    mode = 0
+    rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
+    if not blocked:
+        if x[X_V] > 0.0:
+            mode = 1
+        elif x[X_V] < 0.0:
+            mode = -1
+        else:
+            mode = next_mode(aux[A_FD], aux[A_FS])
+    fd_prev = aux[A_FD]
+    fs_prev = aux[A_FS]
+    if mode != 0:
+        rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+    _record(out, 0, x, aux, ch_sel)
+
+    for k in range(n - 1):
+        dt = t[k + 1] - t[k]
+        n_sub = math.ceil(dt / h_max - 1e-9)
+        if n_sub < 1:
+            n_sub = 1
+        h = dt / n_sub
+        dw = 1.0 / n_sub
+        for j in range(n_sub):
+            w0 = j * dw
+            rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
+                    kk, xs, dx, aux, xn)  # fmt: skip
+            if blocked:
+                pass
+            elif mode != 0:
+                if xn[X_V] * mode <= 0.0:
+                    # the piston came to rest within the step: locate v = 0
+                    v0 = x[X_V]
+                    theta = v0 / (v0 - xn[X_V]) if v0 != xn[X_V] else 0.0
+                    if theta > 0.0:
+                        rk_step(x, mode, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl,
+                                tab_a, tab_b, tab_c, kk, xs, dx, aux, xe)  # fmt: skip
+                    else:
+                        for i in range(NX):
+                            xe[i] = x[i]
+                    xe[X_V] = 0.0
+                    we = w0 + theta * dw
+                    u_p, u_n = commands(xe, inp, k, we, cfg, ctrl)
+                    rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
+                    mode = next_mode(aux[A_FD], aux[A_FS])
+                    rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
+                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
+                    if mode != 0 and xn[X_V] * mode < 0.0:
+                        xn[X_V] = 0.0  # reversal overshoot; the next step re-decides
+            else:
+                fd_end = aux[A_FD]
+                fs_end = aux[A_FS]
+                if abs(fd_end) > fs_end:
+                    # break-away within the step: locate |F_d| = F_s
+                    e0 = abs(fd_prev) - fs_prev
+                    e1 = abs(fd_end) - fs_end
+                    theta = e0 / (e0 - e1) if e0 < 0.0 else 0.0
+                    if theta > 0.0:
+                        rk_step(x, 0, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl,
+                                tab_a, tab_b, tab_c, kk, xs, dx, aux, xe)  # fmt: skip
+                    else:
+                        for i in range(NX):
+                            xe[i] = x[i]
+                    mode = 1 if fd_end > 0.0 else -1
+                    we = w0 + theta * dw
+                    rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
+                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
+            fd_prev = aux[A_FD]
+            fs_prev = aux[A_FS]
+            for i in range(NX):
+                x[i] = xn[i]
+        # health check once per sample
+        for i in range(NX):
+            if not math.isfinite(x[i]):
+                return _fail(out, k + 1, STATUS_NONFINITE)
+        if x[X_PP] <= 0.0 or x[X_PN] <= 0.0 or x[X_TP] <= 0.0 or x[X_TN] <= 0.0:
+            return _fail(out, k + 1, STATUS_NONPHYSICAL)
+        if need_aux:
+            u_p, u_n = commands(x, inp, k + 1, 0.0, cfg, ctrl)
+            rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+        _record(out, k + 1, x, aux, ch_sel)
+    return STATUS_OK
+
+
+@njit(cache=True)
+def _run_job(
+    job: int,
+    params: np.ndarray,
+    cfgs: np.ndarray,
+    ctrls: np.ndarray,
+    x0s: np.ndarray,
+    t_all: np.ndarray,
+    inp_all: np.ndarray,
+    offsets: np.ndarray,
+    h_max: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+    status: np.ndarray,
+) -> None:
+    n_rec = cfgs.shape[0]
+    i = job // n_rec
+    r = job - i * n_rec
+    a = offsets[r]
+    b = offsets[r + 1]
+    status[i, r] = integrate(
+        t_all[a:b], inp_all[a:b], x0s[r], params[i], cfgs[r], ctrls[r], h_max[r],
+        tab_a, tab_b, tab_c, ch_sel, out[i, a:b],
+    )  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def integrate_many(
+    params: np.ndarray,
+    cfgs: np.ndarray,
+    ctrls: np.ndarray,
+    x0s: np.ndarray,
+    t_all: np.ndarray,
+    inp_all: np.ndarray,
+    offsets: np.ndarray,
+    h_max: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+    status: np.ndarray,
+) -> None:
+    """Simulate every (parameter set, recording) pair, in parallel threads.
+
+    Recordings are concatenated: recording r spans rows offsets[r]:offsets[r+1]
+    of ``t_all``, ``inp_all`` and ``out[i]``.
+
+    Parameters
+    ----------
+    params : ndarray, shape (n_sets, NP)
+    cfgs, ctrls, x0s, h_max : per-recording configuration, controller, initial
+        state and largest step.
+    out : ndarray, shape (n_sets, n_rows, n_channels)
+    status : ndarray of int64, shape (n_sets, n_recordings)
+    """
+    for job in prange(params.shape[0] * cfgs.shape[0]):
+        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, offsets, h_max,
+                 tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
+
+
+@njit(cache=True)
+def integrate_many_serial(
+    params: np.ndarray,
+    cfgs: np.ndarray,
+    ctrls: np.ndarray,
+    x0s: np.ndarray,
+    t_all: np.ndarray,
+    inp_all: np.ndarray,
+    offsets: np.ndarray,
+    h_max: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+    status: np.ndarray,
+) -> None:
+    """Serial twin of :func:`integrate_many` (no thread start-up for one job)."""
+    for job in range(params.shape[0] * cfgs.shape[0]):
+        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, offsets, h_max,
+                 tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
+
+
+@njit(cache=True)
+def stiffness_bound(p: np.ndarray, y_min: float, y_max: float) -> float:
+    """Upper bound of the fastest rate of the model (1/s) over [y_min, y_max].
+
+    The fastest pressure mode is a fully open valve near pressure equality,
+    where the ISO 6358 laminar tail gives dq/dP = C rho0 sqrt(T_ref/T)
+    phi(x_l) / (1 - x_l); with dP/dt = gamma r T q / V this is a rate
+    gamma r T dq/dP / V at the smallest chamber volume. The piston modes
+    (end-stop contact, viscous friction) are bounded by their own rates.
+    """
+    d = np.empty(ND)
+    derive(p, d)
+    s_p = d[D_SP]
+    s_n = d[D_SN]
+    v_p, _ = chamber_volumes(y_min, p[P_STROKE], s_p, s_n, p[P_V0P], p[P_V0N])
+    _, v_n = chamber_volumes(y_max, p[P_STROKE], s_p, s_n, p[P_V0P], p[P_V0N])
+    v_min = min(v_p, v_n)
+    c_max = max(p[P_CS], p[P_CE]) + 2.0 * p[P_CLEAK]
+    b = min(p[P_BS], p[P_BE])
+    s = (p[P_XLAM] - b) / (1.0 - b)
+    phi_l = (1.0 - s * s) ** p[P_VM]
+    t_hot = GAMMA * p[P_TAMB]  # hottest gas of a filling from supply at T_amb
+    dq_dp = c_max * 1.185 * math.sqrt(T_REF / p[P_TAMB]) * phi_l / (1.0 - p[P_XLAM])
+    rate_p = GAMMA * R_AIR * t_hot * dq_dp / v_min
+    m = p[P_MASS]
+    rate_stop = p[P_CSTOP] / m + math.sqrt(p[P_KSTOP] / m)
+    rate_visc = p[P_FV] / m
+    return max(rate_p, rate_stop, rate_visc)

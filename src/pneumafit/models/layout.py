@@ -1,0 +1,211 @@
+"""Fixed layouts shared by the Python side and the compiled kernels.
+
+The compiled right-hand side reads a flat float64 parameter vector, an int64
+configuration vector and a float64 state vector. Their layouts are defined
+here once; everything else refers to the names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# ----------------------------------------------------------------------------
+# State vector (fixed maximal layout; a structure uses a subset)
+# ----------------------------------------------------------------------------
+X_Y, X_V, X_PN, X_PP, X_TN, X_TP = 0, 1, 2, 3, 4, 5
+X_MS, X_ME = 6, 7  # accumulated mass drawn from supply / sent to exhaust (kg)
+X_TWN, X_TWP = 8, 9  # wall temperatures (effect wall_thermal_mass)
+X_UN, X_UP = 10, 11  # effective spool commands (effect valve_dynamics)
+X_DUN, X_DUP = 12, 13  # their rates (second-order valve dynamics)
+NX = 14
+STATE_NAMES = (
+    "y", "v", "p_N", "p_P", "T_N", "T_P", "m_supply", "m_exhaust",
+    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P",
+)  # fmt: skip
+STATE_UNITS = ("m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s")
+
+# ----------------------------------------------------------------------------
+# Output channels (simulated, at the recording's sample times)
+# ----------------------------------------------------------------------------
+CHANNELS = (
+    "y", "v", "p_N", "p_P", "T_N", "T_P", "qm_N", "qm_P",
+    "u_N", "u_P", "lambda_N", "lambda_P", "m_supply", "m_exhaust", "F_f",
+)  # fmt: skip
+CHANNEL_UNITS = (
+    "m", "m/s", "Pa", "Pa", "K", "K", "kg/s", "kg/s",
+    "V", "V", "W/m^2/K", "W/m^2/K", "kg", "kg", "N",
+)  # fmt: skip
+NCH = len(CHANNELS)
+CH = {name: i for i, name in enumerate(CHANNELS)}
+
+# ----------------------------------------------------------------------------
+# Configuration vector (int64)
+# ----------------------------------------------------------------------------
+C_HEAT = 0  # 0 polytropic, 1 constant lambda, 2 convection
+C_BLOCKED = 1  # 0 moving piston, 1 piston blocked (charge/discharge tests)
+C_CHAMBER = 2  # chamber under test when blocked: 0 = N, 1 = P
+C_INPUT = 3  # 0 commands replayed open loop, 1 pd controller (closed loop)
+C_AIRPROPS = 4  # 0 mu, k_air at the wall temperature; 1 Sutherland at gas T
+C_CHAMBER_LEAK = 5  # effect chamber_leakage on/off
+C_EXTERNAL_LEAK = 6  # effect external_leakage on/off
+C_VALVE_ORDER = 7  # effect valve_dynamics: 0 static, 1 first order, 2 second
+C_WALL_MASS = 8  # effect wall_thermal_mass on/off
+C_FORCED_CONV = 9  # effect forced_convection on/off
+C_SUPPLY_DROP = 10  # effect supply_pressure_drop on/off
+C_STATIC_FLOW = 11  # 1: no ODE, static valve flow at measured p, u (flow tests)
+C_SEAL_FRICTION = 12  # effect pressure-dependent seal friction on/off
+NCFG = 13
+
+HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
+
+
+# ----------------------------------------------------------------------------
+# Parameter vector
+# ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ParameterSpec:
+    """Definition of one named model parameter.
+
+    Attributes
+    ----------
+    name : str
+        Canonical name.
+    unit : str
+        SI unit of the value (pint syntax).
+    default : float
+        Default value in ``unit``.
+    lower, upper : float
+        Physical bounds (inclusive) used to validate values and as fit bounds.
+    group : str
+        ``rig``, ``valve``, ``heat``, ``friction``, ``effect`` or ``numerics``.
+    description : str
+        One line for tables and reports.
+    """
+
+    name: str
+    unit: str
+    default: float
+    lower: float
+    upper: float
+    group: str
+    description: str
+
+
+_INF = float("inf")
+
+PARAMETER_SPECS: tuple[ParameterSpec, ...] = (
+    # --- rig (from campaign.toml) ---
+    ParameterSpec("bore", "m", 0.032, 1e-3, 1.0, "rig", "cylinder bore D"),
+    ParameterSpec("rod", "m", 0.016, 0.0, 1.0, "rig", "rod diameter d"),
+    ParameterSpec("stroke", "m", 0.5, 1e-3, 10.0, "rig", "stroke L"),
+    ParameterSpec("dead_volume_P", "m^3", 2.0e-5, 1e-9, 1.0, "rig", "dead volume of chamber P"),
+    ParameterSpec("dead_volume_N", "m^3", 2.0e-5, 1e-9, 1.0, "rig", "dead volume of chamber N"),
+    ParameterSpec("moving_mass", "kg", 17.0, 1e-3, 1e4, "rig", "moving load M"),
+    ParameterSpec("supply_pressure", "Pa", 7.0e5, 1e3, 1e8, "rig", "supply pressure P_S (abs)"),
+    ParameterSpec("exhaust_pressure", "Pa", 1.013e5, 1e2, 1e8, "rig", "exhaust/atmosphere (abs)"),
+    ParameterSpec("ambient_temperature", "K", 293.15, 150.0, 600.0, "rig", "ambient T_atm"),
+    ParameterSpec("wall_temperature", "K", 293.15, 150.0, 600.0, "rig", "cylinder wall T_w"),
+    ParameterSpec("characteristic_length", "m", 0.032, 1e-4, 10.0, "rig", "convection length"),
+    ParameterSpec("mounting_angle", "rad", 0.0, -1.5708, 1.5708, "rig", "rod axis above horizon"),
+    ParameterSpec("external_force", "N", 0.0, -_INF, _INF, "rig", "external load opposing +y"),
+    # --- servo-distributor (ISO 6358, both valves alike) ---
+    ParameterSpec("valve_C_supply", "m^3/s/Pa", 1.0e-8, 1e-12, 1e-5, "valve",
+                  "sonic conductance of the supply path, full opening"),
+    ParameterSpec("valve_b_supply", "", 0.30, 0.01, 0.95, "valve", "critical ratio, supply path"),
+    ParameterSpec("valve_C_exhaust", "m^3/s/Pa", 1.1e-8, 1e-12, 1e-5, "valve",
+                  "sonic conductance of the exhaust path, full opening"),
+    ParameterSpec("valve_b_exhaust", "", 0.30, 0.01, 0.95, "valve", "critical ratio, exhaust"),
+    ParameterSpec("valve_m", "", 0.5, 0.2, 1.0, "valve", "subsonic index m"),
+    ParameterSpec("valve_x_laminar", "", 0.995, 0.96, 0.9999, "valve",
+                  "pressure ratio where the laminar (linear) tail starts"),
+    ParameterSpec("valve_overlap", "V", 0.3, 0.0, 5.0, "valve", "dead band half-width u_0"),
+    ParameterSpec("valve_u_sat", "V", 10.0, 0.1, 100.0, "valve", "command of full opening"),
+    ParameterSpec("valve_C_leak", "m^3/s/Pa", 2.0e-11, 0.0, 1e-7, "valve",
+                  "centre leakage conductance of each path at u = 0"),
+    ParameterSpec("valve_leak_width", "V", 0.3, 1e-3, 10.0, "valve",
+                  "command scale of the leakage shift between paths"),
+    # --- heat transfer ---
+    ParameterSpec("k", "", 1.2, 1.0, 1.4, "heat", "polytropic index"),
+    ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e4, "heat", "constant heat-transfer coeff."),
+    ParameterSpec("xi", "", 0.4, 1e-4, 100.0, "heat", "Nusselt coefficient xi (Pr folded in)"),
+    ParameterSpec("beta", "", 0.27, 0.05, 0.6, "heat", "Grashof exponent beta"),
+    # --- friction ---
+    ParameterSpec("friction_static", "N", 50.0, 0.0, 1e5, "friction", "static friction F_s"),
+    ParameterSpec("friction_coulomb", "N", 30.0, 0.0, 1e5, "friction", "Coulomb friction F_c"),
+    ParameterSpec("friction_viscous", "N s/m", 60.0, 0.0, 1e6, "friction", "viscous coeff. b"),
+    ParameterSpec("stribeck_velocity", "m/s", 0.02, 1e-4, 10.0, "friction", "Stribeck velocity"),
+    # --- optional effects (used when the structure switches them on) ---
+    ParameterSpec("chamber_leak_conductance", "kg/s/Pa", 0.0, 0.0, 1e-6, "effect",
+                  "laminar leak across the piston seal, q = G (P_P - P_N)"),
+    ParameterSpec("external_leak_conductance", "kg/s/Pa", 0.0, 0.0, 1e-6, "effect",
+                  "laminar leak of each chamber to atmosphere, q = G (P - P_atm)"),
+    ParameterSpec("valve_time_constant", "s", 0.0, 0.0, 1.0, "effect",
+                  "first-order spool lag"),
+    ParameterSpec("valve_natural_frequency", "rad/s", 600.0, 1.0, 1e5, "effect",
+                  "second-order spool natural frequency"),
+    ParameterSpec("valve_damping_ratio", "", 0.7, 0.05, 5.0, "effect",
+                  "second-order spool damping"),
+    ParameterSpec("wall_heat_capacity", "J/K/m^2", 4000.0, 1.0, 1e7, "effect",
+                  "heat capacity of the wall per unit exchange area"),
+    ParameterSpec("wall_outer_coefficient", "W/m^2/K", 10.0, 0.0, 1e5, "effect",
+                  "wall-to-ambient heat-transfer coefficient"),
+    ParameterSpec("forced_convection_gain", "W/m^2/K/(kg/s)", 0.0, 0.0, 1e7, "effect",
+                  "increase of lambda per unit inflow during filling"),
+    ParameterSpec("supply_line_resistance", "Pa/(kg/s)", 0.0, 0.0, 1e10, "effect",
+                  "supply pressure drop per unit supply flow"),
+    ParameterSpec("seal_friction_coefficient", "N/Pa", 0.0, 0.0, 1e-2, "effect",
+                  "growth of Coulomb and static friction with P_P + P_N - 2 P_atm"),
+    # --- numerics (end stops) ---
+    ParameterSpec("stop_stiffness", "N/m", 1.0e6, 1.0, 1e10, "numerics", "end-stop stiffness"),
+    ParameterSpec("stop_damping", "N s/m", 6.0e3, 0.0, 1e8, "numerics", "end-stop damping"),
+)  # fmt: skip
+
+PARAMETER_NAMES: tuple[str, ...] = tuple(s.name for s in PARAMETER_SPECS)
+NP = len(PARAMETER_SPECS)
+P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
+SPECS = {s.name: s for s in PARAMETER_SPECS}
+
+# Integer indices for the kernels (numba treats module globals as constants).
+P_BORE = P["bore"]
+P_ROD = P["rod"]
+P_STROKE = P["stroke"]
+P_V0P = P["dead_volume_P"]
+P_V0N = P["dead_volume_N"]
+P_MASS = P["moving_mass"]
+P_PS = P["supply_pressure"]
+P_PE = P["exhaust_pressure"]
+P_TAMB = P["ambient_temperature"]
+P_TW = P["wall_temperature"]
+P_LEN = P["characteristic_length"]
+P_ANGLE = P["mounting_angle"]
+P_FEXT = P["external_force"]
+P_CS = P["valve_C_supply"]
+P_BS = P["valve_b_supply"]
+P_CE = P["valve_C_exhaust"]
+P_BE = P["valve_b_exhaust"]
+P_VM = P["valve_m"]
+P_XLAM = P["valve_x_laminar"]
+P_OVERLAP = P["valve_overlap"]
+P_USAT = P["valve_u_sat"]
+P_CLEAK = P["valve_C_leak"]
+P_LEAKW = P["valve_leak_width"]
+P_K = P["k"]
+P_LAMBDA = P["lambda"]
+P_XI = P["xi"]
+P_BETA = P["beta"]
+P_FS = P["friction_static"]
+P_FC = P["friction_coulomb"]
+P_FV = P["friction_viscous"]
+P_VST = P["stribeck_velocity"]
+P_GCL = P["chamber_leak_conductance"]
+P_GEL = P["external_leak_conductance"]
+P_VTAU = P["valve_time_constant"]
+P_VWN = P["valve_natural_frequency"]
+P_VZETA = P["valve_damping_ratio"]
+P_WCAP = P["wall_heat_capacity"]
+P_WOUT = P["wall_outer_coefficient"]
+P_FCG = P["forced_convection_gain"]
+P_RSUP = P["supply_line_resistance"]
+P_SEAL = P["seal_friction_coefficient"]
+P_KSTOP = P["stop_stiffness"]
+P_CSTOP = P["stop_damping"]

@@ -1,0 +1,27 @@
+"""Simulation layer: experiments, compiled fixed-step simulator, reference solver."""
+
+from pneumafit.simulation.experiment import PD, Experiment
+from pneumafit.simulation.simulator import (
+    DEFAULT_STEP,
+    AirConsumption,
+    PackedExperiments,
+    Simulation,
+    Simulator,
+    choose_step,
+)
+from pneumafit.simulation.tableau import DP5, HEUN, RK4, Tableau
+
+__all__ = [
+    "DEFAULT_STEP",
+    "DP5",
+    "HEUN",
+    "PD",
+    "RK4",
+    "AirConsumption",
+    "Experiment",
+    "PackedExperiments",
+    "Simulation",
+    "Simulator",
+    "Tableau",
+    "choose_step",
+]

@@ -1,0 +1,1346 @@
+"""Read and validate campaign folders (campaign format version 1).
+
+:func:`inspect_campaign` reads everything it can and collects every problem;
+:func:`validate_campaign` returns the problems; :func:`read_campaign` returns a
+:class:`~pneumafit.campaign.model.Campaign` or raises
+:class:`~pneumafit.campaign.errors.CampaignError`. Files are read once, as
+bytes, and never opened for writing; the SHA-256 of those bytes is kept.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import math
+import os
+import re
+import tomllib
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from pneumafit.campaign.errors import CampaignError, PneumafitInputError, Problem
+from pneumafit.campaign.model import (
+    CHAMBERS,
+    CHANNELS,
+    INPUT_CHANNELS,
+    KINDS,
+    ROLES,
+    Campaign,
+    PDController,
+    Recording,
+    Rig,
+    required_channels,
+)
+from pneumafit.campaign.units import (
+    QUANTITY_KINDS,
+    UnitError,
+    parse_unit,
+    parse_value,
+    split_header,
+    to_si,
+)
+
+__all__ = [
+    "CAMPAIGN_FILE",
+    "CAMPAIGN_FORMAT",
+    "CSV_SUFFIXES",
+    "FORMAT_VERSION",
+    "HDF5_SUFFIXES",
+    "RECORDING_FORMAT",
+    "CampaignReport",
+    "inspect_campaign",
+    "read_campaign",
+    "read_recording",
+    "summarize",
+    "validate_campaign",
+]
+
+CAMPAIGN_FILE = "campaign.toml"
+CAMPAIGN_FORMAT = "pneumatic-campaign"
+RECORDING_FORMAT = "pneumatic-recording"
+FORMAT_VERSION = 1
+HDF5_SUFFIXES = (".h5", ".hdf5")
+CSV_SUFFIXES = (".csv",)
+
+_MISSING = "nothing (the key is missing)"
+_TOP_KEYS = ("format", "version", "name", "description", "rig", "recording")
+_RECORDING_KEYS = (
+    "file",
+    "kind",
+    "role",
+    "chamber",
+    "piston_position",
+    "controller",
+    "columns",
+    "description",
+)
+#: rig key -> (quantity kind, required). exhaust_pressure first: it is the
+#: reference of gauge values.
+_RIG_FIELDS: dict[str, tuple[str, bool]] = {
+    "exhaust_pressure": ("pressure", True),
+    "bore": ("length", True),
+    "rod": ("length", True),
+    "stroke": ("length", True),
+    "dead_volume_P": ("volume", True),
+    "dead_volume_N": ("volume", True),
+    "moving_mass": ("mass", True),
+    "supply_pressure": ("pressure", True),
+    "ambient_temperature": ("temperature", True),
+    "wall_temperature": ("temperature", False),
+    "characteristic_length": ("length", False),
+    "mounting_angle": ("angle", False),
+    "external_force": ("force", False),
+}
+#: controller key -> (quantity kind, required)
+_CONTROLLER_FIELDS: dict[str, tuple[str, bool]] = {
+    "kp": ("proportional gain", True),
+    "kd": ("derivative gain", True),
+    "u0": ("voltage", False),
+    "umax": ("voltage", True),
+}
+_BLOCKED_KINDS = ("charge", "discharge")
+_CHAMBER_KINDS = ("charge", "discharge", "flow")
+_OPEN_KINDS = ("step", "free")
+
+
+def _shown(value: object) -> str:
+    """A TOML value as the user wrote it, for messages."""
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "an array"
+    return repr(value)
+
+
+def _unexpected(exc: BaseException) -> str:
+    return f"an error while reading it: {type(exc).__name__}: {exc}"
+
+
+class _Problems:
+    """Collects problems in the order they are found."""
+
+    def __init__(self) -> None:
+        self.items: list[Problem] = []
+
+    def error(self, file: str, key: str, expected: str, found: str) -> None:
+        self.items.append(Problem(file, key, expected, found, "error"))
+
+    def warning(self, file: str, key: str, expected: str, found: str) -> None:
+        self.items.append(Problem(file, key, expected, found, "warning"))
+
+    @property
+    def n_errors(self) -> int:
+        return sum(p.is_error for p in self.items)
+
+
+@dataclass
+class CampaignReport:
+    """Everything :func:`inspect_campaign` found.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The campaign folder.
+    campaign : Campaign or None
+        The campaign, or None when there is any error.
+    recordings : list of Recording
+        Recordings that could be read, even if the campaign is invalid.
+    problems : list of Problem
+        Errors and warnings, in the order found.
+    """
+
+    path: Path
+    campaign: Campaign | None = None
+    recordings: list[Recording] = field(default_factory=list)
+    problems: list[Problem] = field(default_factory=list)
+
+    @property
+    def errors(self) -> list[Problem]:
+        """Problems of severity ``"error"``."""
+        return [p for p in self.problems if p.is_error]
+
+    @property
+    def warnings(self) -> list[Problem]:
+        """Problems of severity ``"warning"``."""
+        return [p for p in self.problems if not p.is_error]
+
+    @property
+    def ok(self) -> bool:
+        """True when there is no error (warnings allowed)."""
+        return not self.errors
+
+
+@dataclass
+class _Meta:
+    """One ``[[recording]]`` entry of campaign.toml, values already in SI."""
+
+    index: int
+    file: str
+    kind: str | None
+    role: str = "fit"
+    chamber: str | None = None
+    piston_position: float | None = None
+    controller: PDController | None = None
+    controller_declared: bool = False
+    columns: dict[str, str] = field(default_factory=dict)
+    description: str | None = None
+    columns_file: str = CAMPAIGN_FILE
+    columns_key: str = "columns"
+    exhaust_reported: bool = False  # campaign.toml already reports a bad exhaust pressure
+
+
+@dataclass
+class _Column:
+    """One channel as found in a file, values in the file's unit."""
+
+    channel: str
+    unit_text: str
+    values: NDArray[np.float64]
+    mask: NDArray[np.bool_]
+    gauge_attr: bool = False
+    ok: bool = True
+
+
+@dataclass
+class _Raw:
+    """A recording file as found, before unit conversion and checks."""
+
+    time: NDArray[np.float64]
+    time_unit: str
+    columns: list[_Column]
+    present: set[str]
+    locate: Callable[[int], str]
+    description: str | None = None
+    kind: str | None = None
+
+
+# --------------------------------------------------------------------------- campaign.toml
+
+
+def _read_toml(path: Path, probs: _Problems, sha: dict[str, str]) -> dict[str, Any] | None:
+    name = path.name
+    data = path.read_bytes()
+    sha[name] = hashlib.sha256(data).hexdigest()
+    if not data.strip():
+        probs.error(
+            name,
+            "",
+            "a campaign description (format, version, [rig], [[recording]])",
+            "an empty file" if data else "an empty file (0 bytes)",
+        )
+        return None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        probs.error(name, f"byte {exc.start}", "UTF-8 text", "a byte that is not UTF-8")
+        return None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        line = re.search(r"line (\d+)", message)
+        probs.error(name, f"line {line[1]}" if line else "", "valid TOML", message)
+        return None
+
+
+def _parse_header(
+    doc: dict[str, Any], default_name: str, file: str, probs: _Problems
+) -> tuple[str, str]:
+    for key in doc:
+        if key not in _TOP_KEYS:
+            probs.warning(
+                file,
+                key,
+                f"a top-level key ({', '.join(_TOP_KEYS)})",
+                f'unknown key "{key}" (ignored)',
+            )
+    fmt = doc.get("format")
+    if fmt != CAMPAIGN_FORMAT:
+        probs.error(
+            file, "format", f'"{CAMPAIGN_FORMAT}"', _MISSING if fmt is None else _shown(fmt)
+        )
+    version = doc.get("version")
+    if version is None:
+        probs.error(file, "version", str(FORMAT_VERSION), _MISSING)
+    elif type(version) is not int or version != FORMAT_VERSION:
+        newer = type(version) is int and version > FORMAT_VERSION
+        probs.error(
+            file,
+            "version",
+            str(FORMAT_VERSION),
+            _shown(version) + (" (a newer format than this pneumafit reads)" if newer else ""),
+        )
+    texts = []
+    for key, default in (("name", default_name), ("description", "")):
+        value = doc.get(key, default)
+        if not isinstance(value, str):
+            probs.error(file, key, "a string", _shown(value))
+            value = default
+        texts.append(value)
+    return texts[0], texts[1]
+
+
+def _parse_rig(
+    doc: dict[str, Any], file: str, probs: _Problems
+) -> tuple[Rig | None, dict[str, float]]:
+    """The rig (None on any error) and the rig values that are valid on their own.
+
+    The valid values (e.g. a good exhaust pressure next to a bad bore) still
+    serve to check the recordings, so that one mistake is reported once.
+    """
+    table = doc.get("rig")
+    if not isinstance(table, dict):
+        found = "no [rig] table" if table is None else _shown(table)
+        probs.error(file, "rig", "a [rig] table (bore, rod, stroke, ...)", found)
+        return None, {}
+    for key in table:
+        if key not in _RIG_FIELDS:
+            probs.warning(
+                file,
+                f"rig.{key}",
+                f"a rig key ({', '.join(_RIG_FIELDS)})",
+                f'unknown key "{key}" (ignored)',
+            )
+    n_errors = probs.n_errors
+    values: dict[str, float] = {}
+    for key, (kind, required) in _RIG_FIELDS.items():
+        if key not in table:
+            if required:
+                probs.error(file, f"rig.{key}", QUANTITY_KINDS[kind].expected, _MISSING)
+            continue
+        try:
+            values[key] = parse_value(
+                table[key], kind, exhaust_pressure=values.get("exhaust_pressure")
+            )
+        except UnitError as exc:
+            expected = exc.expected
+            if key == "exhaust_pressure" and "gauge" in exc.found:
+                expected = "an absolute pressure (it is the reference of gauge values)"
+            probs.error(file, f"rig.{key}", expected, exc.found)
+
+    rejected: set[str] = set()
+
+    def bad(key: str, expected: str) -> None:
+        rejected.add(key)
+        unit = QUANTITY_KINDS[_RIG_FIELDS[key][0]].si_unit
+        probs.error(
+            file, f"rig.{key}", expected, f"{_shown(table[key])} (= {values[key]:.6g} {unit})"
+        )
+
+    for key in (
+        "bore",
+        "stroke",
+        "dead_volume_P",
+        "dead_volume_N",
+        "moving_mass",
+        "characteristic_length",
+        "exhaust_pressure",
+    ):
+        if key in values and not values[key] > 0.0:
+            bad(key, f"a positive {_RIG_FIELDS[key][0]}")
+    for key in ("ambient_temperature", "wall_temperature"):
+        if key in values and not values[key] > 0.0:
+            bad(key, "a temperature above absolute zero")
+    if "rod" in values:
+        if values["rod"] < 0.0:
+            bad("rod", "a rod diameter >= 0")
+        elif values.get("bore", math.inf) <= values["rod"]:
+            bad("rod", f"a rod diameter smaller than the bore ({values['bore']:.6g} m)")
+    exhaust = values.get("exhaust_pressure", 0.0)
+    if "supply_pressure" in values and values["supply_pressure"] <= exhaust:
+        bad("supply_pressure", f"a pressure above the exhaust pressure ({exhaust:.6g} Pa)")
+    valid = {key: value for key, value in values.items() if key not in rejected}
+    if probs.n_errors > n_errors:
+        return None, valid
+    values.setdefault("wall_temperature", values["ambient_temperature"])
+    values.setdefault("characteristic_length", values["bore"])
+    return Rig(**values), valid
+
+
+def _parse_controller(table: object, key: str, file: str, probs: _Problems) -> PDController | None:
+    if not isinstance(table, dict):
+        probs.error(file, key, "a [recording.controller] table", _shown(table))
+        return None
+    allowed = ("law", *_CONTROLLER_FIELDS)
+    for name in table:
+        if name not in allowed:
+            probs.warning(
+                file,
+                f"{key}.{name}",
+                f"a controller key ({', '.join(allowed)})",
+                f'unknown key "{name}" (ignored)',
+            )
+    n_errors = probs.n_errors
+    law = table.get("law", "pd")
+    if law != "pd":
+        probs.error(file, f"{key}.law", '"pd" (the only law of format version 1)', _shown(law))
+    gains: dict[str, float] = {"u0": 0.0}
+    for name, (kind, required) in _CONTROLLER_FIELDS.items():
+        if name not in table:
+            if required:
+                probs.error(file, f"{key}.{name}", QUANTITY_KINDS[kind].expected, _MISSING)
+            continue
+        try:
+            gains[name] = parse_value(table[name], kind)
+        except UnitError as exc:
+            probs.error(file, f"{key}.{name}", exc.expected, exc.found)
+    if "umax" in gains and not gains["umax"] > 0.0:
+        probs.error(
+            file,
+            f"{key}.umax",
+            "a positive saturation voltage",
+            f"{_shown(table['umax'])} (= {gains['umax']:.6g} V)",
+        )
+    if probs.n_errors > n_errors:
+        return None
+    return PDController(kp=gains["kp"], kd=gains["kd"], u0=gains["u0"], umax=gains["umax"], law=law)
+
+
+def _parse_entry(
+    entry: object,
+    index: int,
+    stroke: float | None,
+    seen: dict[str, int],
+    file: str,
+    probs: _Problems,
+) -> _Meta | None:
+    prefix = f"recording[{index}]"
+    if not isinstance(entry, dict):
+        probs.error(file, prefix, "a [[recording]] table", _shown(entry))
+        return None
+    for key in entry:
+        if key not in _RECORDING_KEYS:
+            probs.warning(
+                file,
+                f"{prefix}.{key}",
+                f"a recording key ({', '.join(_RECORDING_KEYS)})",
+                f'unknown key "{key}" (ignored)',
+            )
+
+    name = entry.get("file")
+    if not isinstance(name, str) or not name.strip():
+        probs.error(
+            file,
+            f"{prefix}.file",
+            'a file name (e.g. "step_1.csv")',
+            _MISSING if name is None else _shown(name),
+        )
+        name = None
+    elif name in seen:
+        probs.error(
+            file,
+            f"{prefix}.file",
+            "each file listed once",
+            f'"{name}" already listed as recording[{seen[name]}]',
+        )
+        name = None
+    else:
+        seen[name] = index
+
+    kind = entry.get("kind")
+    if kind not in KINDS:
+        probs.error(
+            file,
+            f"{prefix}.kind",
+            f"one of {', '.join(KINDS)}",
+            _MISSING if kind is None else _shown(kind),
+        )
+        kind = None
+
+    role = entry.get("role", "fit")
+    if role not in ROLES:
+        probs.error(file, f"{prefix}.role", "fit or validate", _shown(role))
+        role = "fit"
+
+    chamber = entry.get("chamber")
+    if chamber is not None and chamber not in CHAMBERS:
+        probs.error(
+            file, f"{prefix}.chamber", '"P" (full-bore side) or "N" (rod side)', _shown(chamber)
+        )
+        chamber = None
+    elif chamber is None and kind in _CHAMBER_KINDS:
+        probs.error(
+            file, f"{prefix}.chamber", f'"P" or "N" (a {kind} test names its chamber)', _MISSING
+        )
+    elif chamber is not None and kind in _OPEN_KINDS:
+        probs.warning(
+            file,
+            f"{prefix}.chamber",
+            f"no chamber on a {kind} test",
+            f'chamber = "{chamber}" (ignored)',
+        )
+        chamber = None
+
+    position = None
+    if "piston_position" in entry:
+        raw = entry["piston_position"]
+        try:
+            position = parse_value(raw, "length")
+        except UnitError as exc:
+            probs.error(file, f"{prefix}.piston_position", exc.expected, exc.found)
+        if position is not None and kind in _OPEN_KINDS:
+            probs.warning(
+                file,
+                f"{prefix}.piston_position",
+                f"no piston position on a {kind} test",
+                f"{_shown(raw)} (ignored)",
+            )
+            position = None
+        if position is not None and not 0.0 <= position <= (stroke or math.inf):
+            limit = f"the stroke ({stroke:.6g} m)" if stroke is not None else "the stroke"
+            probs.error(
+                file,
+                f"{prefix}.piston_position",
+                f"a position between 0 and {limit}",
+                f"{_shown(raw)} (= {position:.6g} m)",
+            )
+            position = None
+    elif kind in _BLOCKED_KINDS:
+        probs.error(
+            file,
+            f"{prefix}.piston_position",
+            f'a length (e.g. "250 mm"): a {kind} test is made with the piston blocked',
+            _MISSING,
+        )
+
+    controller = None
+    declared = "controller" in entry
+    if declared:
+        controller = _parse_controller(entry["controller"], f"{prefix}.controller", file, probs)
+        if kind is not None and kind != "step":
+            probs.warning(
+                file,
+                f"{prefix}.controller",
+                "a controller on step tests only",
+                f"a controller on a {kind} test (ignored)",
+            )
+            controller, declared = None, False
+
+    columns: dict[str, str] = {}
+    table = entry.get("columns", {})
+    if not isinstance(table, dict):
+        probs.error(file, f"{prefix}.columns", 'a table "file column" = "channel"', _shown(table))
+        table = {}
+    for column, target in table.items():
+        if isinstance(target, str) and target in CHANNELS:
+            columns[column] = target
+        else:
+            probs.error(
+                file,
+                f'{prefix}.columns."{column}"',
+                f"a channel name ({', '.join(CHANNELS)})",
+                _shown(target),
+            )
+
+    description = entry.get("description")
+    if description is not None and not isinstance(description, str):
+        probs.error(file, f"{prefix}.description", "a string", _shown(description))
+        description = None
+
+    if name is None:
+        return None
+    return _Meta(
+        index=index,
+        file=name,
+        kind=kind,
+        role=role,
+        chamber=chamber,
+        piston_position=position,
+        controller=controller,
+        controller_declared=declared,
+        columns=columns,
+        description=description,
+        columns_file=file,
+        columns_key=f"{prefix}.columns",
+    )
+
+
+def _parse_entries(
+    doc: dict[str, Any], stroke: float | None, file: str, probs: _Problems
+) -> list[_Meta]:
+    entries = doc.get("recording")
+    if isinstance(entries, dict):
+        probs.error(
+            file,
+            "recording",
+            "[[recording]] tables (double brackets)",
+            "a single [recording] table",
+        )
+        entries = [entries]
+    if not isinstance(entries, list) or not entries:
+        probs.error(
+            file,
+            "recording",
+            "at least one [[recording]] table",
+            "none" if not entries else _shown(entries),
+        )
+        return []
+    seen: dict[str, int] = {}
+    metas = [_parse_entry(e, i, stroke, seen, file, probs) for i, e in enumerate(entries, start=1)]
+    return [m for m in metas if m is not None]
+
+
+# --------------------------------------------------------------------------- recording files
+
+
+def _apply_columns(
+    meta: _Meta, names: dict[int, tuple[str, str]], time_names: Iterable[str], probs: _Problems
+) -> dict[int, str]:
+    """Channel name of each column after the ``[recording.columns]`` mapping.
+
+    ``names`` maps a column index to (full header or dataset name, name part);
+    a mapping key may be either.
+    """
+    channel = {j: name for j, (_, name) in names.items()}
+    for key, target in meta.columns.items():
+        wanted = key.strip()
+        hits = [j for j, (full, name) in names.items() if wanted in (full, name)]
+        where = f'{meta.columns_key}."{key}"'
+        if hits:
+            channel.update(dict.fromkeys(hits, target))
+        elif wanted in time_names:
+            probs.error(
+                meta.columns_file,
+                where,
+                "a channel column (the first column is time)",
+                f'the time column "{key}"',
+            )
+        else:
+            listed = ", ".join(f'"{full}"' for full, _ in names.values()) or "none"
+            probs.error(
+                meta.columns_file,
+                where,
+                f"a column of {meta.file}",
+                f'no column "{key}" (columns: {listed})',
+            )
+    return channel
+
+
+def _drop_duplicates(
+    channel: dict[int, str], label: dict[int, str], file: str, probs: _Problems
+) -> dict[int, str]:
+    """Report channels given by more than one column; keep only the first column."""
+    first: dict[str, int] = {}
+    for j, name in channel.items():
+        if name in first:
+            probs.error(
+                file,
+                name,
+                "each channel in one column only",
+                f'"{label[first[name]]}" and "{label[j]}" both give {name}',
+            )
+        else:
+            first[name] = j
+    return {j: name for name, j in first.items()}
+
+
+def _csv_numbers(
+    series: pd.Series, file: str, key: str, locate: Callable[[int], str], probs: _Problems
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
+    """Numbers of one CSV column; an empty cell is NaN and mask False."""
+    if series.dtype.kind in "fiu":
+        values = series.to_numpy(dtype=np.float64)
+        return values, ~np.isnan(values)
+    values = np.full(len(series), np.nan)
+    bad: list[tuple[int, str]] = []
+    for i, cell in enumerate(series.tolist()):
+        if pd.isna(cell) or not str(cell).strip():
+            continue
+        try:
+            values[i] = float(cell)
+        except (TypeError, ValueError):
+            bad.append((i, str(cell)))
+            continue
+        if not math.isfinite(values[i]):
+            bad.append((i, str(cell)))
+    if bad:
+        i, cell = bad[0]
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        try:
+            float(cell)
+            expected, what = "finite numbers", " (a NaN or infinite sample)"
+        except ValueError:
+            expected, what = "numbers", ""
+        probs.error(file, key, expected, f'"{cell}" at {locate(i)}{what}{more}')
+        return None
+    return values, ~np.isnan(values)
+
+
+def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
+    file = meta.file
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        probs.error(file, f"byte {exc.start}", "UTF-8 text", "a byte that is not UTF-8")
+        return None
+    lines = text.splitlines()
+    comments: list[str] = []
+    skip = 0
+    for line in lines:
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#"):
+            break
+        comment = stripped[1:]
+        comments.append(comment[1:] if comment.startswith(" ") else comment)
+        skip += 1
+    if skip == len(lines):
+        probs.error(file, "", 'a header row "time [s],name [unit],..."', "no header row")
+        return None
+    cells = [c.strip() for c in next(csv.reader([lines[skip]]))]
+    body = "\n".join(lines[skip:])
+    try:
+        frame = pd.read_csv(
+            io.StringIO(body),
+            header=None,
+            skiprows=1,
+            names=list(range(len(cells))),
+            index_col=False,
+            keep_default_na=False,
+            na_values=[""],
+            skip_blank_lines=True,
+        )
+    except pd.errors.EmptyDataError:
+        frame = pd.DataFrame(columns=list(range(len(cells))))
+    except pd.errors.ParserError as exc:
+        fields = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
+        if fields:
+            probs.error(
+                file,
+                f"line {int(fields[2]) + skip}",
+                f"{fields[1]} comma-separated fields, like the header",
+                f"{fields[3]} fields",
+            )
+        else:
+            probs.error(file, "", "comma-separated rows", str(exc).strip())
+        return None
+    if frame.empty:
+        probs.error(file, "", "at least 2 samples", "a header and no data rows")
+        return None
+    row_lines = [skip + 1 + j for j, line in enumerate(lines[skip:]) if j > 0 and line.strip()]
+
+    def locate(i: int) -> str:
+        return f"line {row_lines[i]}" if len(row_lines) == len(frame) else f"data row {i + 1}"
+
+    time_header = split_header(cells[0])
+    if time_header is None:
+        probs.error(
+            file,
+            cells[0] or "column 1",
+            'a time header "name [unit]" (e.g. "time [s]")',
+            f'"{cells[0]}"',
+        )
+        return None
+    time = _csv_numbers(frame[0], file, "time", locate, probs)
+    if time is None:
+        return None
+    if not time[1].all():
+        i = int(np.flatnonzero(~time[1])[0])
+        probs.error(file, "time", "a time in every row", f"an empty cell at {locate(i)}")
+        return None
+
+    headers: dict[int, tuple[str, str]] = {}
+    for j, cell in enumerate(cells[1:], start=1):
+        parsed = split_header(cell)
+        if parsed is None:
+            probs.error(
+                file,
+                cell or f"column {j + 1}",
+                'a header cell "name [unit]" (e.g. "p_P [bar]")',
+                f'"{cell}"' if cell else "an empty header cell",
+            )
+        else:
+            headers[j] = parsed
+    names = {j: (cells[j], name) for j, (name, _) in headers.items()}
+    channel = _apply_columns(meta, names, (cells[0], time_header[0]), probs)
+    present = set(channel.values())
+    channel = _drop_duplicates(channel, cells, file, probs)
+
+    columns = []
+    for j, name in channel.items():
+        numbers = _csv_numbers(frame[j], file, name, locate, probs)
+        if numbers is None:
+            columns.append(_Column(name, headers[j][1], np.empty(0), np.empty(0, bool), ok=False))
+        else:
+            columns.append(_Column(name, headers[j][1], numbers[0], numbers[1]))
+    description = "\n".join(comments).strip("\n") or None
+    return _Raw(time[0], time_header[1], columns, present, locate, description)
+
+
+def _attr_text(value: object) -> str | None:
+    """An HDF5 attribute as text (h5py gives str, bytes or numpy values)."""
+    if value is None:
+        return None
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(-1)[0]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    return str(value)
+
+
+def _is_version(text: str | None) -> bool:
+    """True for version 1 written as an integer or a float (MATLAB writes doubles)."""
+    try:
+        return text is not None and float(text) == FORMAT_VERSION
+    except ValueError:
+        return False
+
+
+def _h5_vector(obj: object, file: str, key: str, probs: _Problems) -> NDArray[np.float64] | None:
+    if not isinstance(obj, h5py.Dataset) or obj.ndim != 1 or obj.dtype.kind not in "fiu":
+        found = (
+            f"a dataset of shape {obj.shape} and type {obj.dtype}"
+            if isinstance(obj, h5py.Dataset)
+            else "a group"
+        )
+        probs.error(file, key, "a 1-D dataset of numbers", found)
+        return None
+    return np.asarray(obj[()], dtype=np.float64)
+
+
+def _read_hdf5(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
+    file = meta.file
+    try:
+        handle = h5py.File(io.BytesIO(data), "r")
+    except OSError as exc:
+        probs.error(file, "", "an HDF5 file", f"a file HDF5 cannot open ({exc})")
+        return None
+    with handle:
+        fmt = _attr_text(handle.attrs.get("format"))
+        if fmt != RECORDING_FORMAT:
+            probs.error(
+                file,
+                "format",
+                f'root attribute format = "{RECORDING_FORMAT}"',
+                "no format attribute" if fmt is None else f'"{fmt}"',
+            )
+        version = _attr_text(handle.attrs.get("version"))
+        if not _is_version(version):
+            probs.error(
+                file,
+                "version",
+                f"root attribute version = {FORMAT_VERSION}",
+                "no version attribute" if version is None else version,
+            )
+        time = None
+        time_unit = ""
+        time_obj = handle.get("time")
+        if time_obj is None:
+            probs.error(file, "/time", "a /time dataset of sample times", "no /time dataset")
+        else:
+            time = _h5_vector(time_obj, file, "/time", probs)
+            unit = _attr_text(time_obj.attrs.get("unit"))
+            if unit is None:
+                probs.error(file, "/time", 'a "unit" attribute (e.g. "s" or "ms")', "none")
+                time = None
+            time_unit = unit or ""
+        group = handle.get("channels")
+        if not isinstance(group, h5py.Group):
+            probs.error(
+                file,
+                "/channels",
+                "a /channels group with one dataset per channel",
+                "no /channels group" if group is None else "a dataset",
+            )
+            group = None
+        if time is None or group is None:
+            return None
+
+        dataset_names = list(group.keys())
+        names = {j: (name, name) for j, name in enumerate(dataset_names)}
+        channel = _apply_columns(meta, names, ("time", "/time"), probs)
+        present = set(channel.values())
+        channel = _drop_duplicates(channel, dataset_names, file, probs)
+        columns = []
+        for j, name in channel.items():
+            obj = group[dataset_names[j]]
+            values = _h5_vector(obj, file, name, probs)
+            unit = _attr_text(obj.attrs.get("unit"))
+            reference = _attr_text(obj.attrs.get("reference"))
+            ok = values is not None
+            if unit is None:
+                probs.error(file, name, 'a "unit" attribute (e.g. "bar")', "none")
+                ok = False
+            if reference not in (None, "gauge", "absolute"):
+                probs.error(
+                    file,
+                    name,
+                    'attribute reference = "gauge" or "absolute"',
+                    f'reference = "{reference}"',
+                )
+                ok = False
+            array = values if values is not None else np.empty(0)
+            columns.append(
+                _Column(
+                    name,
+                    unit or "",
+                    array,
+                    np.ones(array.size, bool),
+                    gauge_attr=reference == "gauge",
+                    ok=ok,
+                )
+            )
+
+        kind = _attr_text(handle.attrs.get("kind"))
+        description = _attr_text(handle.attrs.get("description"))
+
+    def locate(i: int) -> str:
+        return f"sample {i} (time = {time[i]:.9g} {time_unit})"
+
+    return _Raw(time, time_unit, columns, present, locate, description, kind)
+
+
+def _needed_why(meta: _Meta) -> str:
+    why = f"needed by a {meta.kind} test"
+    if meta.chamber is not None:
+        why += f" of chamber {meta.chamber}"
+    if meta.kind == "step":
+        why += " with a controller" if meta.controller_declared else " without a controller"
+    return why
+
+
+def _build_recording(
+    raw: _Raw, meta: _Meta, path: Path, exhaust: float | None, probs: _Problems
+) -> Recording | None:
+    """Convert a raw recording to SI, check it, and derive u_N = -u_P where allowed."""
+    file = meta.file
+    if raw.kind is not None and meta.kind is not None and raw.kind != meta.kind:
+        probs.error(file, "kind", f'kind "{meta.kind}", as in campaign.toml', f'"{raw.kind}"')
+    try:
+        time_unit = parse_unit(raw.time_unit, "time")
+    except UnitError as exc:
+        probs.error(file, "time", exc.expected, exc.found)
+        return None
+    t_file = raw.time
+    if t_file.size < 2:
+        probs.error(
+            file,
+            "time",
+            "at least 2 samples",
+            "no samples" if t_file.size == 0 else "a single sample",
+        )
+        return None
+    bad = np.flatnonzero(~np.isfinite(t_file))
+    if bad.size:
+        probs.error(
+            file, "time", "finite times", f"{float(t_file[bad[0]])!r} at {raw.locate(int(bad[0]))}"
+        )
+        return None
+    back = np.flatnonzero(np.diff(t_file) <= 0.0)
+    if back.size:
+        i = int(back[0])
+        probs.error(
+            file,
+            "time",
+            "strictly increasing times",
+            f"{float(t_file[i])!r} {raw.time_unit} then {float(t_file[i + 1])!r} {raw.time_unit} "
+            f"at {raw.locate(i + 1)}",
+        )
+        return None
+    time = to_si(t_file, time_unit)
+
+    channels: dict[str, NDArray[np.float64]] = {}
+    masks: dict[str, NDArray[np.bool_]] = {}
+    units: dict[str, str] = {}
+    unknown: list[str] = []
+    for col in raw.columns:
+        name = col.channel
+        kind = CHANNELS.get(name)
+        if kind is None:
+            unknown.append(name)
+            probs.warning(
+                file,
+                name,
+                f"a channel of the format ({', '.join(CHANNELS)})",
+                f'unknown channel "{name}" (kept, not used)',
+            )
+        if not col.ok:
+            continue
+        if col.values.size != time.size:
+            probs.error(
+                file, name, f"{time.size} samples, like /time", f"{col.values.size} samples"
+            )
+            continue
+        try:
+            unit = parse_unit(col.unit_text, kind)
+            if col.gauge_attr and not unit.gauge:
+                unit = parse_unit(f"{col.unit_text} (gauge)", kind)
+        except UnitError as exc:
+            probs.error(file, name, exc.expected, exc.found)
+            continue
+        real = col.mask
+        bad = np.flatnonzero(real & ~np.isfinite(col.values))
+        if bad.size:
+            more = f" (and {bad.size - 1} more)" if bad.size > 1 else ""
+            probs.error(
+                file,
+                name,
+                "finite numbers",
+                f"{float(col.values[bad[0]])!r} at {raw.locate(int(bad[0]))}{more}",
+            )
+            continue
+        n_real = int(real.sum())
+        if n_real == 0:
+            probs.error(file, name, "at least one sample", "only empty cells")
+            continue
+        if name in INPUT_CHANNELS and n_real < 2:
+            probs.error(
+                file,
+                name,
+                "at least 2 samples (an input is interpolated between samples)",
+                "a single sample",
+            )
+            continue
+        if unit.gauge and exhaust is None and meta.exhaust_reported:
+            continue  # converting needs the exhaust pressure, already reported as wrong
+        try:
+            si = to_si(col.values[real], unit, exhaust_pressure=exhaust)
+        except UnitError as exc:
+            probs.error(file, name, exc.expected, exc.found)
+            continue
+        low = int(np.argmin(si))
+        where = raw.locate(int(np.flatnonzero(real)[low]))
+        shown = f"{float(col.values[real][low])!r} {unit.text}"
+        if QUANTITY_KINDS["pressure"].matches(unit.unit) and si[low] < 0.0:
+            probs.error(
+                file,
+                name,
+                "a pressure >= 0 Pa absolute",
+                f"{shown} (= {si[low]:.6g} Pa absolute) at {where}",
+            )
+            continue
+        if QUANTITY_KINDS["temperature"].matches(unit.unit) and si[low] <= 0.0:
+            probs.error(
+                file,
+                name,
+                "a temperature above absolute zero",
+                f"{shown} (= {si[low]:.6g} K) at {where}",
+            )
+            continue
+        channels[name] = si if real.all() else np.interp(time, time[real], si)
+        masks[name] = real.copy()
+        units[name] = unit.text
+
+    derived: list[str] = []
+    if meta.kind in _OPEN_KINDS:
+        for source, target in (("u_P", "u_N"), ("u_N", "u_P")):
+            if source in channels and target not in raw.present:
+                channels[target] = -channels[source]
+                masks[target] = masks[source].copy()
+                units[target] = units[source]
+                derived.append(target)
+    if meta.kind is not None:
+        available = raw.present | set(derived)
+        listed = ", ".join(sorted(raw.present)) or "none"
+        for name in required_channels(meta.kind, meta.chamber, meta.controller_declared):
+            if name not in available:
+                probs.error(
+                    file,
+                    name,
+                    f"a channel {name} ({_needed_why(meta)})",
+                    f"no such channel (channels: {listed})",
+                )
+    return Recording(
+        file=meta.file,
+        path=path,
+        kind=meta.kind or "",
+        role=meta.role,
+        chamber=meta.chamber,
+        piston_position=meta.piston_position,
+        controller=meta.controller,
+        time=time,
+        channels=channels,
+        mask=masks,
+        units=units,
+        unknown_channels=unknown,
+        description=meta.description if meta.description is not None else raw.description or "",
+        time_unit=time_unit.text,
+        columns=dict(meta.columns),
+        derived=derived,
+    )
+
+
+def _load_recording(
+    folder: Path, meta: _Meta, exhaust: float | None, probs: _Problems, sha: dict[str, str]
+) -> Recording | None:
+    path = folder / meta.file
+    if not path.is_file():
+        probs.error(
+            meta.file,
+            "",
+            f"the recording listed as recording[{meta.index}] in {meta.columns_file}",
+            f"no such file in {folder}",
+        )
+        return None
+    suffix = path.suffix.lower()
+    if suffix not in HDF5_SUFFIXES + CSV_SUFFIXES:
+        probs.error(
+            meta.file, "", "an HDF5 (.h5, .hdf5) or CSV (.csv) recording", f'a "{path.suffix}" file'
+        )
+        return None
+    data = path.read_bytes()
+    sha[meta.file] = hashlib.sha256(data).hexdigest()
+    if not data:
+        probs.error(meta.file, "", "a recording with samples", "an empty file (0 bytes)")
+        return None
+    reader = _read_hdf5 if suffix in HDF5_SUFFIXES else _read_csv
+    raw = reader(data, meta, probs)
+    if raw is None:
+        return None
+    return _build_recording(raw, meta, path, exhaust, probs)
+
+
+# --------------------------------------------------------------------------- public API
+
+
+def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
+    """Read a campaign, collecting every problem instead of stopping at the first.
+
+    Never raises on bad input: an unexpected exception while reading a file
+    becomes a problem naming that file. Files are only read.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Campaign folder, or its campaign.toml.
+
+    Returns
+    -------
+    CampaignReport
+        The campaign (None when there is any error), the recordings that could
+        be read and every problem found.
+    """
+    probs = _Problems()
+    given = Path(path)
+    folder, toml_path = (given.parent, given) if given.is_file() else (given, given / CAMPAIGN_FILE)
+    report = CampaignReport(path=folder, problems=probs.items)
+    if not folder.is_dir():
+        probs.error(
+            str(given), "", f"a campaign folder containing {CAMPAIGN_FILE}", "no such folder"
+        )
+        return report
+    if not toml_path.is_file():
+        probs.error(CAMPAIGN_FILE, "", f"a {CAMPAIGN_FILE} in {folder}", "no such file")
+        return report
+    toml_name = toml_path.name
+    sha: dict[str, str] = {}
+    try:
+        doc = _read_toml(toml_path, probs, sha)
+        if doc is None:
+            return report
+        name, description = _parse_header(doc, folder.name, toml_name, probs)
+        rig, rig_values = _parse_rig(doc, toml_name, probs)
+        metas = _parse_entries(doc, rig_values.get("stroke"), toml_name, probs)
+    except Exception as exc:  # the boundary: report, never raise
+        probs.error(toml_name, "", "a readable campaign description", _unexpected(exc))
+        return report
+    exhaust = rig_values.get("exhaust_pressure")
+    for meta in metas:
+        meta.columns_file = toml_name
+        meta.exhaust_reported = exhaust is None
+        try:
+            recording = _load_recording(folder, meta, exhaust, probs, sha)
+        except Exception as exc:  # the boundary: report, never raise
+            probs.error(meta.file, "", "a readable recording", _unexpected(exc))
+            continue
+        if recording is not None:
+            report.recordings.append(recording)
+    if rig is not None and probs.n_errors == 0:
+        report.campaign = Campaign(
+            path=folder,
+            name=name,
+            description=description,
+            rig=rig,
+            recordings=list(report.recordings),
+            sha256=sha,
+            warnings=report.warnings,
+        )
+    return report
+
+
+def validate_campaign(path: str | os.PathLike[str]) -> list[Problem]:
+    """Every problem (errors and warnings) of a campaign; empty when all is well.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Campaign folder, or its campaign.toml.
+
+    Returns
+    -------
+    list of Problem
+        In the order found: campaign.toml first, then each recording.
+    """
+    return inspect_campaign(path).problems
+
+
+def read_campaign(path: str | os.PathLike[str]) -> Campaign:
+    """Read and validate a campaign.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Campaign folder, or its campaign.toml.
+
+    Returns
+    -------
+    Campaign
+        All values in SI units; warnings in ``Campaign.warnings``.
+
+    Raises
+    ------
+    CampaignError
+        The campaign has at least one error; ``.problems`` lists them all.
+    """
+    report = inspect_campaign(path)
+    if report.campaign is None:
+        raise CampaignError(str(path), report.problems)
+    return report.campaign
+
+
+def read_recording(
+    path: str | os.PathLike[str],
+    *,
+    kind: str,
+    role: str = "fit",
+    chamber: str | None = None,
+    piston_position: float | None = None,
+    controller: PDController | None = None,
+    columns: dict[str, str] | None = None,
+    exhaust_pressure: float | None = None,
+    description: str | None = None,
+) -> Recording:
+    """Read one recording file outside a campaign.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ``.h5``/``.hdf5`` or ``.csv`` recording.
+    kind : str
+        ``charge``, ``discharge``, ``flow``, ``step`` or ``free``; decides the
+        channels required.
+    role : str, default "fit"
+        ``fit`` or ``validate``.
+    chamber : str, optional
+        ``"P"`` or ``"N"``, for charge, discharge and flow tests.
+    piston_position : float, optional
+        Blocked piston position [m].
+    controller : PDController, optional
+        Controller of a step test.
+    columns : dict of str to str, optional
+        File column -> channel name, as ``[recording.columns]``.
+    exhaust_pressure : float, optional
+        Exhaust pressure [Pa absolute]; needed only for gauge channels.
+    description : str, optional
+        Overrides the file's own description.
+
+    Returns
+    -------
+    Recording
+        Values in SI units.
+
+    Raises
+    ------
+    PneumafitInputError
+        Bad arguments.
+    CampaignError
+        The file has at least one error.
+    """
+    if kind not in KINDS:
+        raise PneumafitInputError(f"kind: expected one of {', '.join(KINDS)}, found {kind!r}")
+    if role not in ROLES:
+        raise PneumafitInputError(f"role: expected fit or validate, found {role!r}")
+    if chamber is not None and chamber not in CHAMBERS:
+        raise PneumafitInputError(f"chamber: expected P or N, found {chamber!r}")
+    given = Path(path)
+    unknown_targets = sorted(set((columns or {}).values()) - set(CHANNELS))
+    if unknown_targets:
+        raise PneumafitInputError(
+            f"columns: expected channel names ({', '.join(CHANNELS)}), found {unknown_targets}"
+        )
+    meta = _Meta(
+        index=1,
+        file=given.name,
+        kind=kind,
+        role=role,
+        chamber=chamber,
+        piston_position=piston_position,
+        controller=controller,
+        controller_declared=controller is not None,
+        columns=dict(columns or {}),
+        description=description,
+        columns_file=given.name,
+        columns_key="columns",
+    )
+    probs = _Problems()
+    try:
+        recording = _load_recording(given.parent, meta, exhaust_pressure, probs, {})
+    except Exception as exc:  # the boundary: report in the user's words
+        probs.error(given.name, "", "a readable recording", _unexpected(exc))
+        recording = None
+    if recording is None or probs.n_errors:
+        raise CampaignError(str(given), probs.items)
+    return recording
+
+
+def _setup_text(recording: Recording) -> str:
+    if recording.kind in _CHAMBER_KINDS:
+        text = f"chamber {recording.chamber}"
+        if recording.piston_position is not None:
+            text += f", piston at {recording.piston_position * 1e3:.6g} mm"
+        return text
+    if recording.controller is not None:
+        return str(recording.controller)
+    return "open loop (measured commands)"
+
+
+def summarize(campaign: Campaign | Iterable[Recording]) -> list[dict[str, Any]]:
+    """One row per recording, for the ``check`` command.
+
+    Parameters
+    ----------
+    campaign : Campaign or iterable of Recording
+        A campaign, or recordings (e.g. ``CampaignReport.recordings``).
+
+    Returns
+    -------
+    list of dict
+        Keys: ``file``, ``kind``, ``role``, ``duration_s`` [s],
+        ``sample_rate_Hz`` [Hz], ``n_samples``, ``channels`` (channel -> unit
+        as found in the file, or ``"derived: -u_P"``), ``setup`` (chamber and
+        piston position, or controller, or ``"open loop"``).
+    """
+    recordings = campaign.recordings if isinstance(campaign, Campaign) else list(campaign)
+    rows = []
+    for rec in recordings:
+        channels = {}
+        for name in rec.channels:
+            if name in rec.derived:
+                source = "u_N" if name == "u_P" else "u_P"
+                channels[name] = f"derived: -{source}"
+            else:
+                channels[name] = rec.units.get(name, "")
+        rows.append(
+            {
+                "file": rec.file,
+                "kind": rec.kind,
+                "role": rec.role,
+                "duration_s": rec.duration,
+                "sample_rate_Hz": rec.sample_rate,
+                "n_samples": rec.n_samples,
+                "channels": channels,
+                "setup": _setup_text(rec),
+            }
+        )
+    return rows

@@ -31,7 +31,10 @@ import math
 
 from numba import njit
 
-FASTMATH = {"contract", "arcp", "afn", "reassoc", "nsz"}
+#: LLVM fast-math flags for the compiled physics. Only fused multiply-add:
+#: "afn" (approximate sqrt/exp) made two uses of one flow differ by 1e-5 and
+#: broke mass conservation; "nnan"/"ninf" would remove the failure checks.
+FASTMATH = {"contract"}
 
 
 @njit(cache=True, fastmath=FASTMATH)

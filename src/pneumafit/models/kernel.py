@@ -104,11 +104,11 @@ from pneumafit.models.layout import (
     X_V,
     X_Y,
 )
-from pneumafit.physics.air import G0, GAMMA, R_AIR, T_REF, conductivity, viscosity
+from pneumafit.physics.air import G0, GAMMA, R_AIR, RHO0, T_REF, conductivity, viscosity
 from pneumafit.physics.friction import FASTMATH, end_stop_force, next_mode, sliding_friction
 from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
-from pneumafit.physics.valve import valve_flows
+from pneumafit.physics.valve import laminar_tail, valve_flows
 
 # Derived per-simulation constants (array d), computed once by derive()
 D_SP, D_SN, D_FEXT, D_MU, D_KAIR, D_LAMC, D_GRC, D_RTA = 0, 1, 2, 3, 4, 5, 6, 7
@@ -502,6 +502,79 @@ def rk_step(
         xn[i] = x[i] + h * acc
 
 
+@njit(cache=True, fastmath=_FM)
+def _event_function(kind: int, xe: np.ndarray, aux: np.ndarray) -> float:
+    # kind 0: sliding piston comes to rest (g = v); kind 1: stuck piston breaks
+    # away (g = |F_d| - F_s)
+    if kind == 0:
+        return xe[X_V]
+    return abs(aux[A_FD]) - aux[A_FS]
+
+
+@njit(cache=True, fastmath=_FM)
+def locate_event(
+    kind: int,
+    g0: float,
+    g1: float,
+    x: np.ndarray,
+    mode: int,
+    inp: np.ndarray,
+    k: int,
+    w0: float,
+    dw: float,
+    h: float,
+    p: np.ndarray,
+    d: np.ndarray,
+    cfg: np.ndarray,
+    ctrl: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    kk: np.ndarray,
+    xs: np.ndarray,
+    dx: np.ndarray,
+    aux: np.ndarray,
+    xe: np.ndarray,
+) -> float:
+    """Fraction theta of the step at which the event function g changes sign.
+
+    Illinois (modified regula falsi) iterations on g(theta), each g evaluated
+    at the state reached by a Runge-Kutta sub-step of size theta h from the
+    step's start in the current mode, so the event time is as accurate as the
+    method (linear interpolation of g alone made the global error second
+    order). On return xe holds the state at theta and aux the values there.
+    """
+    lo, g_lo = 0.0, g0
+    hi, g_hi = 1.0, g1
+    side = 0
+    theta = g_lo / (g_lo - g_hi) if g_lo != g_hi else 0.0
+    for _ in range(8):
+        rk_step(x, mode, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl, tab_a, tab_b,
+                tab_c, kk, xs, dx, aux, xe)  # fmt: skip
+        u_p, u_n = commands(xe, inp, k, w0 + theta * dw, cfg, ctrl)
+        rhs(xe, mode, u_p, u_n, p, d, cfg, dx, aux)
+        g = _event_function(kind, xe, aux)
+        tol = 1e-12 if kind == 0 else 1e-9  # m/s, N
+        if abs(g) <= tol or hi - lo < 1e-12:
+            return theta
+        if (g > 0.0) == (g_lo > 0.0):
+            lo, g_lo = theta, g
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+        else:
+            hi, g_hi = theta, g
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+        theta = lo - g_lo * (hi - lo) / (g_hi - g_lo)
+    rk_step(x, mode, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
+            kk, xs, dx, aux, xe)  # fmt: skip
+    u_p, u_n = commands(xe, inp, k, w0 + theta * dw, cfg, ctrl)
+    rhs(xe, mode, u_p, u_n, p, d, cfg, dx, aux)
+    return theta
+
+
 @njit(cache=True)
 def _record(out: np.ndarray, row: int, x: np.ndarray, aux: np.ndarray, ch_sel: np.ndarray) -> None:
     # layout.CHANNELS: y v p_N p_P T_N T_P | qm_N qm_P u_N u_P lambda_N lambda_P | m_supply
@@ -553,11 +626,11 @@ def _fail(out: np.ndarray, row: int, code: int) -> int:
 def integrate(
     t: np.ndarray,
     inp: np.ndarray,
+    nsub: np.ndarray,
     x0: np.ndarray,
     p: np.ndarray,
     cfg: np.ndarray,
     ctrl: np.ndarray,
-    h_max: float,
     tab_a: np.ndarray,
     tab_b: np.ndarray,
     tab_c: np.ndarray,
@@ -566,12 +639,14 @@ def integrate(
 ) -> int:
     """Integrate one recording with a fixed-step explicit Runge-Kutta method.
 
-    Each sample interval [t_k, t_k+1] is split into ceil((t_k+1 - t_k) / h_max)
-    equal steps, so uneven sampling is followed exactly and the step never
-    depends on the parameters (a smooth log-likelihood; physics notes).
+    Each sample interval [t_k, t_k+1] is split into nsub[k] equal steps
+    (chosen from the largest step and from how fast the inputs change, see
+    :func:`pneumafit.simulation.simulator.substeps`), so uneven sampling is
+    followed exactly and the steps never depend on the parameters (a smooth
+    log-likelihood; physics notes).
     Friction mode changes (stick, slip, reversal) are located inside the step
-    by linear interpolation of v (slip -> rest) or of |F_d| - F_s (rest ->
-    slip); the step is then split at the event.
+    by :func:`locate_event` (v = 0 while sliding, |F_d| = F_s while stuck) and
+    the step is split there.
 
     Parameters
     ----------
@@ -584,8 +659,8 @@ def integrate(
         exhaust pressure.
     p, cfg, ctrl : ndarray
         Parameters, configuration, controller gains [kp, kd, u0, umax].
-    h_max : float
-        Largest step (s).
+    nsub : ndarray of int64, shape (n,)
+        Number of steps in each sample interval (last entry unused).
     tab_a, tab_b, tab_c : ndarray
         Butcher tableau of the explicit method (s stages, last node c = 1).
     ch_sel : ndarray of int64
@@ -658,9 +733,7 @@ def integrate(
 
     for k in range(n - 1):
         dt = t[k + 1] - t[k]
-        n_sub = math.ceil(dt / h_max - 1e-9)
-        if n_sub < 1:
-            n_sub = 1
+        n_sub = nsub[k] if nsub[k] > 0 else 1
         h = dt / n_sub
         dw = 1.0 / n_sub
         for j in range(n_sub):
@@ -671,39 +744,42 @@ def integrate(
                 pass
             elif mode != 0:
                 if xn[X_V] * mode <= 0.0:
-                    # the piston came to rest within the step: locate v = 0
-                    v0 = x[X_V]
-                    theta = v0 / (v0 - xn[X_V]) if v0 != xn[X_V] else 0.0
-                    if theta > 0.0:
-                        rk_step(x, mode, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl,
-                                tab_a, tab_b, tab_c, kk, xs, dx, aux, xe)  # fmt: skip
+                    # the sliding piston came to rest within the step
+                    theta = 0.0
+                    if x[X_V] != 0.0:
+                        theta = locate_event(0, x[X_V], xn[X_V], x, mode, inp, k, w0, dw, h, p,
+                                             d, cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx,
+                                             aux, xe)  # fmt: skip
                     else:
                         for i in range(NX):
                             xe[i] = x[i]
+                        u_p, u_n = commands(xe, inp, k, w0, cfg, ctrl)
+                        rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
                     xe[X_V] = 0.0
-                    we = w0 + theta * dw
-                    u_p, u_n = commands(xe, inp, k, we, cfg, ctrl)
-                    rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
                     mode = next_mode(aux[A_FD], aux[A_FS])
+                    we = w0 + theta * dw
                     rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
                             cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
                     if mode != 0 and xn[X_V] * mode < 0.0:
                         xn[X_V] = 0.0  # reversal overshoot; the next step re-decides
-            else:
-                fd_end = aux[A_FD]
-                fs_end = aux[A_FS]
-                if abs(fd_end) > fs_end:
-                    # break-away within the step: locate |F_d| = F_s
+            elif abs(aux[A_FD]) > aux[A_FS]:
+                # the last stage says the stuck piston breaks away: confirm at the
+                # step's end, then locate |F_d| = F_s within the step
+                u_p, u_n = commands(xn, inp, k, w0 + dw, cfg, ctrl)
+                rhs(xn, 0, u_p, u_n, p, d, cfg, dx, aux)
+                e1 = abs(aux[A_FD]) - aux[A_FS]
+                if e1 > 0.0:
+                    direction = 1 if aux[A_FD] > 0.0 else -1
                     e0 = abs(fd_prev) - fs_prev
-                    e1 = abs(fd_end) - fs_end
-                    theta = e0 / (e0 - e1) if e0 < 0.0 else 0.0
-                    if theta > 0.0:
-                        rk_step(x, 0, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl,
-                                tab_a, tab_b, tab_c, kk, xs, dx, aux, xe)  # fmt: skip
+                    theta = 0.0
+                    if e0 < 0.0:
+                        theta = locate_event(1, e0, e1, x, 0, inp, k, w0, dw, h, p, d, cfg,
+                                             ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux,
+                                             xe)  # fmt: skip
                     else:
                         for i in range(NX):
                             xe[i] = x[i]
-                    mode = 1 if fd_end > 0.0 else -1
+                    mode = direction
                     we = w0 + theta * dw
                     rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
                             cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
@@ -733,8 +809,8 @@ def _run_job(
     x0s: np.ndarray,
     t_all: np.ndarray,
     inp_all: np.ndarray,
+    nsub_all: np.ndarray,
     offsets: np.ndarray,
-    h_max: np.ndarray,
     tab_a: np.ndarray,
     tab_b: np.ndarray,
     tab_c: np.ndarray,
@@ -748,7 +824,7 @@ def _run_job(
     a = offsets[r]
     b = offsets[r + 1]
     status[i, r] = integrate(
-        t_all[a:b], inp_all[a:b], x0s[r], params[i], cfgs[r], ctrls[r], h_max[r],
+        t_all[a:b], inp_all[a:b], nsub_all[a:b], x0s[r], params[i], cfgs[r], ctrls[r],
         tab_a, tab_b, tab_c, ch_sel, out[i, a:b],
     )  # fmt: skip
 
@@ -761,8 +837,8 @@ def integrate_many(
     x0s: np.ndarray,
     t_all: np.ndarray,
     inp_all: np.ndarray,
+    nsub_all: np.ndarray,
     offsets: np.ndarray,
-    h_max: np.ndarray,
     tab_a: np.ndarray,
     tab_b: np.ndarray,
     tab_c: np.ndarray,
@@ -778,13 +854,13 @@ def integrate_many(
     Parameters
     ----------
     params : ndarray, shape (n_sets, NP)
-    cfgs, ctrls, x0s, h_max : per-recording configuration, controller, initial
-        state and largest step.
+    cfgs, ctrls, x0s : per-recording configuration, controller and initial state.
+    nsub_all : steps per sample interval, rows as ``t_all``.
     out : ndarray, shape (n_sets, n_rows, n_channels)
     status : ndarray of int64, shape (n_sets, n_recordings)
     """
     for job in prange(params.shape[0] * cfgs.shape[0]):
-        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, offsets, h_max,
+        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets,
                  tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
 
 
@@ -796,8 +872,8 @@ def integrate_many_serial(
     x0s: np.ndarray,
     t_all: np.ndarray,
     inp_all: np.ndarray,
+    nsub_all: np.ndarray,
     offsets: np.ndarray,
-    h_max: np.ndarray,
     tab_a: np.ndarray,
     tab_b: np.ndarray,
     tab_c: np.ndarray,
@@ -807,7 +883,7 @@ def integrate_many_serial(
 ) -> None:
     """Serial twin of :func:`integrate_many` (no thread start-up for one job)."""
     for job in range(params.shape[0] * cfgs.shape[0]):
-        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, offsets, h_max,
+        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets,
                  tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
 
 
@@ -829,11 +905,11 @@ def stiffness_bound(p: np.ndarray, y_min: float, y_max: float) -> float:
     _, v_n = chamber_volumes(y_max, p[P_STROKE], s_p, s_n, p[P_V0P], p[P_V0N])
     v_min = min(v_p, v_n)
     c_max = max(p[P_CS], p[P_CE]) + 2.0 * p[P_CLEAK]
-    b = min(p[P_BS], p[P_BE])
-    s = (p[P_XLAM] - b) / (1.0 - b)
-    phi_l = (1.0 - s * s) ** p[P_VM]
+    slope_s, _ = laminar_tail(p[P_BS], p[P_VM], p[P_XLAM])
+    slope_e, _ = laminar_tail(p[P_BE], p[P_VM], p[P_XLAM])
     t_hot = GAMMA * p[P_TAMB]  # hottest gas of a filling from supply at T_amb
-    dq_dp = c_max * 1.185 * math.sqrt(T_REF / p[P_TAMB]) * phi_l / (1.0 - p[P_XLAM])
+    # largest |d phi / dx| is the tail's slope at x = 1, a
+    dq_dp = c_max * RHO0 * math.sqrt(T_REF / p[P_TAMB]) * max(slope_s, slope_e)
     rate_p = GAMMA * R_AIR * t_hot * dq_dp / v_min
     m = p[P_MASS]
     rate_stop = p[P_CSTOP] / m + math.sqrt(p[P_KSTOP] / m)

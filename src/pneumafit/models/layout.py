@@ -109,10 +109,10 @@ PARAMETER_SPECS: tuple[ParameterSpec, ...] = (
     ParameterSpec("mounting_angle", "rad", 0.0, -1.5708, 1.5708, "rig", "rod axis above horizon"),
     ParameterSpec("external_force", "N", 0.0, -_INF, _INF, "rig", "external load opposing +y"),
     # --- servo-distributor (ISO 6358, both valves alike) ---
-    ParameterSpec("valve_C_supply", "m^3/s/Pa", 1.0e-8, 1e-12, 1e-5, "valve",
+    ParameterSpec("valve_C_supply", "m^3/s/Pa", 1.0e-8, 0.0, 1e-5, "valve",
                   "sonic conductance of the supply path, full opening"),
     ParameterSpec("valve_b_supply", "", 0.30, 0.01, 0.95, "valve", "critical ratio, supply path"),
-    ParameterSpec("valve_C_exhaust", "m^3/s/Pa", 1.1e-8, 1e-12, 1e-5, "valve",
+    ParameterSpec("valve_C_exhaust", "m^3/s/Pa", 1.1e-8, 0.0, 1e-5, "valve",
                   "sonic conductance of the exhaust path, full opening"),
     ParameterSpec("valve_b_exhaust", "", 0.30, 0.01, 0.95, "valve", "critical ratio, exhaust"),
     ParameterSpec("valve_m", "", 0.5, 0.2, 1.0, "valve", "subsonic index m"),
@@ -126,11 +126,11 @@ PARAMETER_SPECS: tuple[ParameterSpec, ...] = (
                   "command scale of the leakage shift between paths"),
     # --- heat transfer ---
     ParameterSpec("k", "", 1.2, 1.0, 1.4, "heat", "polytropic index"),
-    ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e4, "heat", "constant heat-transfer coeff."),
+    ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e6, "heat", "constant heat-transfer coeff."),
     ParameterSpec("xi", "", 0.4, 1e-4, 100.0, "heat", "Nusselt coefficient xi (Pr folded in)"),
     ParameterSpec("beta", "", 0.27, 0.05, 0.6, "heat", "Grashof exponent beta"),
     # --- friction ---
-    ParameterSpec("friction_static", "N", 50.0, 0.0, 1e5, "friction", "static friction F_s"),
+    ParameterSpec("friction_static", "N", 50.0, 0.0, 1e10, "friction", "static friction F_s"),
     ParameterSpec("friction_coulomb", "N", 30.0, 0.0, 1e5, "friction", "Coulomb friction F_c"),
     ParameterSpec("friction_viscous", "N s/m", 60.0, 0.0, 1e6, "friction", "viscous coeff. b"),
     ParameterSpec("stribeck_velocity", "m/s", 0.02, 1e-4, 10.0, "friction", "Stribeck velocity"),

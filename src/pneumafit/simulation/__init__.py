@@ -8,6 +8,7 @@ from pneumafit.simulation.simulator import (
     Simulation,
     Simulator,
     choose_step,
+    substeps,
 )
 from pneumafit.simulation.tableau import DP5, HEUN, RK4, Tableau
 
@@ -24,4 +25,5 @@ __all__ = [
     "Simulator",
     "Tableau",
     "choose_step",
+    "substeps",
 ]

@@ -1,0 +1,200 @@
+"""Reference solutions with scipy's ``solve_ivp`` on the same hybrid model.
+
+Independent of the compiled integrator: scipy chooses the steps (Radau,
+LSODA, ...) and locates the friction mode changes with its own event finder
+(v = 0 while sliding; |F_d| = F_s while stuck), restarting the solver at each
+event and at each kink of the inputs (sample times where the interpolated
+commands or reference change slope).
+
+The right-hand side is the model's own :func:`pneumafit.models.kernel.rhs`,
+either compiled or as pure Python (:func:`pure_python`, used by the
+benchmark's "straightforward" reference).
+"""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Callable, Mapping
+
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+from scipy.integrate import solve_ivp
+
+from pneumafit.models import kernel
+from pneumafit.models.layout import C_VALVE_ORDER, NX, X_UN, X_UP, X_V
+from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.simulation.experiment import Experiment
+
+
+def pure_python(fn: Callable) -> Callable:
+    """Pure-Python twin of a numba-compiled function and everything it calls.
+
+    Rebuilds ``fn.py_func`` with globals in which every compiled function is
+    replaced, recursively, by its own pure-Python twin. Same source, run by
+    the CPython interpreter.
+    """
+    memo: dict[int, Callable] = {}
+
+    def convert(f: Callable) -> Callable:
+        if id(f) in memo:
+            return memo[id(f)]
+        py = f.py_func
+        env: dict = dict(py.__globals__)
+        new = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
+        memo[id(f)] = new
+        for name in py.__code__.co_names:
+            value = env.get(name)
+            if isinstance(value, Dispatcher):
+                env[name] = convert(value)
+        return new
+
+    return convert(fn)
+
+
+def _breakpoints(t: np.ndarray, inp: np.ndarray) -> np.ndarray:
+    """Sample indices where a linearly interpolated input changes slope."""
+    slope = np.diff(inp, axis=0) / np.diff(t)[:, None]
+    kink = np.any(np.abs(np.diff(slope, axis=0)) > 1e-12 * (1 + np.abs(slope[1:])), axis=1)
+    idx = np.flatnonzero(kink) + 1
+    return np.unique(np.concatenate([[0], idx, [t.size - 1]]))
+
+
+def solve_reference(
+    model: str | ModelStructure,
+    parameters: Mapping[str, float] | np.ndarray,
+    experiment: Experiment,
+    *,
+    method: str = "Radau",
+    rtol: float = 1e-10,
+    atol: float | None = None,
+    compiled: bool = True,
+) -> dict[str, np.ndarray]:
+    """Solve an experiment with ``scipy.integrate.solve_ivp``.
+
+    Parameters
+    ----------
+    model : str or ModelStructure
+    parameters : mapping or ndarray
+        Named SI values or a full parameter vector.
+    experiment : Experiment
+        A blocked or moving-piston test (flow tests have no dynamics).
+    method : str
+        Any ``solve_ivp`` method; ``"Radau"`` by default.
+    rtol : float
+        Relative tolerance.
+    atol : float, optional
+        Absolute tolerance per state; default ``rtol`` times a typical scale
+        of each state (0.5 m, 1 m/s, 1e5 Pa, 300 K, 1e-3 kg, 10 V).
+    compiled : bool
+        Use the compiled right-hand side (True) or its pure-Python twin.
+
+    Returns
+    -------
+    dict of str to ndarray
+        y, v, p_N, p_P, T_N, T_P, m_supply, m_exhaust at the sample times.
+    """
+    structure = get_structure(model)
+    p = (
+        np.asarray(parameters, dtype=float)
+        if isinstance(parameters, np.ndarray)
+        else parameter_vector(parameters)
+    )
+    if experiment.kind == "flow":
+        raise ValueError("solve_reference: flow tests are static; nothing to integrate")
+    rhs = kernel.rhs if compiled else pure_python(kernel.rhs)
+    commands = kernel.commands if compiled else pure_python(kernel.commands)
+    cfg = structure.config(
+        blocked=experiment.blocked, chamber=experiment.chamber, closed_loop=experiment.closed_loop
+    )
+    ctrl = experiment.controller.as_array() if experiment.controller else np.zeros(4)
+    t = experiment.time
+    inp = experiment.inputs()
+    d = np.empty(kernel.ND)
+    kernel.derive(p, d)
+    x = np.empty(NX)
+    kernel._initial_state(experiment.initial_state(), p, cfg, x)
+    if cfg[C_VALVE_ORDER] > 0:  # valve dynamics: the spool starts at the first command
+        x[X_UP], x[X_UN] = commands(x, inp, 0, 0.0, cfg, ctrl)
+    dx = np.empty(NX)
+    aux = np.empty(kernel.NAUX)
+    if atol is None:
+        scale = np.array([0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3])
+        atol_v = rtol * scale
+    else:
+        atol_v = np.full(NX, atol)
+
+    def evaluate(tt: float, xx: np.ndarray, mode: int) -> None:
+        k = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 2))
+        w = (tt - t[k]) / (t[k + 1] - t[k])
+        u_p, u_n = commands(xx, inp, k, w, cfg, ctrl)
+        rhs(xx, mode, u_p, u_n, p, d, cfg, dx, aux)
+
+    blocked = experiment.blocked
+    evaluate(t[0], x, 0)
+    mode = 0
+    if not blocked:
+        if x[X_V] != 0.0:
+            mode = 1 if x[X_V] > 0 else -1
+        else:
+            mode = kernel.next_mode(aux[kernel.A_FD], aux[kernel.A_FS])
+
+    out = np.full((t.size, NX), np.nan)
+    out[0] = x
+    bps = _breakpoints(t, inp[:, :3])
+    t_now = t[0]
+    for seg in range(bps.size - 1):
+        t_end = t[bps[seg + 1]]
+        while t_now < t_end:
+            current = mode
+
+            def f(tt, xx, current=current):
+                evaluate(tt, xx, current)
+                return dx.copy()
+
+            events = []
+            if not blocked:
+                if current != 0:
+
+                    def stop(tt, xx):
+                        return xx[X_V]
+
+                    stop.terminal = True
+                    stop.direction = -current
+                    events.append(stop)
+                else:
+
+                    def slip(tt, xx):
+                        evaluate(tt, xx, 0)
+                        return abs(aux[kernel.A_FD]) - aux[kernel.A_FS]
+
+                    slip.terminal = True
+                    slip.direction = 1
+                    events.append(slip)
+            mask = (t > t_now) & (t <= t_end)
+            sol = solve_ivp(
+                f, (t_now, t_end), x, method=method, rtol=rtol, atol=atol_v,
+                events=events or None, dense_output=True,
+            )  # fmt: skip
+            if sol.status == -1:
+                raise RuntimeError(f"solve_reference: {method} failed: {sol.message}")
+            t_stop = sol.t[-1]
+            sel = mask & (t <= t_stop)
+            if np.any(sel):
+                out[sel] = sol.sol(t[sel]).T
+            x = sol.y[:, -1].copy()
+            if sol.status == 1:  # an event: decide the new mode at rest
+                x[X_V] = 0.0
+                evaluate(t_stop, x, 0)
+                if current == 0:
+                    mode = 1 if aux[kernel.A_FD] > 0 else -1
+                else:
+                    mode = kernel.next_mode(aux[kernel.A_FD], aux[kernel.A_FS])
+                if sel.any() and t[sel][-1] == t_stop:
+                    out[np.flatnonzero(sel)[-1], X_V] = 0.0
+            t_now = t_stop
+    names = ("y", "v", "p_N", "p_P", "T_N", "T_P", "m_supply", "m_exhaust")
+    return {name: out[:, i] for i, name in enumerate(names)}
+
+
+__all__ = ["pure_python", "solve_reference"]

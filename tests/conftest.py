@@ -1,0 +1,34 @@
+"""Shared fixtures for the physics and simulator tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pneumafit.simulation import PD, Experiment
+
+
+@pytest.fixture(scope="session")
+def step_experiment() -> Experiment:
+    """4-s closed-loop step test at 1 kHz around half stroke (the benchmark's)."""
+    t = np.arange(0.0, 4.0005, 1e-3)
+    y_ref = np.where(t < 0.2, 0.25, np.where(t < 2.0, 0.35, 0.25))
+    return Experiment(
+        time=t,
+        kind="step",
+        y_ref=y_ref,
+        controller=PD(kp=60.0, kd=4.0),
+        initial={"y": 0.25, "p_P": 4.0e5, "p_N": 4.0e5 * 0.8 / 0.6},
+        name="step",
+    )
+
+
+@pytest.fixture(scope="session")
+def charge_experiment() -> Experiment:
+    """Blocked-piston charge of chamber P: 0.3 s at 8 V, then 2.7 s relaxation."""
+    t = np.arange(0.0, 3.0005, 1e-3)
+    u = np.where((t > 0.1) & (t < 0.4), 8.0, 0.0)
+    return Experiment(
+        time=t, kind="charge", chamber="P", u_P=u, initial={"y": 0.2, "p_P": 1.013e5},
+        name="charge",
+    )  # fmt: skip

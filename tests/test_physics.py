@@ -1,0 +1,143 @@
+"""Physics layer: analytic limits and consistency of the pure laws."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pneumafit.models import kernel
+from pneumafit.models.parameters import parameter_vector
+from pneumafit.physics import air, friction, geometry, heat, valve
+
+
+def test_air_properties_match_tables():
+    # Incropera Table A.4, air at 300 K: mu = 1.846e-5 Pa s, k = 0.0263 W/m/K,
+    # Pr = 0.707. Sutherland's law is good to ~1 % there.
+    assert air.viscosity(300.0) == pytest.approx(1.846e-5, rel=0.01)
+    assert air.conductivity(300.0) == pytest.approx(0.0263, rel=0.02)
+    assert air.prandtl(300.0) == pytest.approx(0.707, rel=0.02)
+    assert air.CP - air.CV == pytest.approx(air.R_AIR)
+
+
+@pytest.mark.parametrize("b", [0.2, 0.3, 0.5])
+def test_flow_function_limits_and_continuity(b):
+    m, x_lam = 0.5, 0.995
+    assert valve.flow_function(0.0, b, m, x_lam) == 1.0
+    assert valve.flow_function(b, b, m, x_lam) == 1.0
+    assert valve.flow_function(1.0, b, m, x_lam) == 0.0
+    eps = 1e-9  # continuity at both regime boundaries (value jump << eps^0.5)
+    for x0 in (b, x_lam):
+        lo = valve.flow_function(x0 - eps, b, m, x_lam)
+        hi = valve.flow_function(x0 + eps, b, m, x_lam)
+        assert abs(lo - hi) < 1e-6
+    xs = np.linspace(0, 1, 2001)
+    phi = np.array([valve.flow_function(x, b, m, x_lam) for x in xs])
+    assert np.all(np.diff(phi) <= 1e-15)  # non-increasing
+    # slope continuous at x_lam (C1), by central differences on each side
+    h = 1e-7
+    left = (
+        valve.flow_function(x_lam - h, b, m, x_lam)
+        - valve.flow_function(x_lam - 2 * h, b, m, x_lam)
+    ) / h
+    right = (
+        valve.flow_function(x_lam + 2 * h, b, m, x_lam)
+        - valve.flow_function(x_lam + h, b, m, x_lam)
+    ) / h
+    assert left == pytest.approx(right, rel=1e-3)
+    # laminar near x = 1: linear in the pressure difference with slope a
+    a, _ = valve.laminar_tail(b, m, x_lam)
+    z = 1e-7
+    assert valve.flow_function(1 - z, b, m, x_lam) / z == pytest.approx(a, rel=1e-4)
+
+
+def test_opening_is_a_rounded_ramp():
+    eps = valve.OPENING_SMOOTHING
+    assert valve.opening(0.3 - 1.01 * eps, 0.3, 10.0) == 0.0  # exactly closed below the band
+    assert valve.opening(-10.0, 0.3, 10.0) == 0.0
+    assert valve.opening(5.3, 0.3, 10.0) == pytest.approx(5.0 / 9.7, rel=1e-14)
+    assert valve.opening(10.0, 0.3, 10.0) == 1.0
+    us = np.linspace(0.3 - 2 * eps, 0.3 + 2 * eps, 401)
+    op = np.array([valve.opening(u, 0.3, 10.0) for u in us])
+    slope = np.diff(op) / np.diff(us)
+    assert np.all(np.diff(op) >= 0)
+    # a corner would change the slope by its full value in one grid step; the
+    # rounded ramp changes it by at most 1.5 du / (2 eps) = 0.0075 of it here
+    assert np.abs(np.diff(slope)).max() < 0.05 * slope.max()
+
+
+def test_iso6358_choked_flow_value():
+    # q = C rho0 P_up sqrt(T_ref / T_up) when choked (ISO 6358 definition of C)
+    q = valve.restriction_flow(1e-8, 0.3, 0.5, 0.995, 7e5, 1.0, 1e5)
+    assert q == pytest.approx(1e-8 * air.RHO0 * 7e5, rel=1e-12)
+
+
+def test_path_flow_reverses_with_upstream_temperature():
+    rt1, rt2 = math.sqrt(air.T_REF / 300), math.sqrt(air.T_REF / 350)
+    q, t = valve.path_flow(1e-8, 0.3, 0.5, 0.995, 7e5, 300.0, rt1, 5e5, 350.0, rt2)
+    assert q > 0 and t == 300.0
+    q2, t2 = valve.path_flow(1e-8, 0.3, 0.5, 0.995, 5e5, 350.0, rt2, 7e5, 300.0, rt1)
+    assert q2 == pytest.approx(-q * rt1 / rt1) and t2 == 300.0
+
+
+def test_valve_centre_leakage_and_monotonicity():
+    p = dict(
+        p_supply=7e5, t_supply=293.15, p_exhaust=1.013e5, t_exhaust=293.15, rt_ambient=1.0,
+        c_supply=1e-8, b_supply=0.3, c_exhaust=1.1e-8, b_exhaust=0.3, m=0.5, x_lam=0.995,
+        overlap=0.3, u_sat=10.0, c_leak=2e-11, leak_width=0.3,
+    )  # fmt: skip
+    args = list(p.values())
+    q0, _, qs0 = valve.valve_flows(0.0, 4e5, 293.15, *args)
+    assert qs0 > 0  # centre leakage from supply
+    assert abs(q0) < 1e-5  # net flow at the centre is leakage only (<< 8e-3 kg/s full flow)
+    us = np.linspace(-10, 10, 401)
+    q = np.array([valve.valve_flows(u, 4e5, 293.15, *args)[0] for u in us])
+    assert np.all(np.diff(q) > 0)  # strictly increasing in the command
+    # an equilibrium pressure exists at u = 0 (eq. 10): net flow changes sign in P
+    pres = np.linspace(1.2e5, 6.9e5, 200)
+    qp = np.array([valve.valve_flows(0.0, x, 293.15, *args)[0] for x in pres])
+    assert qp[0] > 0 > qp[-1]
+
+
+def test_convection_law_zero_at_wall_temperature_and_scaled_form():
+    mu, k = air.viscosity(293.15), air.conductivity(293.15)
+    assert heat.convection_coefficient(0.4, 0.27, 5e5, 293.15, 293.15, 0.032, mu, k) == 0.0
+    lam = heat.convection_coefficient(0.4, 0.27, 5e5, 330.0, 293.15, 0.032, mu, k)
+    gr = heat.grashof(5e5, 330.0, 293.15, 0.032, mu)
+    assert lam == pytest.approx(0.4 * k / 0.032 * gr**0.27, rel=1e-12)
+    # heating and cooling by the same |T_w - T| at the same T^3 are symmetric in Gr
+    p = parameter_vector({"xi": 0.4, "beta": 0.27})
+    d = np.empty(kernel.ND)
+    kernel.derive(p, d)
+    scaled = heat.convection_coefficient_scaled(d[kernel.D_LAMC], d[kernel.D_GRC], 0.27, 5e5,
+                                                330.0, 293.15)  # fmt: skip
+    assert scaled == pytest.approx(lam, rel=1e-12)
+    assert 5.0 < lam < 40.0  # the paper's range (physics notes: 5..30 W/m^2/K)
+
+
+def test_exchange_areas_of_kernel_match_geometry():
+    p = parameter_vector({})
+    d = np.empty(kernel.ND)
+    kernel.derive(p, d)
+    for y in (0.0, 0.13, 0.5):
+        a_p, a_n = geometry.exchange_areas(y, 0.5, 0.032, 0.016, 2e-5, 2e-5)
+        assert d[kernel.D_A0P] + d[kernel.D_CAP] * y == pytest.approx(a_p, rel=1e-12)
+        assert d[kernel.D_A0N] + d[kernel.D_CAN] * (0.5 - y) == pytest.approx(a_n, rel=1e-12)
+    s_p, s_n = geometry.piston_areas(0.032, 0.016)
+    v_p, v_n = geometry.chamber_volumes(0.1, 0.5, s_p, s_n, 2e-5, 2e-5)
+    assert v_p == pytest.approx(2e-5 + s_p * 0.1) and v_n == pytest.approx(2e-5 + s_n * 0.4)
+
+
+def test_friction_switch_model():
+    # sliding friction tends to +-F_s at rest and to Coulomb + viscous when fast
+    assert friction.sliding_friction(0.0, 1, 50, 30, 60, 0.02) == pytest.approx(50)
+    assert friction.sliding_friction(0.0, -1, 50, 30, 60, 0.02) == pytest.approx(-50)
+    assert friction.sliding_friction(1.0, 1, 50, 30, 60, 0.02) == pytest.approx(30 + 60)
+    assert friction.next_mode(49.9, 50.0) == 0
+    assert friction.next_mode(50.1, 50.0) == 1
+    assert friction.next_mode(-50.1, 50.0) == -1
+    # end stops push back, never pull
+    assert friction.end_stop_force(-1e-3, -0.1, 0.5, 1e6, 6e3) > 0
+    assert friction.end_stop_force(-1e-3, 10.0, 0.5, 1e6, 6e3) == 0.0
+    assert friction.end_stop_force(0.25, 0.0, 0.5, 1e6, 6e3) == 0.0

@@ -83,7 +83,7 @@ def test_path_flow_reverses_with_upstream_temperature():
 
 def test_valve_centre_leakage_and_monotonicity():
     p = dict(
-        p_supply=7e5, t_supply=293.15, p_exhaust=1.013e5, t_exhaust=293.15, rt_ambient=1.0,
+        p_supply=7e5, t_ambient=293.15, p_exhaust=1.013e5,
         c_supply=1e-8, b_supply=0.3, c_exhaust=1.1e-8, b_exhaust=0.3, m=0.5, x_lam=0.995,
         overlap=0.3, u_sat=10.0, c_leak=2e-11, leak_width=0.3,
     )  # fmt: skip

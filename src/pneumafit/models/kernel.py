@@ -108,12 +108,13 @@ from pneumafit.physics.air import G0, GAMMA, R_AIR, RHO0, T_REF, conductivity, v
 from pneumafit.physics.friction import FASTMATH, end_stop_force, next_mode, sliding_friction
 from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
-from pneumafit.physics.valve import laminar_tail, valve_flows
+from pneumafit.physics.valve import NVC, VC_RTA, flows_core, laminar_tail, valve_constants
 
 # Derived per-simulation constants (array d), computed once by derive()
 D_SP, D_SN, D_FEXT, D_MU, D_KAIR, D_LAMC, D_GRC, D_RTA = 0, 1, 2, 3, 4, 5, 6, 7
-D_A0P, D_A0N, D_CAP, D_CAN = 8, 9, 10, 11
-ND = 12
+D_A0P, D_A0N, D_CAP, D_CAN, D_IPS, D_IM = 8, 9, 10, 11, 12, 13
+D_VC = 14  # valve constants (physics.valve.valve_constants) from here on
+ND = D_VC + NVC
 
 # Auxiliary outputs of one right-hand-side evaluation (array aux)
 A_QN, A_QP, A_UN, A_UP, A_LAMN, A_LAMP, A_FF, A_FD, A_FS = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -180,6 +181,12 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     d[D_CAP] = math.pi * bore
     d[D_A0N] = 2.0 * s_n + math.pi * (bore + rod) * p[P_V0N] / s_n
     d[D_CAN] = math.pi * (bore + rod)
+    d[D_IPS] = 1.0 / p[P_PS]
+    d[D_IM] = 1.0 / p[P_MASS]
+    valve_constants(
+        p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
+        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], d[D_VC:],
+    )  # fmt: skip
 
 
 @njit(cache=True, fastmath=_FM)
@@ -211,6 +218,7 @@ def chamber_rates(
     k_poly: float,
     t_0: float,
     pres: float,
+    inv_p: float,
     temp: float,
     vol: float,
     dvol: float,
@@ -223,17 +231,22 @@ def chamber_rates(
     if heat == 0:
         return k_poly * (R_AIR * t_0 * q_net - pres * dvol) * inv_v, 0.0
     dp = (GAMMA * R_AIR * h_net - GAMMA * pres * dvol + (GAMMA - 1.0) * q_wall) * inv_v
-    dt = temp * (dp / pres + (dvol - R_AIR * temp * q_net / pres) * inv_v)
+    dt = temp * (dp * inv_p + (dvol - R_AIR * temp * q_net * inv_p) * inv_v)
     return dp, dt
 
 
 @njit(cache=True, fastmath=_FM)
-def _valve(u: float, pres: float, temp: float, p_s: float, p: np.ndarray, d: np.ndarray):
-    return valve_flows(
-        u, pres, temp, p_s, p[P_TAMB], p[P_PE], p[P_TAMB], d[D_RTA],
-        p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM],
-        p[P_OVERLAP], p[P_USAT], p[P_CLEAK], p[P_LEAKW],
-    )  # fmt: skip
+def _valve(
+    u: float,
+    pres: float,
+    inv_p: float,
+    temp: float,
+    rt: float,
+    p_s: float,
+    inv_ps: float,
+    d: np.ndarray,
+):
+    return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:])
 
 
 @njit(cache=True, fastmath=_FM)
@@ -281,12 +294,21 @@ def rhs(
     t_p = x[X_TP]
     t_amb = p[P_TAMB]
     p_e = p[P_PE]
-    for i in range(NX):
-        dx[i] = 0.0
+    # every slot of dx is written below, except the optional states (zeroed
+    # here when their effect is off) and the piston states (zeroed when stuck
+    # or blocked)
+    if cfg[C_WALL_MASS] == 0 and cfg[C_VALVE_ORDER] == 0:
+        for i in range(8, NX):
+            dx[i] = 0.0
 
     # --- valve commands: static, or spool dynamics (effect valve_dynamics)
     order = cfg[C_VALVE_ORDER]
+    if order < 2:
+        dx[X_DUP] = 0.0
+        dx[X_DUN] = 0.0
     if order == 0:
+        dx[X_UP] = 0.0
+        dx[X_UN] = 0.0
         u_p = u_p_cmd
         u_n = u_n_cmd
     else:
@@ -313,9 +335,14 @@ def rhs(
     dv_n = -s_n * v
 
     # --- valve flows (ISO 6358), optional supply-line pressure drop
+    inv_pp = 1.0 / p_p
+    inv_pn = 1.0 / p_n
+    rt_p = math.sqrt(T_REF / t_p)
+    rt_n = math.sqrt(T_REF / t_n)
     p_s = p[P_PS]
-    q_p, h_p, qs_p = _valve(u_p, p_p, t_p, p_s, p, d)
-    q_n, h_n, qs_n = _valve(u_n, p_n, t_n, p_s, p, d)
+    inv_ps = d[D_IPS]
+    q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d)
+    q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d)
     if cfg[C_SUPPLY_DROP] == 1:
         # supply pressure behind a line resistance: one fixed-point iteration of
         # P_S' = P_S - R (q_sP + q_sN), flows first evaluated at P_S
@@ -325,8 +352,9 @@ def rhs(
         p_s = p_s - p[P_RSUP] * q_draw
         if p_s < p_e:
             p_s = p_e
-        q_p, h_p, qs_p = _valve(u_p, p_p, t_p, p_s, p, d)
-        q_n, h_n, qs_n = _valve(u_n, p_n, t_n, p_s, p, d)
+        inv_ps = 1.0 / p_s
+        q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d)
+        q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d)
     if blocked:
         if cfg[C_CHAMBER] == 1:
             qs_n = 0.0
@@ -381,6 +409,8 @@ def rhs(
     qw_n = lam_n * a_n * (tw_n - t_n)
     aux[A_LAMN] = lam_n
     aux[A_LAMP] = lam_p
+    dx[X_TWP] = 0.0
+    dx[X_TWN] = 0.0
     if wall_mass:
         c_w = p[P_WCAP]
         h_o = p[P_WOUT]
@@ -390,18 +420,24 @@ def rhs(
     # --- chambers
     t_0 = p[P_TW]
     k_poly = p[P_K]
-    dp_p, dt_p = chamber_rates(heat, k_poly, t_0, p_p, t_p, v_p, dv_p, q_p, h_p, qw_p)
-    dp_n, dt_n = chamber_rates(heat, k_poly, t_0, p_n, t_n, v_n, dv_n, q_n, h_n, qw_n)
+    dp_p, dt_p = chamber_rates(heat, k_poly, t_0, p_p, inv_pp, t_p, v_p, dv_p, q_p, h_p, qw_p)
+    dp_n, dt_n = chamber_rates(heat, k_poly, t_0, p_n, inv_pn, t_n, v_n, dv_n, q_n, h_n, qw_n)
 
     if blocked:
         # piston clamped: only the chamber under test evolves
+        dx[X_Y] = 0.0
+        dx[X_V] = 0.0
         if cfg[C_CHAMBER] == 1:
             dx[X_PP] = dp_p
             dx[X_TP] = dt_p
+            dx[X_PN] = 0.0
+            dx[X_TN] = 0.0
             dx[X_TWN] = 0.0
         else:
             dx[X_PN] = dp_n
             dx[X_TN] = dt_n
+            dx[X_PP] = 0.0
+            dx[X_TP] = 0.0
             dx[X_TWP] = 0.0
         aux[A_FF] = 0.0
         aux[A_FD] = 0.0
@@ -422,10 +458,12 @@ def rhs(
                 f_c += extra
         if mode == 0:
             f_f = f_drive  # stuck: friction balances the drive, v stays 0
+            dx[X_Y] = 0.0
+            dx[X_V] = 0.0
         else:
             f_f = sliding_friction(v, mode, f_s, f_c, p[P_FV], p[P_VST])
             dx[X_Y] = v
-            dx[X_V] = (f_drive - f_f) / p[P_MASS]
+            dx[X_V] = (f_drive - f_f) * d[D_IM]
         aux[A_FF] = f_f
         aux[A_FD] = f_drive
         aux[A_FS] = f_s
@@ -454,6 +492,15 @@ def commands(
             u = -umax
         return u, -u
     return (1.0 - w) * inp[k, 0] + w * inp[k1, 0], (1.0 - w) * inp[k, 1] + w * inp[k1, 1]
+
+
+@njit(cache=True)
+def active_states(cfg: np.ndarray) -> int:
+    """Number of leading state slots that can change: 8 (y, v, P, T, air
+    accounts) unless an effect adds wall-temperature or spool states."""
+    if cfg[C_WALL_MASS] == 1 or cfg[C_VALVE_ORDER] > 0:
+        return NX
+    return 8
 
 
 @njit(cache=True, fastmath=_FM)
@@ -485,17 +532,44 @@ def rk_step(
     last node is c = 1, the end of the step).
     """
     n_st = tab_b.shape[0]
+    nx = active_states(cfg)
+    for i in range(nx, NX):
+        xs[i] = x[i]
+        xn[i] = x[i]
+    if n_st == 4 and tab_c[1] == 0.5 and tab_a[2, 0] == 0.0 and tab_a[3, 2] == 1.0:
+        # classical RK4, written out: the hot path of every fit
+        k1 = kk[0]
+        k2 = kk[1]
+        k3 = kk[2]
+        k4 = kk[3]
+        hh = 0.5 * h
+        u_p, u_n = commands(x, inp, k, w0, cfg, ctrl)
+        rhs(x, mode, u_p, u_n, p, d, cfg, k1, aux)
+        for i in range(nx):
+            xs[i] = x[i] + hh * k1[i]
+        u_p, u_n = commands(xs, inp, k, w0 + 0.5 * dw, cfg, ctrl)
+        rhs(xs, mode, u_p, u_n, p, d, cfg, k2, aux)
+        for i in range(nx):
+            xs[i] = x[i] + hh * k2[i]
+        u_p, u_n = commands(xs, inp, k, w0 + 0.5 * dw, cfg, ctrl)
+        rhs(xs, mode, u_p, u_n, p, d, cfg, k3, aux)
+        for i in range(nx):
+            xs[i] = x[i] + h * k3[i]
+        u_p, u_n = commands(xs, inp, k, w0 + dw, cfg, ctrl)
+        rhs(xs, mode, u_p, u_n, p, d, cfg, k4, aux)
+        h6 = h / 6.0
+        for i in range(nx):
+            xn[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        return
     for s in range(n_st):
-        for i in range(NX):
+        for i in range(nx):
             acc = x[i]
             for r in range(s):
                 acc += h * tab_a[s, r] * kk[r, i]
             xs[i] = acc
         u_p, u_n = commands(xs, inp, k, w0 + tab_c[s] * dw, cfg, ctrl)
-        rhs(xs, mode, u_p, u_n, p, d, cfg, dx, aux)
-        for i in range(NX):
-            kk[s, i] = dx[i]
-    for i in range(NX):
+        rhs(xs, mode, u_p, u_n, p, d, cfg, kk[s], aux)
+    for i in range(nx):
         acc = 0.0
         for s in range(n_st):
             acc += tab_b[s] * kk[s, i]
@@ -703,7 +777,8 @@ def integrate(
             u = inp[k, 0] if on_p else inp[k, 1]
             if not pres > 0.0:
                 return _fail(out, k, STATUS_BAD_INPUT)
-            q, _, _ = _valve(u, pres, p[P_TAMB], p[P_PS], p, d)
+            rt_a = d[D_VC + VC_RTA]  # gas at ambient temperature
+            q, _, _ = _valve(u, pres, 1.0 / pres, p[P_TAMB], rt_a, p[P_PS], d[D_IPS], d)
             x[X_PP if on_p else X_PN] = pres
             aux[A_QP if on_p else A_QN] = q
             aux[A_UP if on_p else A_UN] = u

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from pneumafit.physics.air import RHO0, T_REF
@@ -229,16 +230,152 @@ def conductances(
     return c_s, c_e
 
 
+# Valve constants, computed once per simulation by valve_constants() so that
+# the compiled right-hand side divides by nothing that is constant.
+VC_CS, VC_CE, VC_BS, VC_BE, VC_IBS, VC_IBE, VC_M, VC_XLAM = 0, 1, 2, 3, 4, 5, 6, 7
+VC_AS, VC_QS, VC_AE, VC_QE, VC_OVER, VC_IRANGE, VC_LEAK2, VC_IW = 8, 9, 10, 11, 12, 13, 14, 15
+VC_PE, VC_IPE, VC_TA, VC_RTA = 16, 17, 18, 19
+NVC = 20
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def valve_constants(
+    c_supply: float,
+    b_supply: float,
+    c_exhaust: float,
+    b_exhaust: float,
+    m: float,
+    x_lam: float,
+    overlap: float,
+    u_sat: float,
+    c_leak: float,
+    leak_width: float,
+    p_exhaust: float,
+    t_ambient: float,
+    vc: np.ndarray,
+) -> None:
+    """Fill ``vc`` (length NVC) with the constants of :func:`flows_core`.
+
+    Parameters are those of :func:`valve_flows` (SI); supply and exhaust air
+    are at ``t_ambient``.
+    """
+    vc[VC_CS] = c_supply
+    vc[VC_CE] = c_exhaust
+    vc[VC_BS] = b_supply
+    vc[VC_BE] = b_exhaust
+    vc[VC_IBS] = 1.0 / (1.0 - b_supply)
+    vc[VC_IBE] = 1.0 / (1.0 - b_exhaust)
+    vc[VC_M] = m
+    vc[VC_XLAM] = x_lam
+    vc[VC_AS], vc[VC_QS] = laminar_tail(b_supply, m, x_lam)
+    vc[VC_AE], vc[VC_QE] = laminar_tail(b_exhaust, m, x_lam)
+    vc[VC_OVER] = overlap
+    vc[VC_IRANGE] = 1.0 / (u_sat - overlap)
+    vc[VC_LEAK2] = 2.0 * c_leak
+    vc[VC_IW] = 1.0 / leak_width
+    vc[VC_PE] = p_exhaust
+    vc[VC_IPE] = 1.0 / p_exhaust
+    vc[VC_TA] = t_ambient
+    vc[VC_RTA] = math.sqrt(T_REF / t_ambient)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _phi(x: float, b: float, inv_1mb: float, m: float, x_lam: float, a: float, c: float):
+    # flow_function with 1 / (1 - b) and the tail coefficients precomputed
+    if x <= b:
+        return 1.0
+    if x < x_lam:
+        s = (x - b) * inv_1mb
+        base = 1.0 - s * s
+        return math.sqrt(base) if m == 0.5 else base**m
+    z = 1.0 - x
+    return a * z + c * z * z
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _open(u: float, overlap: float, inv_range: float) -> float:
+    # opening() with 1 / (u_sat - overlap) precomputed
+    z = u - overlap
+    eps = OPENING_SMOOTHING
+    if z <= -eps:
+        return 0.0
+    if z < eps:
+        t = (z + eps) / (2.0 * eps)
+        z = 2.0 * eps * t * t * t * (1.0 - 0.5 * t)
+    frac = z * inv_range
+    return frac if frac < 1.0 else 1.0
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def flows_core(
+    u: float,
+    pres: float,
+    inv_pres: float,
+    temp: float,
+    rt: float,
+    p_supply: float,
+    inv_p_supply: float,
+    vc: np.ndarray,
+) -> tuple[float, float, float]:
+    """Flows of one 3-way valve into its chamber (see :func:`valve_flows`).
+
+    Parameters
+    ----------
+    u : float
+        Command (V).
+    pres, inv_pres : float
+        Chamber pressure (Pa) and its inverse (1/Pa).
+    temp, rt : float
+        Chamber temperature (K) and sqrt(T_ref / temp) (-).
+    p_supply, inv_p_supply : float
+        Supply pressure (Pa) and its inverse (1/Pa).
+    vc : ndarray
+        Constants from :func:`valve_constants`.
+
+    Returns
+    -------
+    q_net, h_in, q_supply : float
+        As :func:`valve_flows`.
+    """
+    z = u * vc[VC_IW]
+    sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
+    c_s = vc[VC_CS] * _open(u, vc[VC_OVER], vc[VC_IRANGE]) + vc[VC_LEAK2] * sig_s
+    c_e = vc[VC_CE] * _open(-u, vc[VC_OVER], vc[VC_IRANGE]) + vc[VC_LEAK2] * (1.0 - sig_s)
+    k = RHO0
+    # supply path, supply -> chamber
+    if p_supply >= pres:
+        phi = _phi(pres * inv_p_supply, vc[VC_BS], vc[VC_IBS], vc[VC_M], vc[VC_XLAM],
+                   vc[VC_AS], vc[VC_QS])  # fmt: skip
+        q_s = c_s * k * p_supply * vc[VC_RTA] * phi
+        t_s = vc[VC_TA]
+    else:
+        phi = _phi(p_supply * inv_pres, vc[VC_BS], vc[VC_IBS], vc[VC_M], vc[VC_XLAM],
+                   vc[VC_AS], vc[VC_QS])  # fmt: skip
+        q_s = -c_s * k * pres * rt * phi
+        t_s = temp
+    # exhaust path, chamber -> exhaust
+    p_e = vc[VC_PE]
+    if pres >= p_e:
+        phi = _phi(p_e * inv_pres, vc[VC_BE], vc[VC_IBE], vc[VC_M], vc[VC_XLAM],
+                   vc[VC_AE], vc[VC_QE])  # fmt: skip
+        q_e = c_e * k * pres * rt * phi
+        t_e = temp
+    else:
+        phi = _phi(pres * vc[VC_IPE], vc[VC_BE], vc[VC_IBE], vc[VC_M], vc[VC_XLAM],
+                   vc[VC_AE], vc[VC_QE])  # fmt: skip
+        q_e = -c_e * k * p_e * vc[VC_RTA] * phi
+        t_e = vc[VC_TA]
+    return q_s - q_e, q_s * t_s - q_e * t_e, q_s
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def valve_flows(
     u: float,
     p: float,
     t: float,
     p_supply: float,
-    t_supply: float,
+    t_ambient: float,
     p_exhaust: float,
-    t_exhaust: float,
-    rt_ambient: float,
     c_supply: float,
     b_supply: float,
     c_exhaust: float,
@@ -252,8 +389,9 @@ def valve_flows(
 ) -> tuple[float, float, float]:
     """Flows of one 3-way servo-distributor into its chamber.
 
-    Supply and exhaust air are at ambient temperature; ``rt_ambient`` is
-    sqrt(T_ref / t_supply) (= sqrt(T_ref / t_exhaust)), computed once.
+    Supply and exhaust air are at ambient temperature ``t_ambient`` (K).
+    Pressures in Pa, temperatures in K, conductances in m^3/s/Pa, commands
+    in V; see the module docstring for the law.
 
     Returns
     -------
@@ -265,8 +403,7 @@ def valve_flows(
     q_supply : float
         Mass flow drawn from the supply through this valve (kg/s, signed).
     """
-    c_s, c_e = conductances(u, c_supply, c_exhaust, overlap, u_sat, c_leak, leak_width)
-    rt = math.sqrt(T_REF / t)
-    q_s, t_s = path_flow(c_s, b_supply, m, x_lam, p_supply, t_supply, rt_ambient, p, t, rt)
-    q_e, t_e = path_flow(c_e, b_exhaust, m, x_lam, p, t, rt, p_exhaust, t_exhaust, rt_ambient)
-    return q_s - q_e, q_s * t_s - q_e * t_e, q_s
+    vc = np.empty(NVC)
+    valve_constants(c_supply, b_supply, c_exhaust, b_exhaust, m, x_lam, overlap, u_sat,
+                    c_leak, leak_width, p_exhaust, t_ambient, vc)  # fmt: skip
+    return flows_core(u, p, 1.0 / p, t, math.sqrt(T_REF / t), p_supply, 1.0 / p_supply, vc)

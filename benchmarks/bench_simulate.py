@@ -1,0 +1,132 @@
+"""Benchmark of the compiled simulator against a straightforward scipy solver.
+
+One run, one machine, ratios: on the same 4-s closed-loop step test with
+1 kHz output (half stroke, stick-slip), it times
+
+- the compiled simulator (RK4, default step), single runs and batched over
+  64 parameter sets;
+- the reference: scipy ``solve_ivp(method="LSODA", rtol=1e-6)`` over a
+  pure-Python right-hand side of the same model (the compiled RHS's own
+  source run by CPython, :func:`pneumafit.simulation.reference.pure_python`).
+  The model has stick-slip, so scipy must be given its events (v = 0 while
+  sliding, |F_d| = F_s while stuck) to solve it at all: a version that takes
+  the friction direction from sign(v) chatters about v = 0 and did not finish
+  in minutes, which would make any "speedup" meaningless;
+
+and checks both against a tight reference (Radau, rtol 1e-10, events
+located). For information it also times the reference at rtol 1e-8, where it
+is about as accurate as the compiled simulator. The last line printed is one
+JSON object.
+
+Run: ``python benchmarks/bench_simulate.py [--repeats N]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from pneumafit.models.layout import P
+from pneumafit.models.parameters import parameter_vector
+from pneumafit.simulation import PD, Experiment, Simulator
+from pneumafit.simulation.reference import solve_reference
+
+
+def step_test() -> Experiment:
+    t = np.arange(0.0, 4.0005, 1e-3)
+    y_ref = np.where(t < 0.2, 0.25, np.where(t < 2.0, 0.35, 0.25))
+    return Experiment(
+        time=t, kind="step", y_ref=y_ref, controller=PD(kp=60.0, kd=4.0),
+        initial={"y": 0.25, "p_P": 4.0e5, "p_N": 4.0e5 * 0.8 / 0.6}, name="bench-step",
+    )  # fmt: skip
+
+
+def timed(fn, repeats: int) -> tuple[float, object]:
+    """Median wall time (s) of ``repeats`` calls, and the last result."""
+    times = []
+    result = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=20)
+    args = parser.parse_args()
+
+    exp = step_test()
+    params = parameter_vector({})
+    print("tight reference: scipy Radau, rtol 1e-10, events located ...", flush=True)
+    ref = solve_reference("convection", params, exp, method="Radau", rtol=1e-10)
+
+    sim = Simulator("convection", channels=["y", "p_P", "p_N"])
+    packed = sim.pack([exp])
+    sim.simulate_batch(params, packed)  # compile or load from cache
+    single_s, (out, status) = timed(lambda: sim.simulate_batch(params, packed), args.repeats)
+    assert status[0, 0] == 0, "compiled simulation failed"
+    y, p_p, p_n = out[0].T
+    err_pa = float(max(np.abs(p_p - ref["p_P"]).max(), np.abs(p_n - ref["p_N"]).max()))
+    err_mm = float(np.abs(y - ref["y"]).max() * 1e3)
+
+    rng = np.random.default_rng(64)
+    sets = np.tile(params, (64, 1))
+    sets[:, P["xi"]] *= rng.uniform(0.8, 1.2, 64)
+    sets[:, P["beta"]] *= rng.uniform(0.9, 1.1, 64)
+    sets[:, P["friction_static"]] = rng.uniform(45.0, 60.0, 64)
+    sets[:, P["friction_coulomb"]] = rng.uniform(25.0, 40.0, 64)
+    sim.simulate_batch(sets, packed)
+    batch_s, (_, bstatus) = timed(
+        lambda: sim.simulate_batch(sets, packed), max(3, args.repeats // 5)
+    )
+    assert np.all(bstatus == 0), "a batched simulation failed"
+
+    print("reference: scipy LSODA rtol 1e-6 over the pure-Python RHS ...", flush=True)
+    lsoda_s, lsoda = timed(
+        lambda: solve_reference("convection", params, exp, method="LSODA", rtol=1e-6,
+                                compiled=False), 5,
+    )  # fmt: skip
+    lsoda_err = float(
+        max(np.abs(lsoda["p_P"] - ref["p_P"]).max(), np.abs(lsoda["p_N"] - ref["p_N"]).max())
+    )
+    lsoda_err_mm = float(np.abs(lsoda["y"] - ref["y"]).max() * 1e3)
+    # the same reference tightened until it is as accurate as the compiled
+    # simulator (rtol 1e-8: ~0.1 Pa), for a comparison at equal accuracy
+    tight_s, tight = timed(
+        lambda: solve_reference("convection", params, exp, method="LSODA", rtol=1e-8,
+                                compiled=False), 3,
+    )  # fmt: skip
+    tight_err = float(np.abs(tight["p_P"] - ref["p_P"]).max())
+
+    ms = single_s * 1e3
+    rows = [
+        ("compiled RK4, single", ms, err_pa, err_mm),
+        ("compiled RK4, batched x64 (per set)", batch_s * 1e3 / 64, float("nan"), float("nan")),
+        ("scipy LSODA rtol 1e-6, pure Python (reference)", lsoda_s * 1e3, lsoda_err, lsoda_err_mm),
+        ("scipy LSODA rtol 1e-8, pure Python (equal accuracy)", tight_s * 1e3, tight_err,
+         float("nan")),
+    ]  # fmt: skip
+    print(f"{'simulator':50s} {'ms/sim':>9s} {'max err Pa':>11s} {'max err mm':>11s}")
+    for name, t_ms, e_pa, e_mm in rows:
+        print(f"{name:50s} {t_ms:9.2f} {e_pa:11.3g} {e_mm:11.3g}")
+    result = {
+        "ms_per_sim": round(ms, 3),
+        "ms_per_sim_batched": round(batch_s * 1e3 / 64, 3),
+        "reference_ms_per_sim": round(lsoda_s * 1e3, 1),
+        "speedup": round(lsoda_s * 1e3 / ms, 1),
+        "max_error_Pa": round(err_pa, 3),
+        "max_error_mm": round(err_mm, 5),
+        "reference_max_error_Pa": round(lsoda_err, 1),
+        "speedup_equal_accuracy": round(tight_s * 1e3 / ms, 1),
+        "steps_per_sim": int(packed.nsub_all.sum()),
+    }
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()

@@ -278,6 +278,7 @@ class Recording:
         controller: PDController | None = None,
         mask: Mapping[str, ArrayLike] | None = None,
         units: Mapping[str, str] | None = None,
+        columns: Mapping[str, str] | None = None,
         description: str = "",
     ) -> Recording:
         """Build a recording from SI arrays, e.g. in a virtual rig.
@@ -297,6 +298,9 @@ class Recording:
         units : mapping of str to str, optional
             Channel -> preferred file unit (used when writing a campaign).
             Default: SI units.
+        columns : mapping of str to str, optional
+            The file's own column name -> channel name, written to CSV headers
+            and to ``[recording.columns]`` in campaign.toml.
 
         Returns
         -------
@@ -355,6 +359,7 @@ class Recording:
             unknown_channels=[n for n in values if n not in CHANNELS],
             description=description,
             time_unit=(units or {}).get("time", "s"),
+            columns=dict(columns or {}),
         )
 
 

@@ -9,11 +9,9 @@ the unit conversion.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
-import tempfile
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from typing import Literal
 
@@ -39,6 +37,7 @@ from pneumafit.campaign.units import (
     parse_unit,
     split_header,
 )
+from pneumafit.fileio import atomic_path, write_text_atomic
 
 __all__ = ["write_campaign", "write_recording_csv", "write_recording_h5"]
 
@@ -57,28 +56,6 @@ _RIG_KINDS = {
     "mounting_angle": "angle",
     "external_force": "force",
 }
-
-
-@contextlib.contextmanager
-def _atomic(path: Path) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; move it onto ``path`` on success."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(handle)
-    tmp = Path(name)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def _write_text(path: Path, text: str) -> None:
-    with _atomic(path) as tmp:
-        with open(tmp, "w", encoding="utf-8", newline="\n") as stream:
-            stream.write(text)
-            stream.flush()
-            os.fsync(stream.fileno())
 
 
 def _unit_for(name: str, text: str | None) -> ParsedUnit:
@@ -129,7 +106,7 @@ def write_recording_h5(
     target = Path(path)
     units = dict(units or {})
     time_unit = _unit_for("time", units.get("time"))
-    with _atomic(target) as tmp, h5py.File(tmp, "w") as handle:
+    with atomic_path(target) as tmp, h5py.File(tmp, "w") as handle:
         handle.attrs["format"] = RECORDING_FORMAT
         handle.attrs["version"] = FORMAT_VERSION
         handle.attrs["kind"] = recording.kind
@@ -215,7 +192,7 @@ def write_recording_csv(
         cells.append(text)
     out.append(",".join(header) + "\n")
     out.extend(",".join(row) + "\n" for row in zip(*cells, strict=True))
-    _write_text(target, "".join(out))
+    write_text_atomic(target, "".join(out))
     return target
 
 
@@ -340,5 +317,5 @@ def write_campaign(
                 f"recording {index}: expected a .h5, .hdf5 or .csv file name, found {file!r}"
             )
     target = folder / CAMPAIGN_FILE
-    _write_text(target, _campaign_toml(campaign, files, csv_columns))
+    write_text_atomic(target, _campaign_toml(campaign, files, csv_columns))
     return target

@@ -1,0 +1,79 @@
+"""Virtual rig: simulated campaigns from a known truth (docs/virtual-rig.md).
+
+:class:`VirtualRig` simulates a richer model than the fitted structures, at a
+finer step, through a sensor model, following a :class:`Protocol`, and writes
+a campaign folder plus a ``truth.json`` that campaign.toml never mentions.
+:func:`run_rig` is the body of ``pneumafit rig``.
+"""
+
+from pneumafit.rig.command import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, run_rig
+from pneumafit.rig.effects import (
+    EFFECT_DEFAULTS,
+    PRINCIPAL_PARAMETERS,
+    ResolvedEffects,
+    parse_effect_options,
+    resolve_effects,
+)
+from pneumafit.rig.protocol import (
+    PROTOCOLS,
+    BlockedTest,
+    FlowTest,
+    Protocol,
+    StepTest,
+    demo_protocol,
+    get_protocol,
+    quick_protocol,
+)
+from pneumafit.rig.sensors import SensorModel, first_order_lag
+from pneumafit.rig.virtual import (
+    DEMO_SEED,
+    DEMO_TRUTH,
+    RIG_VERSION,
+    TRUTH_FILE,
+    TRUTH_FORMAT,
+    TRUTH_METHOD,
+    TRUTH_STEP,
+    TRUTH_VERSION,
+    RigError,
+    RigRun,
+    TruthTrace,
+    VirtualRig,
+    check_output_folder,
+    truth_readme,
+)
+
+__all__ = [
+    "DEMO_SEED",
+    "DEMO_TRUTH",
+    "EFFECT_DEFAULTS",
+    "EXIT_BAD_INPUT",
+    "EXIT_FAILED",
+    "EXIT_OK",
+    "PRINCIPAL_PARAMETERS",
+    "PROTOCOLS",
+    "RIG_VERSION",
+    "TRUTH_FILE",
+    "TRUTH_FORMAT",
+    "TRUTH_METHOD",
+    "TRUTH_STEP",
+    "TRUTH_VERSION",
+    "BlockedTest",
+    "FlowTest",
+    "Protocol",
+    "ResolvedEffects",
+    "RigError",
+    "RigRun",
+    "SensorModel",
+    "StepTest",
+    "TruthTrace",
+    "VirtualRig",
+    "check_output_folder",
+    "demo_protocol",
+    "first_order_lag",
+    "get_protocol",
+    "parse_effect_options",
+    "quick_protocol",
+    "resolve_effects",
+    "run_rig",
+    "truth_readme",
+]

@@ -1,0 +1,424 @@
+"""Test protocols of the virtual rig: which tests a campaign holds, and how each is run.
+
+A :class:`Protocol` is a named list of tests. Three kinds of test exist, one
+per campaign kind they produce:
+
+- :class:`FlowTest` (``flow``): a staircase of commands at several held
+  chamber pressures, read by a lagging, noisy flow meter;
+- :class:`BlockedTest` (``charge`` / ``discharge``): piston blocked, the
+  valve opened for an opening time, then back to its rest command while the
+  chamber relaxes thermally for seconds;
+- :class:`StepTest` (``step``): position steps under a declared ``pd``
+  controller, recorded after a pre-roll that lets the rig settle.
+
+:func:`demo_protocol` makes the committed demo campaign (``data/demo``),
+:func:`quick_protocol` a small campaign for tests (a few seconds of
+simulation). All values are SI (m, Pa absolute, V, s, Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import PurePosixPath
+from types import MappingProxyType
+
+__all__ = [
+    "PROTOCOLS",
+    "BlockedTest",
+    "FlowTest",
+    "Protocol",
+    "StepTest",
+    "demo_protocol",
+    "get_protocol",
+    "quick_protocol",
+]
+
+#: Rate (Hz) at which flow tests are computed before the flow meter's lag;
+#: a flow test's recording rate must divide it.
+FLOW_COMPUTE_RATE = 1000.0
+
+_ROLES = ("fit", "validate")
+_SUFFIXES = (".h5", ".hdf5", ".csv")
+
+
+def _frozen(mapping: Mapping[str, str] | None) -> Mapping[str, str]:
+    return MappingProxyType(dict(mapping or {}))
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Test:
+    """Fields shared by every test.
+
+    Parameters
+    ----------
+    file : str
+        File name in the campaign folder; ``.h5`` or ``.csv``.
+    role : {"fit", "validate"}
+        ``validate`` recordings are held out from fitting.
+    sample_rate : float
+        Recording rate (Hz).
+    units : mapping of str to str
+        Channel (or ``"time"``) -> unit written in the file, e.g.
+        ``{"y": "mm", "p_P": "bar"}``; SI where absent.
+    columns : mapping of str to str
+        Channel -> the file's own column name (CSV only), e.g.
+        ``{"y": "Position"}``; mapped back in ``[recording.columns]``.
+    description : str
+        Free text for the recording; a default one is made from the settings.
+    """
+
+    file: str
+    role: str = "fit"
+    sample_rate: float = 1000.0
+    units: Mapping[str, str] = field(default_factory=dict)
+    columns: Mapping[str, str] = field(default_factory=dict)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "units", _frozen(self.units))
+        object.__setattr__(self, "columns", _frozen(self.columns))
+        where = f"test {self.file!r}"
+        if PurePosixPath(self.file).suffix.lower() not in _SUFFIXES or "/" in self.file:
+            raise ValueError(
+                f"{where}: file: expected a plain .h5 or .csv file name, found {self.file!r}"
+            )
+        if self.role not in _ROLES:
+            raise ValueError(f"{where}: role: expected one of {_ROLES}, found {self.role!r}")
+        _positive(where, "sample_rate", self.sample_rate)
+        if self.columns and not self.file.lower().endswith(".csv"):
+            raise ValueError(f"{where}: columns: expected only on a .csv file, found {self.file!r}")
+
+
+def _positive(where: str, name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"{where}: {name}: expected a finite value > 0, found {value!r}")
+
+
+def _chamber(where: str, chamber: str) -> None:
+    if chamber not in ("P", "N"):
+        raise ValueError(f"{where}: chamber: expected 'P' or 'N', found {chamber!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FlowTest(_Test):
+    """Static flow test of one valve: command staircase at held pressures.
+
+    For each held pressure in turn, every command is applied for ``dwell``
+    seconds while a regulator holds the chamber (or line) at that pressure
+    and a flow meter (first-order lag and noise, :class:`SensorModel`)
+    measures the mass flow into it. The true flow is the valve's static
+    characteristic q_m(P, u).
+
+    Parameters
+    ----------
+    chamber : {"P", "N"}
+        Valve (and pressure sensor) under test.
+    commands : tuple of float
+        Command levels (V), negative ones open the exhaust path.
+    pressures : tuple of float
+        Held pressures (Pa absolute), each strictly between exhaust and supply.
+    dwell : float
+        Time at each level (s), several flow-meter time constants.
+    """
+
+    chamber: str
+    commands: tuple[float, ...]
+    pressures: tuple[float, ...]
+    dwell: float = 0.5
+    sample_rate: float = 100.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"test {self.file!r}"
+        _chamber(where, self.chamber)
+        _positive(where, "dwell", self.dwell)
+        if not self.commands or not self.pressures:
+            raise ValueError(f"{where}: expected at least one command and one pressure")
+        for p in self.pressures:
+            _positive(where, "pressures", p)
+        ratio = FLOW_COMPUTE_RATE / self.sample_rate
+        if abs(ratio - round(ratio)) > 1e-9 or round(self.dwell * self.sample_rate) < 1:
+            raise ValueError(
+                f"{where}: sample_rate: expected a divisor of {FLOW_COMPUTE_RATE:g} Hz with at "
+                f"least one sample per dwell, found {self.sample_rate:g} Hz"
+            )
+
+    @property
+    def kind(self) -> str:
+        return "flow"
+
+    @property
+    def duration(self) -> float:
+        """Length of the staircase (s)."""
+        return len(self.commands) * len(self.pressures) * self.dwell
+
+
+@dataclass(frozen=True, kw_only=True)
+class BlockedTest(_Test):
+    """Charge or discharge of one chamber, piston blocked.
+
+    The chamber starts at rest at the wall temperature, at exhaust pressure
+    (charge) or supply pressure (discharge). The command sits at
+    ``rest_command`` for ``delay`` s, is set to +``amplitude`` (charge) or
+    -``amplitude`` (discharge) for ``opening_time`` s, then returns to
+    ``rest_command`` for the rest of the test: the pressure relaxes as the
+    gas returns to the wall temperature (plus the valve's centre leakage).
+
+    Parameters
+    ----------
+    kind : {"charge", "discharge"}
+    chamber : {"P", "N"}
+    position : float
+        Blocked piston position (m).
+    amplitude : float
+        Command magnitude (V), > 0.
+    opening_time : float
+        Time the valve is open (s).
+    duration : float
+        Length of the recording (s).
+    delay : float
+        Time before opening (s).
+    rest_command : float
+        Command before and after the opening (V), near the valve centre.
+    temperature : bool
+        Record the slow gas-temperature sensor ``T_<chamber>``.
+    """
+
+    kind: str
+    chamber: str
+    position: float
+    amplitude: float
+    opening_time: float
+    duration: float = 6.0
+    delay: float = 0.2
+    rest_command: float = 0.0
+    temperature: bool = False
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"test {self.file!r}"
+        if self.kind not in ("charge", "discharge"):
+            raise ValueError(
+                f"{where}: kind: expected 'charge' or 'discharge', found {self.kind!r}"
+            )
+        _chamber(where, self.chamber)
+        for name in ("amplitude", "opening_time", "duration"):
+            _positive(where, name, getattr(self, name))
+        if not (math.isfinite(self.position) and self.position >= 0.0):
+            raise ValueError(f"{where}: position: expected a value >= 0 m, found {self.position!r}")
+        if not (self.delay >= 0.0 and self.delay + self.opening_time < self.duration):
+            raise ValueError(
+                f"{where}: expected delay + opening_time < duration, found "
+                f"{self.delay:g} + {self.opening_time:g} >= {self.duration:g} s"
+            )
+
+    @property
+    def command(self) -> float:
+        """Signed opening command (V)."""
+        return self.amplitude if self.kind == "charge" else -self.amplitude
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepTest(_Test):
+    """Closed-loop position steps under the campaign format's ``pd`` law.
+
+    ``u_P = clip(u0 + kp (y_ref - y) - kd v, -umax, umax)``, ``u_N = -u_P``.
+    The rig first runs ``preroll`` s at y_ref = ``start`` (not recorded), so
+    the recording starts from a settled, usually stuck, piston.
+
+    Parameters
+    ----------
+    start : float
+        Reference position during the pre-roll and until the first step (m).
+    steps : tuple of (float, float)
+        (time (s) from the start of the recording, new reference (m)).
+    duration : float
+        Length of the recording (s).
+    kp, kd, u0, umax : float
+        Controller gains: V/m, V s/m, V, V.
+    preroll : float
+        Settling time before the recording (s).
+    temperature : bool
+        Record the slow gas-temperature sensors ``T_P`` and ``T_N``.
+    """
+
+    start: float
+    steps: tuple[tuple[float, float], ...]
+    duration: float
+    kp: float = 60.0
+    kd: float = 4.0
+    u0: float = 0.0
+    umax: float = 10.0
+    preroll: float = 5.0
+    temperature: bool = False
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"test {self.file!r}"
+        for name in ("duration", "umax", "preroll"):
+            _positive(where, name, getattr(self, name))
+        for name in ("start", "kp", "kd", "u0"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{where}: {name}: expected a finite value")
+        for when, pos in self.steps:
+            if not (0.0 <= when < self.duration and math.isfinite(pos)):
+                raise ValueError(
+                    f"{where}: steps: expected (time in [0, duration), position), "
+                    f"found ({when!r}, {pos!r})"
+                )
+
+    @property
+    def kind(self) -> str:
+        return "step"
+
+
+Test = FlowTest | BlockedTest | StepTest
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """A named list of tests making up one campaign.
+
+    Parameters
+    ----------
+    name : str
+        Protocol name (``pneumafit rig --protocol``; written to truth.json).
+    description : str
+        One line, used as the campaign description.
+    tests : tuple of FlowTest, BlockedTest or StepTest
+        In campaign order; file names unique.
+    """
+
+    name: str
+    description: str
+    tests: tuple[Test, ...]
+
+    def __post_init__(self) -> None:
+        if not self.tests:
+            raise ValueError(f"protocol {self.name!r}: expected at least one test")
+        seen: set[str] = set()
+        for test in self.tests:
+            if test.file.lower() in seen:
+                raise ValueError(f"protocol {self.name!r}: file {test.file!r} is used twice")
+            seen.add(test.file.lower())
+
+
+_CSV_UNITS = {"y": "mm", "y_ref": "mm", "p_P": "bar", "p_N": "bar", "T_P": "degC", "T_N": "degC"}
+_CSV_COLUMNS = {
+    "y": "Position",
+    "y_ref": "Setpoint",
+    "p_P": "Pressure P",
+    "p_N": "Pressure N",
+    "u_P": "Valve P",
+    "u_N": "Valve N",
+    "T_P": "Temperature P",
+    "T_N": "Temperature N",
+}
+_BAR = 1.0e5
+_FLOW_COMMANDS = (
+    -10.0, -6.0, -3.0, -1.5, -0.8, -0.4, -0.2, 0.0, 0.2, 0.4, 0.8, 1.5, 3.0, 6.0, 10.0,
+)  # fmt: skip
+_FLOW_UNITS = {"p_P": "bar", "p_N": "bar", "qm_P": "g/s", "qm_N": "g/s"}
+_BLOCKED_UNITS = {"p_P": "bar", "p_N": "bar"}
+
+
+def demo_protocol() -> Protocol:
+    """The protocol of the committed demo campaign (``data/demo``).
+
+    Two flow tests (one per valve), eight charge/discharge tests at three
+    piston positions, several amplitudes and opening times (two held out),
+    four closed-loop step tests (one held out, written as CSV with its own
+    column names in mm, bar and degC). Durations: flow 45 s at 100 Hz,
+    charge/discharge 6 s at 1 kHz, steps 4.5 s at 1 kHz after a 5-s pre-roll.
+    """
+    pressures = tuple(p * _BAR for p in (1.5, 2.5, 3.5, 4.5, 5.5, 6.5))
+    flows = tuple(
+        FlowTest(
+            file=f"flow_{ch}.h5",
+            chamber=ch,
+            commands=_FLOW_COMMANDS,
+            pressures=pressures,
+            dwell=0.5,
+            units=_FLOW_UNITS,
+        )
+        for ch in ("P", "N")
+    )
+    b = BlockedTest
+    u = _BLOCKED_UNITS
+    blocked = (
+        b(file="charge_P_1.h5", kind="charge", chamber="P", position=0.10, amplitude=10.0,
+          opening_time=0.30, temperature=True, units=u),
+        b(file="discharge_P_1.h5", kind="discharge", chamber="P", position=0.10,
+          amplitude=10.0, opening_time=0.40, temperature=True, units=u),
+        b(file="charge_P_2.h5", kind="charge", chamber="P", position=0.40, amplitude=5.0,
+          opening_time=0.80, units=u),
+        b(file="discharge_P_2.h5", kind="discharge", chamber="P", position=0.40, amplitude=6.0,
+          opening_time=0.80, units=u),
+        b(file="charge_N_1.h5", kind="charge", chamber="N", position=0.40, amplitude=10.0,
+          opening_time=0.25, temperature=True, units=u),
+        b(file="discharge_N_1.h5", kind="discharge", chamber="N", position=0.10,
+          amplitude=10.0, opening_time=0.60, units=u),
+        b(file="charge_N_2.h5", kind="charge", chamber="N", position=0.25, amplitude=4.0,
+          opening_time=0.80, temperature=True, role="validate", units=u),
+        b(file="discharge_P_3.h5", kind="discharge", chamber="P", position=0.25, amplitude=8.0,
+          opening_time=0.50, role="validate", units=u),
+    )  # fmt: skip
+    steps = (
+        StepTest(file="step_1.h5", start=0.25, steps=((0.5, 0.35), (2.5, 0.15)), duration=4.5),
+        StepTest(file="step_2.h5", start=0.10, steps=((0.5, 0.40), (2.5, 0.20)), duration=4.5,
+                 kp=40.0, kd=2.5),
+        StepTest(file="step_3.h5", start=0.30,
+                 steps=((0.5, 0.32), (1.5, 0.29), (2.5, 0.31), (3.5, 0.30)), duration=4.5),
+        StepTest(file="step_4.csv", start=0.20, steps=((0.5, 0.42), (2.5, 0.28)), duration=4.5,
+                 temperature=True, role="validate", units=_CSV_UNITS, columns=_CSV_COLUMNS),
+    )  # fmt: skip
+    return Protocol(
+        name="demo",
+        description="Virtual rig demo campaign: flow, charge/discharge and closed-loop step tests",
+        tests=flows + blocked + steps,
+    )
+
+
+def quick_protocol() -> Protocol:
+    """A small protocol for tests: one test of each kind, a few seconds each.
+
+    A 3-s flow test of valve P, a charge of P with the temperature sensor, a
+    held-out discharge of N, and a held-out closed-loop step test as CSV with
+    its own column names (mm, bar, degC).
+    """
+    tests: tuple[Test, ...] = (
+        FlowTest(file="flow_P.h5", chamber="P", commands=(-10.0, -2.0, 0.0, 2.0, 10.0),
+                 pressures=(2.0 * _BAR, 5.0 * _BAR), dwell=0.3, units=_FLOW_UNITS),
+        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.2,
+                    amplitude=10.0, opening_time=0.25, duration=2.0, temperature=True),
+        BlockedTest(file="discharge_N.h5", kind="discharge", chamber="N", position=0.2,
+                    amplitude=10.0, opening_time=0.3, duration=2.0, role="validate"),
+        StepTest(file="step_1.csv", start=0.25, steps=((0.3, 0.33), (1.5, 0.20)), duration=2.5,
+                 preroll=2.0, temperature=True, role="validate", units=_CSV_UNITS,
+                 columns=_CSV_COLUMNS),
+    )  # fmt: skip
+    return Protocol(name="quick", description="Virtual rig quick campaign (tests)", tests=tests)
+
+
+#: Protocols by name.
+PROTOCOLS = {"demo": demo_protocol, "quick": quick_protocol}
+
+
+def get_protocol(protocol: str | Protocol) -> Protocol:
+    """Return a registered protocol by name, or the protocol itself.
+
+    Raises
+    ------
+    ValueError
+        Unknown name.
+    """
+    if isinstance(protocol, Protocol):
+        return protocol
+    try:
+        return PROTOCOLS[protocol]()
+    except KeyError:
+        raise ValueError(
+            f"protocol: expected one of {', '.join(PROTOCOLS)}, found {protocol!r}"
+        ) from None

@@ -169,11 +169,29 @@ class Simulator:
         self._ch_sel = np.array([CHANNELS.index(c) for c in names], dtype=np.int64)
 
     # ------------------------------------------------------------------ packing
-    def pack(self, experiments: Sequence[Experiment]) -> PackedExperiments:
-        """Concatenate experiments for :meth:`simulate_batch` (do it once per fit)."""
+    def pack(
+        self, experiments: Sequence[Experiment], steps: Sequence[float] | None = None
+    ) -> PackedExperiments:
+        """Concatenate experiments for :meth:`simulate_batch` (do it once per fit).
+
+        Parameters
+        ----------
+        experiments : sequence of Experiment
+        steps : sequence of float, optional
+            Largest step (s) for each experiment, e.g. from :func:`choose_step`
+            with the positions that experiment visits (a blocked test at
+            mid-stroke allows a larger step than one near an end). Default:
+            the simulator's ``step`` for all.
+        """
         exps = tuple(experiments)
         if not exps:
             raise ValueError("simulator: expected at least one experiment, found none")
+        if steps is None:
+            steps = [self.step] * len(exps)
+        if len(steps) != len(exps) or not all(s > 0 for s in steps):
+            raise ValueError(
+                f"simulator: steps: expected {len(exps)} positive steps, found {list(steps)}"
+            )
         n_rec = len(exps)
         cfgs = np.zeros((n_rec, self.structure.config().size), dtype=np.int64)
         ctrls = np.zeros((n_rec, 4))
@@ -192,7 +210,7 @@ class Simulator:
             offsets[r + 1] = offsets[r] + e.n_samples
         t_all = np.concatenate([e.time for e in exps])
         inp_all = np.concatenate([e.inputs() for e in exps])
-        nsub_all = np.concatenate([substeps(e, self.step) for e in exps])
+        nsub_all = np.concatenate([substeps(e, h) for e, h in zip(exps, steps, strict=True)])
         return PackedExperiments(exps, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets)
 
     # -------------------------------------------------------------- simulation

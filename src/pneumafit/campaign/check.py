@@ -20,35 +20,44 @@ def _number(value: float, digits: int) -> str:
     return "-" if not math.isfinite(value) else f"{value:.{digits}g}"
 
 
+#: Narrower consoles get the channels and setup listed under the table.
+WIDE_CONSOLE = 120
+
+
 def _render(report: CampaignReport, console: Console) -> None:
     title = f"Campaign {report.campaign.name}" if report.campaign else f"Campaign {report.path}"
+    wide = console.width >= WIDE_CONSOLE
     table = Table(title=Text(title), show_lines=False)
-    table.add_column("File", no_wrap=True)
+    table.add_column("File", overflow="fold")
     table.add_column("Kind", no_wrap=True)
     table.add_column("Role", no_wrap=True)
     table.add_column("Duration [s]", justify="right", no_wrap=True)
     table.add_column("Rate [Hz]", justify="right", no_wrap=True)
     table.add_column("Samples", justify="right", no_wrap=True)
-    table.add_column("Channels [file unit]", ratio=2)
-    table.add_column("Setup", ratio=1)
+    if wide:
+        table.add_column("Channels [file unit]", ratio=2)
+        table.add_column("Setup", ratio=1)
+    details: list[Text] = []
     for row in summarize(report.recordings):
         channels = ", ".join(f"{name} [{unit}]" for name, unit in row["channels"].items())
-        table.add_row(
-            *(
-                Text(str(cell))
-                for cell in (
-                    row["file"],
-                    row["kind"],
-                    row["role"],
-                    _number(row["duration_s"], 6),
-                    _number(row["sample_rate_Hz"], 6),
-                    row["n_samples"],
-                    channels,
-                    row["setup"],
-                )
-            )
-        )
+        cells = [
+            row["file"],
+            row["kind"],
+            row["role"],
+            _number(row["duration_s"], 6),
+            _number(row["sample_rate_Hz"], 6),
+            row["n_samples"],
+        ]
+        if wide:
+            cells += [channels, row["setup"]]
+        else:
+            line = Text(f"{row['file']}: ", style="bold")
+            line.append(f"{channels}; {row['setup']}")
+            details.append(line)
+        table.add_row(*(Text(str(cell)) for cell in cells))
     console.print(table)
+    for line in details:
+        console.print(line)
     for problem in report.problems:
         style = "bold red" if problem.is_error else "yellow"
         line = Text(f"{problem.severity}: ", style=style)

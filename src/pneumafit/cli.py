@@ -1,0 +1,201 @@
+"""The ``pneumafit`` command line. It only parses and calls.
+
+Every command reports bad input as one readable message (file, key, expected,
+found) and a non-zero exit status; tracebacks are for bugs only, and shown
+with ``PNEUMAFIT_DEBUG=1``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from pneumafit.campaign.errors import PneumafitInputError
+
+app = typer.Typer(
+    name="pneumafit",
+    help="Identify and validate models of electropneumatic actuators.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+console = Console()
+err_console = Console(stderr=True)
+
+EXIT_INVALID_INPUT = 2
+
+
+def _quantity(text: str, unit: str, option: str) -> float:
+    """An option value: a bare number in ``unit`` or a string such as '250 mm'."""
+    from pneumafit.campaign.units import ureg
+
+    magnitude, _, unit_text = text.strip().partition(" ")
+    try:
+        value = float(magnitude)
+        if not unit_text:
+            return value
+        return float(ureg.Quantity(value, unit_text.strip()).to(unit).magnitude)
+    except Exception as exc:  # pint or float: say what was expected
+        raise PneumafitInputError(
+            f"option {option}: expected a number in {unit} or a value with a unit "
+            f"(e.g. '0.25' or '250 mm'), found {text!r} ({exc})"
+        ) from None
+
+
+@app.command()
+def run(
+    campaign: Annotated[
+        Path | None, typer.Argument(help="Campaign folder (default: the bundled demo).")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="Folder for the results.")] = Path("out/run"),
+) -> None:
+    """The main job: check a campaign and replay it through the three models."""
+    from pneumafit.pipeline import run as run_pipeline
+
+    raise typer.Exit(run_pipeline(campaign, out, console))
+
+
+@app.command()
+def check(
+    campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
+) -> None:
+    """Validate a campaign and print its recordings and every problem found."""
+    from pneumafit.campaign import check_campaign
+
+    raise typer.Exit(check_campaign(campaign, console=console))
+
+
+@app.command()
+def rig(
+    out: Annotated[Path, typer.Option("--out", help="Folder to write the campaign into.")],
+    effect: Annotated[
+        list[str] | None,
+        typer.Option("--effect", help="Undeclared extra effect NAME[=VALUE]; repeatable."),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every random draw (sensor noise).")] = 2026,
+    protocol: Annotated[str, typer.Option(help="Test protocol: demo or quick.")] = "demo",
+) -> None:
+    """Record a campaign on the virtual rig (deterministic for a seed)."""
+    from pneumafit.rig import run_rig
+
+    raise typer.Exit(run_rig(out, effect or [], seed=seed, console=console, protocol=protocol))
+
+
+@app.command()
+def simulate(
+    params: Annotated[Path, typer.Argument(help="Parameter file (JSON) or a fit.json.")],
+    kind: Annotated[str, typer.Option(help="charge, discharge or step.")],
+    out: Annotated[Path, typer.Option("--out", help="HDF5 recording to write.")],
+    model: Annotated[str | None, typer.Option(help="Override the file's model structure.")] = None,
+    chamber: Annotated[str, typer.Option(help="Chamber under test (charge/discharge).")] = "P",
+    position: Annotated[str, typer.Option(help="Blocked piston position.")] = "250 mm",
+    amplitude: Annotated[str, typer.Option(help="Valve command while open.")] = "10 V",
+    start: Annotated[str, typer.Option(help="Valve opening instant.")] = "0.2 s",
+    open_time: Annotated[str, typer.Option(help="Valve opening time.")] = "0.3 s",
+    duration: Annotated[str, typer.Option(help="Test length.")] = "4 s",
+    rate: Annotated[str, typer.Option(help="Sample rate of the output.")] = "1000 Hz",
+    y0: Annotated[str, typer.Option(help="Initial position (step).")] = "250 mm",
+    y_ref: Annotated[str, typer.Option(help="Reference after the step (step).")] = "350 mm",
+    step_time: Annotated[str, typer.Option(help="Reference step instant (step).")] = "0.2 s",
+    kp: Annotated[str, typer.Option(help="pd proportional gain (step).")] = "60 V/m",
+    kd: Annotated[str, typer.Option(help="pd derivative gain (step).")] = "4 V*s/m",
+    umax: Annotated[str, typer.Option(help="pd command limit (step).")] = "10 V",
+) -> None:
+    """Simulate a test and write it as a campaign-format HDF5 recording."""
+    from pneumafit.campaign import Recording, write_recording_h5
+    from pneumafit.parameters_io import read_parameter_file
+    from pneumafit.simulation import Simulator
+    from pneumafit.simulation.scenarios import blocked_test, step_test
+
+    file_model, values = read_parameter_file(params)
+    model = model or file_model
+    if kind not in ("charge", "discharge", "step"):
+        raise PneumafitInputError(
+            f"option --kind: expected charge, discharge or step, found {kind!r}"
+        )
+    if chamber not in ("P", "N"):
+        raise PneumafitInputError(f"option --chamber: expected P or N, found {chamber!r}")
+    fs = _quantity(rate, "Hz", "--rate")
+    length = _quantity(duration, "s", "--duration")
+    if kind == "step":
+        exp = step_test(
+            model, values, y0=_quantity(y0, "m", "--y0"), y_ref=_quantity(y_ref, "m", "--y-ref"),
+            step_time=_quantity(step_time, "s", "--step-time"), duration=length,
+            kp=_quantity(kp, "V/m", "--kp"), kd=_quantity(kd, "V*s/m", "--kd"),
+            umax=_quantity(umax, "V", "--umax"), rate=fs,
+        )  # fmt: skip
+    else:
+        exp = blocked_test(
+            kind, values, chamber=chamber, position=_quantity(position, "m", "--position"),
+            amplitude=_quantity(amplitude, "V", "--amplitude"),
+            start=_quantity(start, "s", "--start"),
+            open_time=_quantity(open_time, "s", "--open-time"), duration=length, rate=fs,
+        )  # fmt: skip
+    t0 = time.perf_counter()
+    result = Simulator(model).simulate(values, exp)
+    elapsed = time.perf_counter() - t0
+    if not result.ok:
+        err_console.print(f"[red]simulation failed:[/red] {result.message}")
+        raise typer.Exit(1)
+    names = ["y", "v", "p_P", "p_N", "T_P", "T_N", "u_P", "u_N", "qm_P", "qm_N"]
+    channels = {name: result[name] for name in names}
+    if exp.y_ref is not None:
+        channels["y_ref"] = exp.y_ref
+    recording = Recording.from_arrays(
+        exp.time, channels, kind=kind, chamber=None if kind == "step" else chamber,
+        piston_position=None if kind == "step" else exp.initial["y"],
+        description=f"simulated by pneumafit ({model} model) from {params.name}",
+    )  # fmt: skip
+    write_recording_h5(out, recording)
+    air = result.air
+    table = Table(
+        title=f"{kind} test, {model} model, {exp.time[-1]:.2f} s ({elapsed * 1e3:.1f} ms)"
+    )
+    table.add_column("air consumption")
+    table.add_column("value", justify="right")
+    table.add_row("mass drawn from supply", f"{air.mass_supplied * 1e3:.4f} g")
+    table.add_row("mass sent to exhaust", f"{air.mass_exhausted * 1e3:.4f} g")
+    table.add_row("exergy of the supplied air", f"{air.exergy:.1f} J")
+    console.print(table)
+    console.print(f"wrote {out}")
+
+
+def main() -> None:
+    """Entry point: run the app; turn input errors into messages, not tracebacks.
+
+    Typer (standalone mode) handles usage errors, ``--help`` and exit codes
+    itself and leaves by ``SystemExit``; what reaches the handlers below is
+    bad input found while working (one message, exit status 2), an interrupt
+    (130) or a bug (one line, exit status 1; traceback with
+    ``PNEUMAFIT_DEBUG=1``).
+    """
+    debug = os.environ.get("PNEUMAFIT_DEBUG") == "1"
+    try:
+        app()
+    except (PneumafitInputError, ValueError) as exc:
+        if debug:
+            raise
+        err_console.print(f"[bold red]error:[/bold red] {exc}")
+        sys.exit(EXIT_INVALID_INPUT)
+    except KeyboardInterrupt:
+        err_console.print("interrupted")
+        sys.exit(130)
+    except Exception as exc:
+        if debug:
+            raise
+        err_console.print(
+            f"[bold red]internal error:[/bold red] {type(exc).__name__}: {exc}\n"
+            "This is a bug in pneumafit; run again with PNEUMAFIT_DEBUG=1 for the traceback."
+        )
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()

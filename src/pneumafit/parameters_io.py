@@ -1,0 +1,133 @@
+"""Parameter files: named model parameters with units, read into SI values.
+
+Format (JSON)::
+
+    {"model": "convection",
+     "parameters": {"xi": 0.4, "bore": "32 mm", "supply_pressure": "7 bar"}}
+
+A value is a bare number in the parameter's SI unit (see
+:data:`pneumafit.models.PARAMETER_SPECS`) or a string with a unit, converted
+by pint. A fit result (``fit.json``, ``{"format": "pneumafit-fit", ...}``)
+whose parameters are ``{NAME: {"value": ..., "unit": ...}}`` is read too.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import pint
+
+from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.campaign.units import ureg
+from pneumafit.models.layout import SPECS
+from pneumafit.models.structure import MODELS
+
+
+def _to_si(value: Any, name: str, where: str) -> float:
+    spec = SPECS.get(name)
+    if spec is None:
+        raise PneumafitInputError(
+            f"{where}: parameters.{name}: expected a model parameter name "
+            f"(e.g. xi, beta, bore, friction_static), found unknown name {name!r}"
+        )
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise PneumafitInputError(
+            f"{where}: parameters.{name}: expected a number or a string with a unit, "
+            f"found {value!r}"
+        )
+    if isinstance(value, int | float):
+        number = float(value)
+    else:
+        try:
+            magnitude, _, unit_text = value.strip().partition(" ")
+            quantity = ureg.Quantity(float(magnitude), unit_text.strip() or "dimensionless")
+            unit = spec.unit.replace("^", "**") if spec.unit else "dimensionless"
+            number = float(quantity.to(unit).magnitude)
+        except (pint.errors.PintError, ValueError, TypeError, AttributeError) as exc:
+            raise PneumafitInputError(
+                f"{where}: parameters.{name}: expected a value in {spec.unit or 'no unit'} "
+                f"(e.g. {spec.default:g}), found {value!r} ({exc})"
+            ) from None
+    if not math.isfinite(number) or not spec.lower <= number <= spec.upper:
+        raise PneumafitInputError(
+            f"{where}: parameters.{name}: expected a value in [{spec.lower:g}, {spec.upper:g}] "
+            f"{spec.unit}, found {number:g}"
+        )
+    return number
+
+
+def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tuple[str, dict]:
+    """Model name and SI parameter values from a parsed parameter document.
+
+    Parameters
+    ----------
+    document : dict
+        The parsed JSON (see the module docstring).
+    where : str
+        Name of the source for messages (e.g. the file name).
+
+    Returns
+    -------
+    model : str
+        ``document["model"]`` (default ``"convection"``).
+    values : dict of str to float
+        Parameter values in SI units.
+
+    Raises
+    ------
+    PneumafitInputError
+        Naming the key, what was expected and what was found.
+    """
+    if not isinstance(document, dict):
+        raise PneumafitInputError(
+            f"{where}: expected a JSON object, found {type(document).__name__}"
+        )
+    model = document.get("model", "convection")
+    if model not in MODELS:
+        raise PneumafitInputError(
+            f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
+        )
+    params = document.get("parameters", {})
+    if not isinstance(params, dict):
+        raise PneumafitInputError(
+            f"{where}: parameters: expected an object of name: value, found {params!r}"
+        )
+    values: dict[str, float] = {}
+    for name, value in params.items():
+        if isinstance(value, dict):  # fit.json entry
+            if "value" not in value:
+                raise PneumafitInputError(
+                    f"{where}: parameters.{name}: expected a 'value' key, found {sorted(value)}"
+                )
+            unit = value.get("unit")
+            value = value["value"] if not unit else f"{value['value']} {unit}"
+        values[name] = _to_si(value, name, where)
+    return model, values
+
+
+def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, float]]:
+    """Read a parameter file (JSON): model name and SI values by name.
+
+    Raises
+    ------
+    PneumafitInputError
+        Missing file, invalid JSON (with line), or a bad entry.
+    """
+    file = Path(path)
+    try:
+        text = file.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise PneumafitInputError(f"{file}: expected a parameter file, found none") from None
+    except OSError as exc:
+        raise PneumafitInputError(f"{file}: cannot be read: {exc.strerror}") from None
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PneumafitInputError(
+            f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"
+        ) from None
+    return parse_parameters(document, str(file))

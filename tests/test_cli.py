@@ -1,0 +1,122 @@
+"""The command line as a user runs it: exit status, messages, no tracebacks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pneumafit.campaign import read_recording
+
+DEMO = Path(__file__).resolve().parents[1] / "data" / "demo"
+
+
+def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "pneumafit.cli", *args],
+        capture_output=True, text=True, cwd=cwd, timeout=600,
+    )  # fmt: skip
+
+
+@pytest.fixture
+def params_file(tmp_path: Path) -> Path:
+    path = tmp_path / "params.json"
+    path.write_text(json.dumps({"model": "convection", "parameters": {
+        "bore": "32 mm", "rod": "20 mm", "supply_pressure": "7 bar", "xi": 0.4}}))  # fmt: skip
+    return path
+
+
+def test_simulate_charge_writes_a_campaign_recording(tmp_path, params_file):
+    out = tmp_path / "charge.h5"
+    res = cli("simulate", str(params_file), "--kind", "charge", "--chamber", "N",
+              "--position", "100 mm", "--duration", "2 s", "--out", str(out))  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert "exergy" in res.stdout and "mass drawn from supply" in res.stdout
+    rec = read_recording(out, kind="charge", chamber="N", piston_position=0.1)
+    assert rec.n_samples == 2001
+    assert rec.channels["p_N"][0] == pytest.approx(1.013e5)
+    assert rec.channels["p_N"].max() > 6e5  # filled towards the 7 bar supply
+    assert np.all(rec.channels["y"] == pytest.approx(0.1))
+
+
+def test_simulate_step(tmp_path, params_file):
+    out = tmp_path / "step.h5"
+    res = cli("simulate", str(params_file), "--kind", "step", "--y-ref", "300 mm",
+              "--duration", "2 s", "--out", str(out))  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    rec = read_recording(out, kind="step")
+    assert abs(rec.channels["y"][-1] - 0.30) < 0.01  # reached the reference
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--kind", "jump"], "--kind"),
+        (["--kind", "step", "--y-ref", "3 bar"], "--y-ref"),
+        (["--kind", "charge", "--chamber", "Q"], "--chamber"),
+    ],
+)
+def test_simulate_bad_options_are_messages(tmp_path, params_file, args, needle):
+    res = cli("simulate", str(params_file), "--out", str(tmp_path / "x.h5"), *args)
+    assert res.returncode == 2
+    assert needle in res.stderr and "Traceback" not in res.stderr + res.stdout
+    assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [
+        ("{not json", "line 1"),
+        ('{"parameters": {"bore": "6 bar"}}', "parameters.bore"),
+        ('{"parameters": {"bogus": 1}}', "bogus"),
+        ('{"model": "isothermal"}', "model"),
+    ],
+)
+def test_bad_parameter_files_are_messages(tmp_path, content, needle):
+    path = tmp_path / "p.json"
+    path.write_text(content)
+    res = cli("simulate", str(path), "--kind", "charge", "--out", str(tmp_path / "x.h5"))
+    assert res.returncode == 2
+    assert needle in res.stderr and "p.json" in res.stderr
+    assert "Traceback" not in res.stderr + res.stdout
+
+
+def test_check_demo_is_clean_and_bad_campaign_fails(tmp_path):
+    res = cli("check", str(DEMO))
+    assert res.returncode == 0, res.stdout
+    assert "valid campaign: 0 errors" in res.stdout
+    res = cli("check", str(tmp_path))
+    assert res.returncode == 1
+    assert "campaign.toml" in res.stdout + res.stderr
+    assert "Traceback" not in res.stdout + res.stderr
+
+
+def test_rig_quick_campaign_and_bad_effect(tmp_path):
+    out = tmp_path / "camp"
+    res = cli("rig", "--out", str(out), "--protocol", "quick", "--seed", "5")
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert (out / "campaign.toml").exists() and (out / "truth.json").exists()
+    assert cli("check", str(out)).returncode == 0
+    res = cli("rig", "--out", str(tmp_path / "b"), "--protocol", "quick", "--effect", "warp=1")
+    assert res.returncode == 2
+    assert "warp" in res.stdout + res.stderr and "Traceback" not in res.stdout + res.stderr
+
+
+def test_run_main_job_on_demo(tmp_path):
+    res = cli("run", "--out", str(tmp_path / "run"))
+    assert res.returncode == 0, res.stdout + res.stderr
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert set(summary["models"]) == {"convection", "constant-lambda", "polytropic"}
+    rmse = summary["models"]["convection"]["rmse"]["validate"]
+    assert rmse["p_P"] > 0 and not summary["models"]["convection"]["failed"]
+
+
+@pytest.mark.parametrize("args", [[], ["bogus"], ["simulate"], ["rig"]])
+def test_usage_errors_have_no_traceback(args):
+    res = cli(*args)
+    assert res.returncode == 2
+    assert "Traceback" not in res.stdout + res.stderr

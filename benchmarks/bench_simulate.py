@@ -3,8 +3,8 @@
 One run, one machine, ratios: on the same 4-s closed-loop step test with
 1 kHz output (half stroke, stick-slip), it times
 
-- the compiled simulator (RK4, default step), single runs and batched over
-  64 parameter sets;
+- the compiled simulator (default method, Kutta's RK3, and default step),
+  single runs and batched over 64 parameter sets;
 - the reference: scipy ``solve_ivp(method="LSODA", rtol=1e-6)`` over a
   pure-Python right-hand side of the same model (the compiled RHS's own
   source run by CPython, :func:`pneumafit.simulation.reference.pure_python`).
@@ -105,8 +105,9 @@ def main() -> None:
 
     ms = single_s * 1e3
     rows = [
-        ("compiled RK4, single", ms, err_pa, err_mm),
-        ("compiled RK4, batched x64 (per set)", batch_s * 1e3 / 64, float("nan"), float("nan")),
+        (f"compiled {sim.tableau.name}, single", ms, err_pa, err_mm),
+        (f"compiled {sim.tableau.name}, batched x64 (per set)", batch_s * 1e3 / 64, float("nan"),
+         float("nan")),
         ("scipy LSODA rtol 1e-6, pure Python (reference)", lsoda_s * 1e3, lsoda_err, lsoda_err_mm),
         ("scipy LSODA rtol 1e-8, pure Python (equal accuracy)", tight_s * 1e3, tight_err,
          float("nan")),
@@ -124,6 +125,7 @@ def main() -> None:
         "reference_max_error_Pa": round(lsoda_err, 1),
         "speedup_equal_accuracy": round(tight_s * 1e3 / ms, 1),
         "steps_per_sim": int(packed.nsub_all.sum()),
+        "method": sim.tableau.name,
     }
     print(json.dumps(result))
 

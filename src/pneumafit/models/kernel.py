@@ -537,7 +537,7 @@ def rk_step(
         xs[i] = x[i]
         xn[i] = x[i]
     if n_st == 4 and tab_c[1] == 0.5 and tab_a[2, 0] == 0.0 and tab_a[3, 2] == 1.0:
-        # classical RK4, written out: the hot path of every fit
+        # classical RK4, written out
         k1 = kk[0]
         k2 = kk[1]
         k3 = kk[2]
@@ -560,6 +560,26 @@ def rk_step(
         h6 = h / 6.0
         for i in range(nx):
             xn[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        return
+    if n_st == 3 and tab_a[2, 0] == -1.0 and tab_a[2, 1] == 2.0 and tab_c[2] == 1.0:
+        # Kutta's third-order method, written out: the default of every fit
+        k1 = kk[0]
+        k2 = kk[1]
+        k3 = kk[2]
+        u_p, u_n = commands(x, inp, k, w0, cfg, ctrl)
+        rhs(x, mode, u_p, u_n, p, d, cfg, k1, aux)
+        hh = 0.5 * h
+        for i in range(nx):
+            xs[i] = x[i] + hh * k1[i]
+        u_p, u_n = commands(xs, inp, k, w0 + 0.5 * dw, cfg, ctrl)
+        rhs(xs, mode, u_p, u_n, p, d, cfg, k2, aux)
+        for i in range(nx):
+            xs[i] = x[i] + h * (2.0 * k2[i] - k1[i])
+        u_p, u_n = commands(xs, inp, k, w0 + dw, cfg, ctrl)
+        rhs(xs, mode, u_p, u_n, p, d, cfg, k3, aux)
+        h6 = h / 6.0
+        for i in range(nx):
+            xn[i] = x[i] + h6 * (k1[i] + 4.0 * k2[i] + k3[i])
         return
     for s in range(n_st):
         for i in range(nx):

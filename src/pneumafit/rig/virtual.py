@@ -8,7 +8,7 @@ would record it (docs/virtual-rig.md):
   the gas temperature, stiction with a Stribeck curve, valve centre leakage,
   and any optional effect switched on by name (:mod:`.effects`);
 - it is simulated with a 5th-order method (Dormand-Prince) at a 0.1-ms step,
-  ten times finer than the fitting simulator's RK4 at 1 ms;
+  ten times finer than the fitting simulator's default (Kutta RK3 at 1 ms);
 - sensors add noise, offsets, quantisation and lags (:class:`SensorModel`);
 - the true parameters, effects, seed and sensor settings go to a separate
   ``truth.json``, never to ``campaign.toml``.
@@ -697,7 +697,7 @@ def truth_readme(run: RigRun) -> str:
             else "none"
         ),
         f"- simulated with `{truth['simulator']['method']}` at a fixed step of "
-        f"{truth['simulator']['step']:g} s (the fitting default is RK4 at 1 ms)",
+        f"{truth['simulator']['step']:g} s (the fitting default is Kutta RK3 at 1 ms)",
     ]
     lam = truth["diagnostics"].get("lambda_equivalent")
     if lam is not None:

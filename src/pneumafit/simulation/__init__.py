@@ -10,12 +10,13 @@ from pneumafit.simulation.simulator import (
     choose_step,
     substeps,
 )
-from pneumafit.simulation.tableau import DP5, HEUN, RK4, Tableau
+from pneumafit.simulation.tableau import DP5, HEUN, KUTTA3, RK4, Tableau
 
 __all__ = [
     "DEFAULT_STEP",
     "DP5",
     "HEUN",
+    "KUTTA3",
     "PD",
     "RK4",
     "AirConsumption",

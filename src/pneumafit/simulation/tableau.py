@@ -9,13 +9,18 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Tableau:
-    """An explicit Runge-Kutta method: stage matrix a, weights b, nodes c, order."""
+    """An explicit Runge-Kutta method.
+
+    Attributes: stage matrix a, weights b, nodes c, order, and the stability
+    limit on the negative real axis (largest h |lambda| of a decaying mode).
+    """
 
     name: str
     a: np.ndarray
     b: np.ndarray
     c: np.ndarray
     order: int
+    stability: float
 
 
 RK4 = Tableau(
@@ -24,6 +29,7 @@ RK4 = Tableau(
     np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
     np.array([0.0, 0.5, 0.5, 1.0]),
     4,
+    2.785,
 )
 
 # Dormand-Prince 5(4), used here as a fixed-step 5th-order method (the 7th,
@@ -44,6 +50,18 @@ DP5 = Tableau(
     np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84]),
     np.array([0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1]),
     5,
+    3.3,
+)
+
+# Kutta's third-order method: 3 stages, last node at the step's end (c = 1),
+# which the event detection needs.
+KUTTA3 = Tableau(
+    "kutta3",
+    np.array([[0, 0, 0], [0.5, 0, 0], [-1.0, 2.0, 0]], dtype=float),
+    np.array([1 / 6, 2 / 3, 1 / 6]),
+    np.array([0.0, 0.5, 1.0]),
+    3,
+    2.513,
 )
 
 # Heun's method, second order: for convergence-order tests.
@@ -53,6 +71,7 @@ HEUN = Tableau(
     np.array([0.5, 0.5]),
     np.array([0.0, 1.0]),
     2,
+    2.0,
 )
 
-TABLEAUS = {t.name: t for t in (RK4, DP5, HEUN)}
+TABLEAUS = {t.name: t for t in (RK4, DP5, KUTTA3, HEUN)}

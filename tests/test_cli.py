@@ -120,3 +120,21 @@ def test_usage_errors_have_no_traceback(args):
     res = cli(*args)
     assert res.returncode == 2
     assert "Traceback" not in res.stdout + res.stderr
+
+
+def test_linear_and_design_commands(tmp_path, params_file):
+    out = tmp_path / "lin"
+    res = cli("linear", str(params_file), "--positions", "50,250,450 mm", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    doc = json.loads((out / "linear.json").read_text())
+    assert [round(e["y"], 3) for e in doc["positions"]] == [0.05, 0.25, 0.45]
+    assert len(doc["positions"][1]["order_6"]["A"]) == 6
+    assert (out / "open_loop_poles.png").stat().st_size > 10_000
+    res = cli("design", str(params_file), "--order", "4", "--w0", "15", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    design = json.loads((out / "design_4.json").read_text())
+    assert len(design["schedule"]) == 25 and all(e["K"] for e in design["schedule"])
+    res = cli("design", str(params_file), "--order", "5", "--out", str(out))
+    assert res.returncode == 2 and "--order" in res.stderr
+    res = cli("linear", str(params_file), "--positions", "0.9", "--out", str(out))
+    assert res.returncode == 2 and "--positions" in res.stderr

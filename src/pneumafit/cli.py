@@ -11,13 +11,16 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from pneumafit.campaign.errors import PneumafitInputError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 app = typer.Typer(
     name="pneumafit",
@@ -165,6 +168,93 @@ def simulate(
     table.add_row("exergy of the supplied air", f"{air.exergy:.1f} J")
     console.print(table)
     console.print(f"wrote {out}")
+
+
+def _positions(text: str | None, stroke: float) -> np.ndarray:
+    """Comma-separated positions, one optional unit for all ('50,250,450 mm')."""
+    import numpy as np
+
+    if text is None:
+        return np.linspace(0.02, 0.98, 25) * stroke
+    numbers, _, unit = text.strip().partition(" ")
+    values = [_quantity(f"{v} {unit}".strip(), "m", "--positions") for v in numbers.split(",")]
+    if not values or any(not 0.0 <= v <= stroke for v in values):
+        raise PneumafitInputError(
+            f"option --positions: expected positions within the stroke [0, {stroke:g}] m, "
+            f"found {text!r}"
+        )
+    return np.array(values)
+
+
+def _fit_parameters(fit: Path) -> tuple[np.ndarray, float, str]:
+    """Parameter vector, nominal lambda_e and model of a fit or parameter file."""
+    from pneumafit.models import parameter_vector
+    from pneumafit.parameters_io import read_parameter_file
+
+    model, values = read_parameter_file(fit)
+    lambda_e = values["lambda"] if model == "constant-lambda" and "lambda" in values else 15.0
+    return parameter_vector(values), lambda_e, model
+
+
+@app.command()
+def linear(
+    fit: Annotated[Path, typer.Argument(help="fit.json or a parameter file.")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for JSON and figures.")] = Path(
+        "out/linear"
+    ),
+    positions: Annotated[
+        str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
+    ] = None,
+    lambda_e: Annotated[
+        float | None,
+        typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
+    ] = None,
+) -> None:
+    """Equilibria, linear models and open-loop poles over the stroke (eqs. 10-14)."""
+    from pneumafit.models.layout import P
+    from pneumafit.outputs.linear_report import write_linear
+
+    params, nominal, _ = _fit_parameters(fit)
+    ys = _positions(positions, params[P["stroke"]])
+    doc = write_linear(params, ys, out, lambda_e=lambda_e or nominal)
+    bad = [e for e in doc["positions"] if "error" in e]
+    for entry in bad:
+        console.print(f"[yellow]{entry['error']}[/yellow]")
+    console.print(f"wrote {out / 'linear.json'} and {out / 'open_loop_poles.png'}")
+
+
+@app.command()
+def design(
+    fit: Annotated[Path, typer.Argument(help="fit.json or a parameter file.")],
+    order: Annotated[int, typer.Option(help="4 (polytropic) or 6 (heat model).")] = 6,
+    w0: Annotated[float, typer.Option(help="ITAE frequency scale (rad/s).")] = 15.0,
+    out: Annotated[Path, typer.Option("--out", help="Folder for JSON and figures.")] = Path(
+        "out/design"
+    ),
+    positions: Annotated[
+        str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
+    ] = None,
+    lambda_e: Annotated[
+        float | None,
+        typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
+    ] = None,
+) -> None:
+    """State-feedback gain schedule placing the ITAE poles (paper Figs. 6-7)."""
+    from pneumafit.models.layout import P
+    from pneumafit.outputs.linear_report import write_design
+
+    if order not in (4, 6):
+        raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
+    if not w0 > 0:
+        raise PneumafitInputError(f"option --w0: expected a positive frequency, found {w0}")
+    params, nominal, _ = _fit_parameters(fit)
+    ys = _positions(positions, params[P["stroke"]])
+    doc = write_design(params, ys, out, order=order, w0=w0, lambda_e=lambda_e or nominal)
+    mid = doc["schedule"][len(doc["schedule"]) // 2]
+    if mid["K"] is not None:
+        gains = ", ".join(f"{s}: {k:.4g}" for s, k in zip(doc["states"], mid["K"], strict=True))
+        console.print(f"K at y = {mid['y']:.3f} m: {gains} ({', '.join(doc['gain_units'])})")
+    console.print(f"wrote {out / f'design_{order}.json'} and figures")
 
 
 def main() -> None:

@@ -1,0 +1,1 @@
+"""Outputs layer: figures, JSON files and reports built from analysis results."""

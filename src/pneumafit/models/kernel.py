@@ -478,13 +478,21 @@ def commands(
     """Valve commands (u_P, u_N) (V) at fraction w of sample interval k.
 
     Open loop: measured commands interpolated linearly between samples.
-    Closed loop (``pd``): u_P = clip(u0 + kp (y_ref - y) - kd v, -umax, umax),
-    u_N = -u_P, with y_ref interpolated linearly (campaign format).
+    Closed loop, ``pd`` law: u_P = clip(u0 + kp (y_ref - y) - kd v, -umax,
+    umax); state feedback: u_P = clip(u_e - K (x - x_e), -umax, umax) over
+    x = [y, v, P_N, P_P, T_N, T_P] with the position of x_e following y_ref;
+    u_N = -u_P, y_ref interpolated linearly (campaign format).
     """
     k1 = k + 1 if k + 1 < inp.shape[0] else k
-    if cfg[C_INPUT] == 1:
+    law = cfg[C_INPUT]
+    if law != 0:
         y_ref = (1.0 - w) * inp[k, 2] + w * inp[k1, 2]
-        u = ctrl[2] + ctrl[0] * (y_ref - x[X_Y]) - ctrl[1] * x[X_V]
+        if law == 1:
+            u = ctrl[2] + ctrl[0] * (y_ref - x[X_Y]) - ctrl[1] * x[X_V]
+        else:
+            u = ctrl[2] - ctrl[4] * (x[X_Y] - y_ref)
+            for i in range(1, 6):
+                u -= ctrl[4 + i] * (x[i] - ctrl[10 + i])
         umax = ctrl[3]
         if u > umax:
             u = umax

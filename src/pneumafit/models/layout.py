@@ -44,7 +44,7 @@ CH = {name: i for i, name in enumerate(CHANNELS)}
 C_HEAT = 0  # 0 polytropic, 1 constant lambda, 2 convection
 C_BLOCKED = 1  # 0 moving piston, 1 piston blocked (charge/discharge tests)
 C_CHAMBER = 2  # chamber under test when blocked: 0 = N, 1 = P
-C_INPUT = 3  # 0 commands replayed open loop, 1 pd controller (closed loop)
+C_INPUT = 3  # 0 commands replayed open loop, 1 pd law, 2 state feedback (closed loop)
 C_AIRPROPS = 4  # 0 mu, k_air at the wall temperature; 1 Sutherland at gas T
 C_CHAMBER_LEAK = 5  # effect chamber_leakage on/off
 C_EXTERNAL_LEAK = 6  # effect external_leakage on/off
@@ -57,6 +57,14 @@ C_SEAL_FRICTION = 12  # effect pressure-dependent seal friction on/off
 NCFG = 13
 
 HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
+
+# ----------------------------------------------------------------------------
+# Controller vector (float64): pd law [kp, kd, u0, umax, 0...]; state feedback
+# [0, 0, u_e, umax, K (6: y, v, p_N, p_P, T_N, T_P), x_e (6, same order)]
+# ----------------------------------------------------------------------------
+NCTRL = 16
+LAW_PD = 1
+LAW_STATE_FEEDBACK = 2
 
 
 # ----------------------------------------------------------------------------

@@ -164,7 +164,7 @@ class ModelStructure:
         *,
         blocked: bool = False,
         chamber: str | None = None,
-        closed_loop: bool = False,
+        closed_loop: bool | int = False,
         static_flow: bool = False,
     ) -> np.ndarray:
         """Integer configuration vector for the compiled kernel.
@@ -175,8 +175,9 @@ class ModelStructure:
             Piston blocked (charge/discharge tests): only ``chamber`` evolves.
         chamber : {"P", "N"}, optional
             Chamber under test (blocked and static-flow experiments).
-        closed_loop : bool
-            Commands from the ``pd`` controller instead of measured commands.
+        closed_loop : bool or int
+            Commands from a controller instead of measured commands: True or
+            1 for the ``pd`` law, 2 for state feedback (layout.LAW_*).
         static_flow : bool
             Static valve characteristic only (flow tests).
         """

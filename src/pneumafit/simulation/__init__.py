@@ -1,6 +1,6 @@
 """Simulation layer: experiments, compiled fixed-step simulator, reference solver."""
 
-from pneumafit.simulation.experiment import PD, Experiment
+from pneumafit.simulation.experiment import PD, Experiment, StateFeedback
 from pneumafit.simulation.simulator import (
     DEFAULT_STEP,
     AirConsumption,
@@ -24,6 +24,7 @@ __all__ = [
     "PackedExperiments",
     "Simulation",
     "Simulator",
+    "StateFeedback",
     "Tableau",
     "choose_step",
     "substeps",

@@ -7,7 +7,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pneumafit.models.layout import NX, X_PN, X_PP, X_TN, X_TP, X_V, X_Y
+from pneumafit.models.layout import (
+    LAW_PD,
+    LAW_STATE_FEEDBACK,
+    NCTRL,
+    NX,
+    X_PN,
+    X_PP,
+    X_TN,
+    X_TP,
+    X_V,
+    X_Y,
+)
 
 if TYPE_CHECKING:
     from pneumafit.campaign.model import Recording
@@ -27,8 +38,64 @@ class PD:
     u0: float = 0.0
     umax: float = 10.0
 
+    law = LAW_PD
+
+    @property
+    def reference_gain(self) -> float:
+        """Command change per metre of reference change (V/m)."""
+        return abs(self.kp)
+
     def as_array(self) -> np.ndarray:
-        return np.array([self.kp, self.kd, self.u0, self.umax], dtype=float)
+        """Controller vector of the kernel (layout.NCTRL)."""
+        out = np.zeros(NCTRL)
+        out[:4] = self.kp, self.kd, self.u0, self.umax
+        return out
+
+
+@dataclass(frozen=True)
+class StateFeedback:
+    """Full-state feedback around an equilibrium (paper's design):
+    u_P = clip(u_e - K (x - x_e), -umax, umax), x = [y, v, P_N, P_P, T_N, T_P].
+
+    The position entry of x_e follows the reference y_ref(t); the other
+    entries are the equilibrium's. A gain for the 4-state (polytropic) model
+    has zeros on the temperatures.
+
+    Attributes: gain K (6,) in V per SI state unit, x_e (6,) SI, u_e (V),
+    umax (V).
+    """
+
+    gain: tuple[float, ...]
+    x_e: tuple[float, ...]
+    u_e: float
+    umax: float = 10.0
+
+    law = LAW_STATE_FEEDBACK
+
+    def __post_init__(self) -> None:
+        gain = tuple(float(v) for v in np.ravel(self.gain))
+        x_e = tuple(float(v) for v in np.ravel(self.x_e))
+        if len(gain) not in (4, 6) or len(x_e) != 6:
+            raise ValueError(
+                f"state feedback: expected 4 or 6 gains and 6 equilibrium states, found "
+                f"{len(gain)} and {len(x_e)}"
+            )
+        gain = gain + (0.0,) * (6 - len(gain))  # a 4-state gain ignores temperatures
+        object.__setattr__(self, "gain", gain)
+        object.__setattr__(self, "x_e", x_e)
+
+    @property
+    def reference_gain(self) -> float:
+        """Command change per metre of reference change (V/m)."""
+        return abs(self.gain[0])
+
+    def as_array(self) -> np.ndarray:
+        """Controller vector of the kernel (layout.NCTRL)."""
+        out = np.zeros(NCTRL)
+        out[2], out[3] = self.u_e, self.umax
+        out[4:10] = self.gain
+        out[10:16] = self.x_e
+        return out
 
 
 @dataclass(frozen=True)
@@ -47,7 +114,7 @@ class Experiment:
         A missing ``u_N`` is -``u_P`` (single-input rig).
     y_ref : ndarray, optional
         Reference position (m) for closed-loop tests.
-    controller : PD, optional
+    controller : PD or StateFeedback, optional
         The law that produced the commands; when given, the test is simulated
         closed loop.
     chamber : {"P", "N"}, optional
@@ -66,7 +133,7 @@ class Experiment:
     u_P: np.ndarray | None = None
     u_N: np.ndarray | None = None
     y_ref: np.ndarray | None = None
-    controller: PD | None = None
+    controller: PD | StateFeedback | None = None
     chamber: str | None = None
     p_chamber: np.ndarray | None = None
     initial: dict[str, float] = field(default_factory=dict)

@@ -21,7 +21,7 @@ from numba.core.dispatcher import Dispatcher
 from scipy.integrate import solve_ivp
 
 from pneumafit.models import kernel
-from pneumafit.models.layout import C_VALVE_ORDER, NX, X_UN, X_UP, X_V
+from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation.experiment import Experiment
@@ -104,10 +104,9 @@ def solve_reference(
         raise ValueError("solve_reference: flow tests are static; nothing to integrate")
     rhs = kernel.rhs if compiled else pure_python(kernel.rhs)
     commands = kernel.commands if compiled else pure_python(kernel.commands)
-    cfg = structure.config(
-        blocked=experiment.blocked, chamber=experiment.chamber, closed_loop=experiment.closed_loop
-    )
-    ctrl = experiment.controller.as_array() if experiment.controller else np.zeros(4)
+    law = experiment.controller.law if experiment.closed_loop else 0
+    cfg = structure.config(blocked=experiment.blocked, chamber=experiment.chamber, closed_loop=law)
+    ctrl = experiment.controller.as_array() if experiment.controller else np.zeros(NCTRL)
     t = experiment.time
     inp = experiment.inputs()
     d = np.empty(kernel.ND)

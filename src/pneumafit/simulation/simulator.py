@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneumafit.models import kernel
-from pneumafit.models.layout import CHANNEL_UNITS, CHANNELS, NP, NX, P
+from pneumafit.models.layout import CHANNEL_UNITS, CHANNELS, NCTRL, NP, NX, P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation.experiment import Experiment
@@ -200,14 +200,14 @@ class Simulator:
             )
         n_rec = len(exps)
         cfgs = np.zeros((n_rec, self.structure.config().size), dtype=np.int64)
-        ctrls = np.zeros((n_rec, 4))
+        ctrls = np.zeros((n_rec, NCTRL))
         x0s = np.zeros((n_rec, NX))
         offsets = np.zeros(n_rec + 1, dtype=np.int64)
         for r, e in enumerate(exps):
             cfgs[r] = self.structure.config(
                 blocked=e.blocked,
                 chamber=e.chamber,
-                closed_loop=e.closed_loop,
+                closed_loop=e.controller.law if e.closed_loop else 0,
                 static_flow=e.kind == "flow",
             )
             if e.controller is not None:
@@ -316,7 +316,8 @@ def substeps(experiment: Experiment, step: float) -> np.ndarray:
     inp = experiment.inputs()
     jump = np.max(np.abs(np.diff(inp[:, :2], axis=0)), axis=1)
     if experiment.closed_loop:
-        jump = np.maximum(jump, experiment.controller.kp * np.abs(np.diff(inp[:, 2])))
+        gain = experiment.controller.reference_gain
+        jump = np.maximum(jump, gain * np.abs(np.diff(inp[:, 2])))
     n = np.maximum(n, np.ceil(jump / COMMAND_RESOLUTION))
     return np.concatenate([np.maximum(n, 1), [0]]).astype(np.int64)
 

@@ -257,6 +257,44 @@ def design(
     console.print(f"wrote {out / f'design_{order}.json'} and figures")
 
 
+@app.command()
+def export(
+    fit: Annotated[Path, typer.Argument(help="fit.json or a parameter file.")],
+    format: Annotated[str, typer.Option("--format", help="json, yaml, c or mat.")],
+    out: Annotated[Path, typer.Option("--out", help="File to write.")],
+    order: Annotated[int, typer.Option(help="Design model: 4 or 6.")] = 6,
+    w0: Annotated[float, typer.Option(help="ITAE frequency scale (rad/s).")] = 15.0,
+    positions: Annotated[
+        str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
+    ] = None,
+    lambda_e: Annotated[
+        float | None,
+        typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
+    ] = None,
+) -> None:
+    """Export parameters, linear models and the gain schedule for a controller."""
+    from pneumafit.models.layout import P
+    from pneumafit.outputs.export import FORMATS, build_export, write_export
+    from pneumafit.parameters_io import read_parameter_details
+
+    if format not in FORMATS:
+        raise PneumafitInputError(
+            f"option --format: expected one of {', '.join(FORMATS)}, found {format!r}"
+        )
+    if order not in (4, 6):
+        raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
+    params, nominal, model = _fit_parameters(fit)
+    _, details = read_parameter_details(fit)
+    ys = _positions(positions, params[P["stroke"]])
+    doc = build_export(details, model=model, source=fit.name, positions=ys, order=order, w0=w0,
+                       lambda_e=lambda_e or nominal)  # fmt: skip
+    write_export(doc, out, format)
+    console.print(
+        f"wrote {out}: {len(doc['grid']['positions'])} positions, order {order}"
+        + (f" ({len(doc['skipped'])} positions without equilibrium)" if doc["skipped"] else "")
+    )
+
+
 def main() -> None:
     """Entry point: run the app; turn input errors into messages, not tracebacks.
 

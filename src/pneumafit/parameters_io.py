@@ -131,3 +131,26 @@ def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, fl
             f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"
         ) from None
     return parse_parameters(document, str(file))
+
+
+def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str, dict]]:
+    """Model name and, per parameter given in the file, its SI value with the
+    uncertainty a fit.json carries (``std``, ``interval_90``; None otherwise).
+
+    Values of a fit.json are SI by its contract; unit strings are honoured.
+    """
+    model, values = read_parameter_file(path)
+    document = json.loads(Path(path).read_text(encoding="utf-8"))
+    entries = document.get("parameters", {})
+    details: dict[str, dict] = {}
+    for name, value in values.items():
+        entry = entries.get(name) if isinstance(entries.get(name), dict) else {}
+        interval = entry.get("interval_90")
+        details[name] = {
+            "value": value,
+            "unit": SPECS[name].unit,
+            "std": entry.get("std"),
+            "interval_90": list(interval) if interval is not None else None,
+            "fixed": bool(entry.get("fixed", False)),
+        }
+    return model, details

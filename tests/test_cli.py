@@ -113,6 +113,8 @@ def test_run_main_job_on_demo(tmp_path):
     assert set(summary["models"]) == {"convection", "constant-lambda", "polytropic"}
     rmse = summary["models"]["convection"]["rmse"]["validate"]
     assert rmse["p_P"] > 0 and not summary["models"]["convection"]["failed"]
+    for name in ("linear.json", "design_4.json", "design_6.json", "controller.json"):
+        assert (tmp_path / "run" / "linear" / name).exists()
 
 
 @pytest.mark.parametrize("args", [[], ["bogus"], ["simulate"], ["rig"]])

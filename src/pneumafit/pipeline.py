@@ -1,11 +1,12 @@
 """The main job, ``pneumafit run``: from a campaign to a summary.
 
-Today it validates the campaign and replays every recording through the three
+Today it validates the campaign, replays every recording through the three
 model structures at *nominal* parameters (the campaign's rig, default valve,
 heat and friction values), reporting the error of each model on each channel
-and the air each test consumed. Identification (fitted parameters with
-uncertainty) plugs in here when it lands; until then the numbers describe
-untuned models, and the summary says so.
+and the air each test consumed, then writes the linear analysis (eqs. 10-14),
+both state-feedback designs and a controller export at those parameters.
+Identification (fitted parameters with uncertainty) plugs in here when it
+lands; until then the numbers describe untuned models, and the summary says so.
 """
 
 from __future__ import annotations
@@ -65,6 +66,33 @@ def replay(campaign: Campaign, model: str, params: np.ndarray) -> dict:
     return {"rmse": rmse, "failed": failed, "air_supplied_kg": air}
 
 
+def linear_outputs(params: np.ndarray, out: Path, console: Console) -> dict:
+    """Linear analysis, both designs and a JSON export at ``params``.
+
+    w0 is the open-loop natural frequency at half stroke (the paper's
+    choice); lambda_e the paper's 15 W/m^2/K.
+    """
+    from pneumafit.analysis import linearize
+    from pneumafit.models.layout import P
+    from pneumafit.models.parameters import parameter_dict
+    from pneumafit.outputs.export import build_export, write_export
+    from pneumafit.outputs.linear_report import write_design, write_linear
+
+    stroke = params[P["stroke"]]
+    ys = np.linspace(0.02, 0.98, 25) * stroke
+    mid = linearize(params, 0.5 * stroke, order=4).poles
+    w0 = float(np.abs(mid[np.abs(mid.imag) > 0]).max())
+    write_linear(params, ys, out, lambda_e=15.0)
+    for order in (4, 6):
+        write_design(params, ys, out, order=order, w0=w0, lambda_e=15.0)
+    details = {name: {"value": value} for name, value in parameter_dict(params).items()}
+    doc = build_export(details, model="convection", source="nominal parameters", positions=ys,
+                       order=6, w0=w0, lambda_e=15.0)  # fmt: skip
+    write_export(doc, out / "controller.json", "json")
+    console.print(f"linear analysis, designs (w0 = {w0:.1f} rad/s) and export in {out}")
+    return {"w0": w0, "folder": str(out)}
+
+
 def run(campaign_path: Path | None, out: Path, console: Console) -> int:
     """Run the main job; returns the exit status."""
     started = time.perf_counter()
@@ -105,6 +133,8 @@ def run(campaign_path: Path | None, out: Path, console: Console) -> int:
         "models": results,
     }
     out.mkdir(parents=True, exist_ok=True)
+    with console.status("linear analysis, state-feedback design and export ..."):
+        summary["linear"] = linear_outputs(params, out / "linear", console)
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     console.print(
         "[yellow]note:[/yellow] these are untuned models: the identification stage "

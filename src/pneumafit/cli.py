@@ -170,6 +170,16 @@ def simulate(
     console.print(f"wrote {out}")
 
 
+#: Options shared by the linear-analysis commands.
+PositionsOption = Annotated[
+    str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
+]
+LambdaOption = Annotated[
+    float | None,
+    typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
+]
+
+
 def _positions(text: str | None, stroke: float) -> np.ndarray:
     """Comma-separated positions, one optional unit for all ('50,250,450 mm')."""
     import numpy as np
@@ -202,13 +212,8 @@ def linear(
     out: Annotated[Path, typer.Option("--out", help="Folder for JSON and figures.")] = Path(
         "out/linear"
     ),
-    positions: Annotated[
-        str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
-    ] = None,
-    lambda_e: Annotated[
-        float | None,
-        typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
-    ] = None,
+    positions: PositionsOption = None,
+    lambda_e: LambdaOption = None,
 ) -> None:
     """Equilibria, linear models and open-loop poles over the stroke (eqs. 10-14)."""
     from pneumafit.models.layout import P
@@ -231,13 +236,8 @@ def design(
     out: Annotated[Path, typer.Option("--out", help="Folder for JSON and figures.")] = Path(
         "out/design"
     ),
-    positions: Annotated[
-        str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
-    ] = None,
-    lambda_e: Annotated[
-        float | None,
-        typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
-    ] = None,
+    positions: PositionsOption = None,
+    lambda_e: LambdaOption = None,
 ) -> None:
     """State-feedback gain schedule placing the ITAE poles (paper Figs. 6-7)."""
     from pneumafit.models.layout import P
@@ -264,13 +264,8 @@ def export(
     out: Annotated[Path, typer.Option("--out", help="File to write.")],
     order: Annotated[int, typer.Option(help="Design model: 4 or 6.")] = 6,
     w0: Annotated[float, typer.Option(help="ITAE frequency scale (rad/s).")] = 15.0,
-    positions: Annotated[
-        str | None, typer.Option(help="Positions, e.g. '50,250,450 mm' (default: 25).")
-    ] = None,
-    lambda_e: Annotated[
-        float | None,
-        typer.Option(help="Nominal lambda (W/m^2/K); default the fitted constant one, else 15."),
-    ] = None,
+    positions: PositionsOption = None,
+    lambda_e: LambdaOption = None,
 ) -> None:
     """Export parameters, linear models and the gain schedule for a controller."""
     from pneumafit.models.layout import P

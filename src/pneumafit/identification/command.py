@@ -1,0 +1,260 @@
+"""Body of ``pneumafit fit``: staged identification of a campaign, with MCMC.
+
+``fit_command`` never lets a traceback out for bad input: it prints one
+message naming the file or option, what was expected and what was found,
+and returns 2. It returns 1 when the fit itself fails (every simulation
+failed), 130 when interrupted (the chains so far are kept and the same
+command resumes them), 0 on success.
+
+Output folder ``OUT``::
+
+    OUT/fit.json            the result (format pneumafit-fit, see fitfile.py)
+    OUT/chains.h5           emcee HDF5 backend, one group per sampled stage
+    OUT/chains.partial.h5   chains of a run in progress (renamed when done)
+
+Both final files appear atomically (renamed into place). A partial chains
+file is resumed only when it was made with the same campaign (SHA-256 of
+its files), model, seed, walkers, steps and pneumafit version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+from rich.console import Console
+from rich.table import Table
+from rich.text import Text
+
+from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.identification.fitfile import _version, fit_document, write_fit_json
+from pneumafit.identification.staged import (
+    FRICTION_PARAMETERS,
+    FitOptions,
+    FitResult,
+    identify,
+)
+from pneumafit.models.structure import MODELS
+
+__all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+FIT_FILE = "fit.json"
+CHAINS_FILE = "chains.h5"
+PARTIAL_FILE = "chains.partial.h5"
+#: The largest stage sampled by default has this many parameters (friction).
+MAX_SAMPLED = len(FRICTION_PARAMETERS)
+
+
+def _fingerprint(
+    campaign_sha: dict[str, str], model: str, seed: int, walkers: Any, steps: Any
+) -> str:
+    text = json.dumps(
+        {"sha256": campaign_sha, "model": model, "seed": seed, "walkers": walkers,
+         "steps": steps, "version": _version()},
+        sort_keys=True,
+    )  # fmt: skip
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _check_int(name: str, value: Any, minimum: int) -> str | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        return f"option {name}: expected an integer >= {minimum}, found {value!r}"
+    return None
+
+
+def _prepare_partial(partial: Path, fingerprint: str, console: Console) -> None:
+    """Keep a partial chains file made by the same run; otherwise remove it."""
+    if not partial.exists():
+        return
+    try:
+        with h5py.File(partial, "r") as f:
+            same = f.attrs.get("pneumafit_fingerprint") == fingerprint
+    except OSError:
+        same = False
+    if same:
+        console.print(f"resuming the chains in {partial}")
+        return
+    console.print(f"{partial}: made by another run (campaign, model, seed or settings differ): "
+                  "starting afresh")  # fmt: skip
+    partial.unlink()
+
+
+def _stamp(partial: Path, fingerprint: str) -> None:
+    with h5py.File(partial, "a") as f:
+        f.attrs["pneumafit_fingerprint"] = fingerprint
+
+
+def fit_command(
+    campaign: Path,
+    model: str,
+    out: Path,
+    walkers: int | None,
+    steps: int | None,
+    seed: int,
+    mcmc: bool,
+    console: Console,
+) -> int:
+    """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
+
+    Parameters
+    ----------
+    campaign : Path
+        Campaign folder (or its campaign.toml).
+    model : {"convection", "constant-lambda", "polytropic"}
+    out : Path
+        Output folder (created; its fit.json and chains.h5 are replaced).
+    walkers, steps : int or None
+        Walkers and steps of every sampled stage (None: the defaults).
+    seed : int
+        Same seed, same numbers.
+    mcmc : bool
+        False for point estimates with Laplace uncertainties only.
+    console : rich.console.Console
+
+    Returns
+    -------
+    int
+        0 ok, 1 the fit failed, 2 bad input, 130 interrupted (resumable).
+    """
+    from pneumafit.campaign import read_campaign
+
+    problems = [
+        _check_int("--walkers", walkers, 2 * MAX_SAMPLED),
+        _check_int("--steps", steps, 1),
+        _check_int("--seed", seed, 0),
+    ]
+    if model not in MODELS:
+        problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")
+    problems = [p for p in problems if p]
+    if problems:
+        for p in problems:
+            console.print(Text(p, style="bold red"))
+        return EXIT_BAD_INPUT
+    try:
+        camp = read_campaign(campaign)
+    except PneumafitInputError as exc:
+        console.print(Text(str(exc), style="bold red"))
+        return EXIT_BAD_INPUT
+    command = (
+        f"pneumafit fit {os.fspath(campaign)} --model {model} --out {os.fspath(out)}"
+        + (f" --walkers {walkers}" if walkers is not None else "")
+        + (f" --steps {steps}" if steps is not None else "")
+        + f" --seed {seed}"
+        + ("" if mcmc else " --no-mcmc")
+    )
+    options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        console.print(
+            Text(f"option --out {os.fspath(out)!r}: cannot be created: {exc}", "bold red")
+        )
+        return EXIT_BAD_INPUT
+    partial = out / PARTIAL_FILE
+    chains_path: Path | None = None
+    if mcmc:
+        fingerprint = _fingerprint(camp.sha256, model, seed, walkers, steps)
+        _prepare_partial(partial, fingerprint, console)
+        _stamp(partial, fingerprint)
+        chains_path = partial
+    console.print(f"fitting {model} to {camp.name} ({len(camp.by_role('fit'))} fit recordings)")
+    try:
+        result = identify(
+            camp, model, options=options, seed=seed, chains=chains_path,
+            log=lambda line: console.print(Text(line)),
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        where = f"; the chains so far are in {partial}" if mcmc else ""
+        console.print(Text(f"interrupted{where}: run the same command again to resume", "yellow"))
+        return EXIT_INTERRUPTED
+    except PneumafitInputError as exc:
+        console.print(Text(f"{campaign}: {exc}", style="bold red"))
+        return EXIT_BAD_INPUT
+    except RuntimeError as exc:
+        console.print(Text(f"fit failed: {exc}", style="bold red"))
+        return EXIT_FAILED
+    document = fit_document(
+        result, camp, seed=seed, command=command, options=options,
+        chains=CHAINS_FILE if mcmc else None,
+    )  # fmt: skip
+    try:
+        if mcmc:
+            os.replace(partial, out / CHAINS_FILE)
+        else:
+            (out / CHAINS_FILE).unlink(missing_ok=True)  # no stale chains beside a new fit
+        write_fit_json(out / FIT_FILE, document)
+    except OSError as exc:
+        console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
+        return EXIT_FAILED
+    _summary(result, console)
+    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else ""))
+    return EXIT_OK
+
+
+def _fmt(x: float | None, digits: int = 4) -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    return f"{x:.{digits}g}"
+
+
+def _summary(result: FitResult, console: Console) -> None:
+    """Table of the fitted parameters, their uncertainty and MCMC diagnostics."""
+    diag: dict[str, tuple[float, float, float]] = {}
+    for run in result.mcmc:
+        for n in run.names:
+            diag[n] = (run.tau[n], run.rhat[n], run.ess[n])
+    table = Table(title=Text(f"{result.model}: estimates (90 % intervals)"))
+    for col in (
+        "parameter",
+        "value",
+        "unit",
+        "std",
+        "90 % interval",
+        "from",
+        "tau",
+        "R-hat",
+        "ESS",
+    ):
+        table.add_column(col, justify="left" if col in ("parameter", "unit", "from") else "right")
+    for p in result.parameters:
+        if p.std is None or p.group in ("initial", "rig"):
+            continue
+        lo, hi = p.interval_90 or (math.nan, math.nan)
+        tau, rhat, ess = diag.get(p.name, (math.nan, math.nan, math.nan))
+        table.add_row(
+            p.name, _fmt(p.value, 7), p.unit or "-", _fmt(p.std, 3),
+            f"[{_fmt(lo, 7)}, {_fmt(hi, 7)}]",
+            p.uncertainty or "-", _fmt(tau), _fmt(rhat), _fmt(ess),
+        )  # fmt: skip
+    console.print(table)
+    for run in result.mcmc:
+        if len(run.names) >= 2 and run.name == "heat":
+            names = run.names
+            console.print(f"posterior correlation ({run.name}): " + ", ".join(
+                f"{names[i]}/{names[j]} {run.correlation[i, j]:+.3f}"
+                for i in range(len(names)) for j in range(i + 1, len(names))
+            ))  # fmt: skip
+    rmse = result.metrics.get("rmse", {})
+    for role in ("fit", "validate"):
+        if rmse.get(role):
+            console.print(
+                f"RMSE {role}: " + ", ".join(f"{c} {_fmt(v)}" for c, v in rmse[role].items())
+            )
+    for w in result.warnings:
+        console.print(Text(f"warning: {w}", style="yellow"))
+    console.print(f"{result.seconds:.1f} s, {result.evaluations} parameter sets simulated")

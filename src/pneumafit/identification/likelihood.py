@@ -1,0 +1,164 @@
+"""Log-likelihood and log-posterior of a problem, batched over parameter sets.
+
+Optimisers and samplers only ever call these (PINTS). Both take internal
+vectors ``z`` of the free parameters of a :class:`ParameterSet`, shape
+(n_sets, n_free) or (n_free,), and return one value per set: emcee's
+``vectorize=True`` calls them with the whole ensemble, which the compiled
+simulator runs in parallel.
+
+A failed or non-finite simulation, a set outside the bounds, or a non-finite
+noise estimate gives -inf; nothing raises for bad parameter values.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pneumafit.identification.parameters import ParameterSet
+from pneumafit.identification.problem import Prediction, Problem
+
+__all__ = ["Evaluation", "LogLikelihood", "LogPosterior"]
+
+
+@dataclass
+class Evaluation:
+    """Everything about a batch of likelihood evaluations.
+
+    Attributes
+    ----------
+    log_likelihood : ndarray (n_sets,)
+        Sum over blocks of the profile log-likelihoods; -inf on failure.
+    blocks : ndarray (n_sets, n_blocks)
+        Profile log-likelihood of each (recording, channel) block.
+    residuals : list of ndarray (n_sets, n_b)
+        data - model per block (NaN after a failure).
+    noise : list of dict of str to ndarray (n_sets,)
+        Estimated noise parameters per block (``sigma``, ``phi``).
+    ok : ndarray of bool (n_sets,)
+    prediction : Prediction
+    """
+
+    log_likelihood: NDArray[np.float64]
+    blocks: NDArray[np.float64]
+    residuals: list[NDArray[np.float64]]
+    noise: list[dict[str, NDArray[np.float64]]]
+    ok: NDArray[np.bool_]
+    prediction: Prediction
+
+
+class LogLikelihood:
+    """log p(data | parameters), noise parameters profiled per block.
+
+    Parameters
+    ----------
+    problem : Problem
+    parameters : ParameterSet
+        Defines the free parameters (internal vector) and the values of the
+        fixed ones. Every nuisance parameter the problem uses (sensor lags)
+        must be in it.
+
+    Raises
+    ------
+    ValueError
+        A nuisance parameter of the problem is missing from ``parameters``.
+    """
+
+    def __init__(self, problem: Problem, parameters: ParameterSet) -> None:
+        missing = [n for n in problem.lag_names if n not in parameters]
+        if missing:
+            raise ValueError(
+                f"likelihood: the problem uses nuisance parameters {missing}, "
+                "expected them in the parameter set, found none"
+            )
+        self.problem = problem
+        self.parameters = parameters
+        self._lower, self._upper = parameters.internal_bounds()
+
+    @property
+    def n_parameters(self) -> int:
+        """Number of free parameters (length of z)."""
+        return self.parameters.n_free
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.parameters.free_names
+
+    @property
+    def n_evaluations(self) -> int:
+        """Parameter sets simulated so far (all calls)."""
+        return self.problem.n_evaluations
+
+    def values(self, z: ArrayLike) -> dict[str, NDArray[np.float64]]:
+        """Internal vectors -> values by name (all parameters)."""
+        return self.parameters.to_values(z)
+
+    def inside(self, z: ArrayLike) -> NDArray[np.bool_]:
+        """True where every free coordinate is finite and within its bounds."""
+        zz = np.atleast_2d(np.asarray(z, dtype=float))
+        return np.all(np.isfinite(zz), axis=1) & np.all(
+            (zz >= self._lower) & (zz <= self._upper), axis=1
+        )
+
+    def evaluate(self, z: ArrayLike) -> Evaluation:
+        """Simulate and score a batch; see :class:`Evaluation`."""
+        zz = np.atleast_2d(np.asarray(z, dtype=float))
+        n = zz.shape[0]
+        inside = self.inside(zz)
+        # simulate only the sets inside the bounds; others stay NaN / -inf
+        z_run = np.where(inside[:, None], zz, self.parameters.to_internal()[None, :])
+        values = self.values(z_run)
+        pred = self.problem.predict(values, n)
+        residuals = self.problem.residuals(pred)
+        ok = pred.ok & inside
+        blocks = np.empty((n, len(residuals)))
+        noise: list[dict[str, NDArray[np.float64]]] = []
+        for j, (obs, r) in enumerate(zip(self.problem.observations, residuals, strict=True)):
+            r_ok = np.where(ok[:, None], r, 0.0)
+            est = obs.noise.estimate(r_ok, obs.floor)
+            blocks[:, j] = obs.noise.logpdf(r_ok, **est) + self.problem.log_weight(j)
+            noise.append(est)
+        with np.errstate(invalid="ignore"):
+            total = np.sum(blocks, axis=1)
+        ok &= np.isfinite(total)
+        total = np.where(ok, total, -np.inf)
+        blocks[~ok] = -np.inf
+        return Evaluation(total, blocks, residuals, noise, ok, pred)
+
+    def __call__(self, z: ArrayLike) -> NDArray[np.float64]:
+        """Log-likelihood (n_sets,) of internal vectors (n_sets, n_free); -inf on failure."""
+        return self.evaluate(z).log_likelihood
+
+    def at_values(self, values: Mapping[str, float]) -> float:
+        """Log-likelihood of one set given by values (free ones looked up by name)."""
+        return float(self(self.parameters.to_internal(values))[0])
+
+
+class LogPosterior:
+    """log prior + log-likelihood, in internal coordinates (log-Jacobians included).
+
+    The prior is that of the :class:`ParameterSet` (default flat in the
+    internal coordinate within the bounds); sets with zero prior density are
+    not simulated.
+    """
+
+    def __init__(self, likelihood: LogLikelihood) -> None:
+        self.likelihood = likelihood
+        self.parameters = likelihood.parameters
+
+    @property
+    def n_parameters(self) -> int:
+        return self.likelihood.n_parameters
+
+    def __call__(self, z: ArrayLike) -> NDArray[np.float64]:
+        zz = np.atleast_2d(np.asarray(z, dtype=float))
+        lp = self.parameters.log_prior(zz)
+        out = np.full(zz.shape[0], -np.inf)
+        live = np.isfinite(lp)
+        if live.any():
+            out[live] = lp[live] + self.likelihood(zz[live])
+        out[~np.isfinite(out)] = -np.inf
+        return out

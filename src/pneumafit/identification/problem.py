@@ -1,0 +1,1002 @@
+"""Problems: recordings + model structure + compared channels + noise models.
+
+A :class:`Problem` (PINTS's ``MultiOutputProblem``) binds measured data to
+the forward model once: it builds an :class:`~pneumafit.simulation.Experiment`
+per recording, chooses each recording's integration step and comparison
+grid, packs everything for the batched simulator, and lists the
+:class:`Observation` blocks (one per recording and compared channel) with
+their noise model. It never sees a likelihood; :mod:`.likelihood` does.
+
+Choices made here, once per problem and never per likelihood call (a smooth
+likelihood; physics notes):
+
+- **Step and comparison grid.** The step of each recording is
+  :func:`~pneumafit.simulation.choose_step` at nominal parameters over the
+  positions the recording visits, capped by ``max_step`` (4 ms). The model
+  is compared with the data on every k-th sample, k the largest with
+  k dt <= step; the integration grid keeps, besides, the two samples around
+  every change of an input (a command or reference jump), so the
+  piecewise-linear inputs the simulator sees are exactly those of the full
+  recording. Charge/discharge tests are compared densely only while the
+  valve moves and ``REST_AFTER`` s after; at rest, block means over
+  ``rest_spacing`` (weighted sqrt(n)) are compared and integrated with the
+  much larger stable step of a valve in its dead band (:func:`rest_step`).
+- **Initial state.** Pressures (and temperatures, when measured) start at
+  the intercept of a line fitted to the first ``initial_window`` seconds
+  during which the inputs do not change (the chamber drifts at rest). The
+  initial states are also parameters (``initial:<file>:<state>``, see
+  :attr:`Problem.initial_parameters`), and their errors can be profiled
+  instead (:meth:`Problem.linearize`).
+- **Sensor offsets.** For the quantities in ``offsets`` a constant per
+  block is profiled out (a pressure sensor's offset).
+- **Flow tests** are the static characteristic q_m(P, u): only samples at
+  least ``flow_settle`` seconds after a change of command or held pressure
+  are compared, one mean per level (the flow meter's own dynamics are not
+  modelled).
+- **Sensor lags.** A channel may be compared after a first-order lag of the
+  simulated signal (temperature sensors), with its time constant a constant
+  or a named nuisance parameter.
+- **Solver correction.** :meth:`Problem.correct_solver` adds the difference
+  to a fine reference solver, computed once at a parameter set.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+from numpy.typing import ArrayLike, NDArray
+
+from pneumafit.campaign.model import Recording
+from pneumafit.identification.noise import (
+    AR1,
+    Gaussian,
+    NoiseModel,
+    Quantized,
+    detect_resolution,
+    noise_model,
+)
+from pneumafit.models import kernel
+from pneumafit.models.layout import CHANNELS, X_PN, X_PP, X_TN, X_TP, X_Y, P
+from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step
+
+__all__ = [
+    "COMPARABLE_CHANNELS",
+    "DEFAULT_NOISE",
+    "QUANTITIES",
+    "Observation",
+    "Prediction",
+    "Problem",
+    "first_order_lag",
+]
+
+#: Channels a problem can compare, and the quantity each measures.
+QUANTITIES: dict[str, str] = {
+    "p_P": "pressure",
+    "p_N": "pressure",
+    "y": "position",
+    "T_P": "temperature",
+    "T_N": "temperature",
+    "qm_P": "flow",
+    "qm_N": "flow",
+}
+COMPARABLE_CHANNELS: tuple[str, ...] = tuple(QUANTITIES)
+
+#: Default noise model per quantity. Pressures, temperatures and flows:
+#: Gaussian (with initial states and sensor offsets handled, the pressure
+#: residuals of the virtual rig are white at the sensor noise, AR(1) phi
+#: below 0.1, and blocked tests are compared on an uneven grid). Position:
+#: AR(1), because its residuals are dominated by smooth model-rig
+#: differences of a few micrometres (phi ~ 0.99 at 3 ms).
+DEFAULT_NOISE: dict[str, NoiseModel] = {
+    "pressure": Gaussian(),
+    "position": AR1(),
+    "temperature": Gaussian(),
+    "flow": Gaussian(),
+}
+
+#: Largest integration step (s) of a problem's recordings (RK4; see module doc).
+MAX_STEP = 4.0e-3
+#: Flow-test samples this soon (s) after a change of command or pressure are
+#: not compared (flow-meter settling).
+FLOW_SETTLE = 0.2
+#: Blocked tests: spacing (s) of the averaged comparison samples while the
+#: valve is at rest, and how long (s) after the last command change the
+#: dense grid goes on (the fastest thermal time constant is ~0.7 s).
+REST_SPACING = 0.02
+REST_AFTER = 0.2
+#: Window (s) at the start of a recording averaged for the initial state.
+INITIAL_WINDOW = 0.05
+
+
+@njit(cache=True)
+def _lag_kernel(x: np.ndarray, t: np.ndarray, tau: np.ndarray, y: np.ndarray) -> None:
+    n_sets, n = x.shape
+    for i in range(n_sets):
+        y[i, 0] = x[i, 0]
+        ti = tau[i]
+        for k in range(1, n):
+            dt = t[k] - t[k - 1]
+            if ti <= 0.0:
+                y[i, k] = x[i, k]
+                continue
+            a = math.exp(-dt / ti)
+            slope = (x[i, k] - x[i, k - 1]) / dt
+            # exact for an input linear over the interval
+            y[i, k] = a * y[i, k - 1] + x[i, k] - a * x[i, k - 1] - ti * slope * (1.0 - a)
+
+
+@njit(cache=True, parallel=True)
+def _integrate_sets(
+    params: np.ndarray,
+    x0s: np.ndarray,
+    cfgs: np.ndarray,
+    ctrls: np.ndarray,
+    t_all: np.ndarray,
+    inp_all: np.ndarray,
+    nsub_all: np.ndarray,
+    offsets: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+    status: np.ndarray,
+) -> None:
+    # Simulator.simulate_batch with an initial state per (set, recording):
+    # initial states are parameters here (x0s has shape (n_sets, n_rec, NX)).
+    n_rec = cfgs.shape[0]
+    for job in prange(params.shape[0] * n_rec):
+        i = job // n_rec
+        r = job - i * n_rec
+        a = offsets[r]
+        b = offsets[r + 1]
+        status[i, r] = kernel.integrate(
+            t_all[a:b], inp_all[a:b], nsub_all[a:b], x0s[i, r], params[i], cfgs[r], ctrls[r],
+            tab_a, tab_b, tab_c, ch_sel, out[i, a:b],
+        )  # fmt: skip
+
+
+#: State slots of the initial states that can be parameters.
+_STATE_SLOT = {"y": X_Y, "p_P": X_PP, "p_N": X_PN, "T_P": X_TP, "T_N": X_TN}
+#: Prefix of initial-state parameter names: "initial:<file>:<state>".
+INITIAL_PREFIX = "initial:"
+
+
+def first_order_lag(
+    signal: ArrayLike, time: ArrayLike, time_constant: ArrayLike
+) -> NDArray[np.float64]:
+    """Reading of a first-order sensor, tau dy/dt = x - y, settled at the start.
+
+    Discretised exactly for an input linear between samples (so uneven grids
+    are fine): y_k = a y_(k-1) + x_k - a x_(k-1) - tau s (1 - a), with
+    a = exp(-dt / tau) and s the input's slope over the interval.
+
+    Parameters
+    ----------
+    signal : array_like, shape (n,) or (n_sets, n)
+        True signal x.
+    time : array_like, shape (n,)
+        Sample times (s).
+    time_constant : float or array_like, shape (n_sets,)
+        tau (s); 0 returns the signal.
+
+    Returns
+    -------
+    ndarray, same shape as ``signal``.
+    """
+    x = np.asarray(signal, dtype=float)
+    x2 = np.atleast_2d(x)
+    tau = np.broadcast_to(np.asarray(time_constant, dtype=float), (x2.shape[0],)).copy()
+    y = np.empty_like(x2)
+    _lag_kernel(np.ascontiguousarray(x2), np.asarray(time, dtype=float), tau, y)
+    return y.reshape(x.shape)
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One compared (recording, channel) block.
+
+    Attributes
+    ----------
+    recording : str
+        File name of the recording (as in campaign.toml).
+    index : int
+        Position of the recording in the problem (and in the packed batch).
+    kind, role : str
+        Recording kind and role.
+    channel : str
+        Compared channel (``p_P``, ``y``, ``T_N``, ``qm_P``, ...).
+    quantity : str
+        ``pressure``, ``position``, ``temperature`` or ``flow``.
+    time : ndarray
+        Comparison times (s), uniformly spaced except flow tests.
+    data : ndarray
+        Measured values at ``time`` (SI).
+    rows : ndarray of int
+        Rows of ``time`` in the recording's simulated output.
+    noise : NoiseModel
+    lag : str or float or None
+        First-order lag applied to the simulation before comparison: the name
+        of a nuisance parameter, a time constant (s), or None.
+    floor : float
+        Smallest noise scale (SI) allowed in the profile (noise-free data).
+    weight : ndarray or None
+        sqrt of the number of samples averaged into each compared value; the
+        noise model sees residuals times ``weight`` (so one sigma holds for
+        the whole block). None: every value is one sample.
+    """
+
+    recording: str
+    index: int
+    kind: str
+    role: str
+    channel: str
+    quantity: str
+    time: NDArray[np.float64]
+    data: NDArray[np.float64]
+    rows: NDArray[np.int64]
+    noise: NoiseModel
+    lag: str | float | None = None
+    floor: float = 0.0
+    weight: NDArray[np.float64] | None = None
+
+    @property
+    def n(self) -> int:
+        return int(self.data.size)
+
+
+@dataclass
+class Prediction:
+    """Simulated observations of a batch of parameter sets.
+
+    Attributes
+    ----------
+    blocks : list of ndarray, shape (n_sets, n_b)
+        One per :attr:`Problem.observations`, in order.
+    status : ndarray of int, shape (n_sets, n_recordings)
+        Simulator status, 0 = ok.
+    ok : ndarray of bool, shape (n_sets,)
+        Every simulation succeeded and every prediction is finite.
+    """
+
+    blocks: list[NDArray[np.float64]]
+    status: NDArray[np.int64]
+    ok: NDArray[np.bool_]
+
+
+def predicted_channels(recording: Recording) -> tuple[str, ...]:
+    """Channels the model predicts for a recording of this kind."""
+    ch = recording.chamber
+    if recording.kind == "flow":
+        return (f"qm_{ch}",)
+    if recording.kind in ("charge", "discharge"):
+        return (f"p_{ch}", f"T_{ch}")
+    return ("p_P", "p_N", "y", "T_P", "T_N")
+
+
+def _settled(rec: Recording, settle: float) -> NDArray[np.bool_]:
+    """Flow-test samples at least ``settle`` s after a change of command or pressure."""
+    ch = rec.chamber
+    t = rec.time
+    u = rec.channels[f"u_{ch}"]
+    p = rec.channels[f"p_{ch}"]
+    dp = np.abs(np.diff(p))
+    noise = 1.4826 * float(np.median(dp)) if dp.size else 0.0
+    change = (np.abs(np.diff(u)) > 1e-9) | (dp > 10.0 * noise)
+    last = np.full(t.size, t[0] - 2 * settle - 1.0)
+    idx = np.flatnonzero(change) + 1
+    last[idx] = t[idx]
+    last = np.maximum.accumulate(last)
+    # before the first change: treat the start as a change too
+    last = np.maximum(last, t[0])
+    return (t - last) >= settle - 1e-12
+
+
+@dataclass
+class _Layout:
+    experiment: Experiment
+    step: float
+    rep: NDArray[np.int64]  # representative raw sample of each comparison
+    grid: NDArray[np.int64]  # raw samples on the integration grid
+    groups: list[NDArray[np.int64]] | None  # raw samples averaged per comparison
+    nsub: NDArray[np.int64] | None  # steps per grid interval (None: from the step)
+
+
+#: Fraction of the method's stability limit used by :func:`rest_step`.
+REST_STABILITY_MARGIN = 0.5
+
+
+def rest_step(parameters: NDArray[np.float64], cap: float, stability: float) -> float:
+    """Stable step (s) of a blocked chamber while its valve sits in the dead band.
+
+    The fastest pressure mode then comes from the centre leakage alone
+    (conductance 2 C_leak instead of the full opening), which is hundreds of
+    times slower. The step is half the method's real-axis stability limit
+    ``stability`` over that rate (computed with ten times the leakage, for
+    fits that move it), at most ``cap``.
+    """
+    vec = np.array(parameters, dtype=float)
+    leak = vec[P["valve_C_leak"]]
+    vec[P["valve_C_supply"]] = 0.0
+    vec[P["valve_C_exhaust"]] = 0.0
+    vec[P["valve_C_leak"]] = 10.0 * leak  # margin for fits that move it
+    vec[P["friction_viscous"]] = 0.0
+    vec[P["stop_damping"]] = 0.0
+    vec[P["stop_stiffness"]] = 0.0
+    rate = kernel.stiffness_bound(vec, 0.0, float(vec[P["stroke"]]))
+    return float(min(cap, REST_STABILITY_MARGIN * stability / max(rate, 1e-12)))
+
+
+class Problem:
+    """Recordings bound to a model structure, ready for batched likelihoods.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        The recordings to compare (any kinds; flow tests use the static
+        characteristic).
+    model : str or ModelStructure
+        Structure simulated (``"convection"``, ..., or a structure, e.g. with
+        ``air_properties="sutherland"``).
+    base : mapping of str to float
+        Values (SI) of every model parameter not given at evaluation time
+        (rig parameters from the campaign, fixed valve constants, ...);
+        unnamed ones take their defaults.
+    channels : sequence of str, optional
+        Channels to compare, among :data:`COMPARABLE_CHANNELS`; each
+        recording compares those it measured that the model predicts for its
+        kind. Default: all.
+    noise : NoiseModel or str or mapping, optional
+        One model for all channels, or a mapping from channel name or
+        quantity (``pressure``, ``position``, ``temperature``, ``flow``) to
+        a model. Default :data:`DEFAULT_NOISE`.
+    sensor_lags : mapping of str to (str or float), optional
+        Channel -> nuisance parameter name or time constant (s) of a
+        first-order lag applied to the simulation before comparison.
+    nominal : mapping of str to float, optional
+        Parameter values for choosing steps (default ``base``).
+    max_step : float or None
+        Largest step (s); None compares every sample and integrates at
+        :data:`~pneumafit.simulation.DEFAULT_STEP` (no thinning).
+    flow_settle : float
+        Settling time (s) skipped after each change in flow tests.
+    initial_window : float
+        Window (s) at the start fitted for the initial state.
+    offsets : sequence of str
+        Quantities (``pressure``, ...) whose blocks get a profiled constant
+        (sensor offset per recording).
+    initial_nuisance : bool
+        Profile the initial-state errors once :meth:`linearize` has run.
+    rest_spacing : float or None
+        Block length (s) of the averaged comparison of charge/discharge tests
+        at rest; None compares every k-th sample throughout.
+    flow_average : bool
+        Compare one mean per settled level of a flow test (else every
+        settled sample).
+
+    Raises
+    ------
+    ValueError
+        No recording, an unknown channel, or no compared data at all.
+    """
+
+    def __init__(
+        self,
+        recordings: Sequence[Recording],
+        model: str | ModelStructure = "convection",
+        base: Mapping[str, float] | None = None,
+        *,
+        channels: Sequence[str] | None = None,
+        noise: NoiseModel | str | Mapping[str, NoiseModel | str] | None = None,
+        sensor_lags: Mapping[str, str | float] | None = None,
+        nominal: Mapping[str, float] | None = None,
+        max_step: float | None = MAX_STEP,
+        flow_settle: float = FLOW_SETTLE,
+        initial_window: float = INITIAL_WINDOW,
+        offsets: Sequence[str] = ("pressure",),
+        initial_nuisance: bool = True,
+        rest_spacing: float | None = REST_SPACING,
+        flow_average: bool = True,
+    ) -> None:
+        recs = list(recordings)
+        if not recs:
+            raise ValueError("problem: expected at least one recording, found none")
+        self.structure = get_structure(model)
+        chans = tuple(channels) if channels is not None else COMPARABLE_CHANNELS
+        unknown = [c for c in chans if c not in QUANTITIES]
+        if unknown:
+            raise ValueError(
+                f"problem: channels: expected names in {COMPARABLE_CHANNELS}, found {unknown}"
+            )
+        if self.structure.heat == "polytropic":
+            # the polytropic model holds T at the wall temperature: nothing to compare
+            chans = tuple(c for c in chans if QUANTITIES[c] != "temperature")
+        self.channels = chans
+        # nuisance parameters (sensor lags) may come along; the model ignores them
+        self.base_values = {k: float(v) for k, v in dict(base or {}).items() if k in P}
+        self.base = parameter_vector(self.base_values)
+        nominal_vec = parameter_vector(
+            {**self.base_values, **{k: v for k, v in dict(nominal or {}).items() if k in P}}
+        )
+        self.sensor_lags = dict(sensor_lags or {})
+        self._noise_spec = noise
+        self.max_step = max_step
+        self.flow_settle = float(flow_settle)
+        self.initial_window = float(initial_window)
+        self.rest_spacing = rest_spacing
+        self.flow_average = bool(flow_average)
+        self._tableau = Simulator(self.structure).tableau
+        bad = [q for q in offsets if q not in set(QUANTITIES.values())]
+        if bad:
+            raise ValueError(
+                f"problem: offsets: expected quantities in {sorted(set(QUANTITIES.values()))}, "
+                f"found {bad}"
+            )
+        self.offsets = tuple(offsets)
+        self.initial_nuisance = bool(initial_nuisance)
+
+        experiments: list[Experiment] = []
+        steps: list[float] = []
+        observations: list[Observation] = []
+        used: list[Recording] = []
+        rest_steps: list[NDArray[np.int64]] = []
+        for rec in recs:
+            compared = [
+                c
+                for c in predicted_channels(rec)
+                if c in chans and c in rec.channels and rec.mask.get(c, np.ones(1, bool)).any()
+            ]
+            if not compared:
+                continue
+            lay = self._layout(rec, nominal_vec)
+            index = len(used)
+            rows = np.searchsorted(lay.grid, lay.rep)
+            for c in compared:
+                mask = rec.mask.get(c, np.ones(rec.n_samples, bool))
+                raw = rec.channels[c]
+                if lay.groups is None:
+                    keep = mask[lay.rep].copy()
+                    data = raw[lay.rep]
+                else:
+                    keep = np.array([mask[g].any() for g in lay.groups], dtype=bool)
+                    data = np.array(
+                        [raw[g][mask[g]].mean() if mask[g].any() else np.nan for g in lay.groups]
+                    )
+                if keep.sum() < 3:
+                    continue
+                data = data[keep]
+                weight = None
+                if lay.groups is not None:
+                    counts = np.array([mask[g].sum() for g in lay.groups], dtype=float)[keep]
+                    weight = np.sqrt(counts) if np.any(counts != 1.0) else None
+                scale = float(np.max(np.abs(data))) if data.size else 1.0
+                observations.append(
+                    Observation(
+                        recording=rec.file, index=index, kind=rec.kind, role=rec.role,
+                        channel=c, quantity=QUANTITIES[c], time=rec.time[lay.rep][keep],
+                        data=data, rows=rows[keep].astype(np.int64),
+                        noise=self._resolve_noise(c, raw[mask]), lag=self.sensor_lags.get(c),
+                        floor=1e-9 * scale + 1e-300, weight=weight,
+                    )
+                )  # fmt: skip
+            used.append(rec)
+            experiments.append(lay.experiment)
+            steps.append(lay.step)
+            rest_steps.append(lay.nsub)
+        if not observations:
+            raise ValueError(
+                f"problem: none of the recordings measured a compared channel ({', '.join(chans)})"
+            )
+        # recordings without a surviving observation are still simulated: drop them
+        keep_idx = sorted({o.index for o in observations})
+        remap = {old: new for new, old in enumerate(keep_idx)}
+        self.recordings = [used[i] for i in keep_idx]
+        self.experiments = [experiments[i] for i in keep_idx]
+        self.steps = [steps[i] for i in keep_idx]
+        self.observations = [dataclasses.replace(o, index=remap[o.index]) for o in observations]
+        sim_channels = sorted({o.channel for o in self.observations}, key=COMPARABLE_CHANNELS.index)
+        self.simulator = Simulator(self.structure, channels=sim_channels)
+        self._channel_col = {c: j for j, c in enumerate(sim_channels)}
+        self.packed = self.simulator.pack(self.experiments, self.steps)
+        for i, j in enumerate(keep_idx):
+            nsub = rest_steps[j]
+            if nsub is not None:
+                a0, a1 = self.packed.offsets[i], self.packed.offsets[i + 1]
+                self.packed.nsub_all[a0:a1] = nsub
+        self._offsets = self.packed.offsets
+        self.initial_parameters = self._initial_parameters()
+        self.corrections: list[NDArray[np.float64] | None] = [None] * len(self.observations)
+        self._sensitivities: list[NDArray[np.float64] | None] = [None] * len(self.observations)
+        self.bases: list[NDArray[np.float64] | None] = []
+        self._update_bases()
+        self.n_evaluations = 0
+        self.lag_names = tuple(sorted({o.lag for o in self.observations if isinstance(o.lag, str)}))
+
+    # ------------------------------------------------------------------ set-up
+    def _resolve_noise(self, channel: str, values: NDArray[np.float64]) -> NoiseModel:
+        spec = self._noise_spec
+        chosen: NoiseModel | str | None = None
+        if isinstance(spec, NoiseModel | str):
+            chosen = spec
+        elif spec is not None:
+            chosen = spec.get(channel, spec.get(QUANTITIES[channel]))
+        if chosen is None:
+            return DEFAULT_NOISE[QUANTITIES[channel]]
+        if chosen == "quantized":
+            q = detect_resolution(values)
+            if q is None:
+                raise ValueError(
+                    f"problem: noise model 'quantized' for {channel}: expected readings on a "
+                    "grid, found values that are not"
+                )
+            return Quantized(q)
+        return noise_model(chosen)
+
+    def _initial(self, rec: Recording, exp: Experiment, change: NDArray[np.bool_]) -> Experiment:
+        """The experiment with its initial pressures (temperatures) from the data."""
+        n = rec.n_samples
+        t = rec.time
+        first_change = int(np.argmax(change)) + 1 if change.any() else n
+        window = (t - t[0] <= self.initial_window) & (np.arange(n) < max(first_change, 1))
+        window[0] = True
+        initial = dict(exp.initial)
+        for name in ("p_P", "p_N", "T_P", "T_N"):
+            if name in rec.channels and (rec.kind in ("step", "free") or name[-1] == rec.chamber):
+                m = window & rec.mask.get(name, np.ones(n, bool))
+                if m.sum() >= 3:
+                    # the chamber drifts at rest (centre leakage): a line's intercept
+                    _slope, icept = np.polyfit(t[m] - t[0], rec.channels[name][m], 1)
+                    initial[name] = float(icept)
+                elif m.any():
+                    initial[name] = float(np.mean(rec.channels[name][m]))
+        return dataclasses.replace(exp, initial=initial)
+
+    def _layout(self, rec: Recording, nominal: NDArray[np.float64]) -> _Layout:
+        """Integration grid, step and comparison samples of one recording."""
+        exp = Experiment.from_recording(rec)
+        n = rec.n_samples
+        t = rec.time
+        if rec.kind == "flow":
+            return self._flow_layout(rec, exp)
+        inp = exp.inputs()
+        cols = [2] if exp.closed_loop else [0, 1]
+        change = np.any(np.diff(inp[:, cols], axis=0) != 0.0, axis=1)
+        exp = self._initial(rec, exp, change)
+        if exp.blocked and rec.piston_position is not None:
+            y_range = (rec.piston_position, rec.piston_position)
+        elif "y" in rec.channels:
+            y_range = (float(np.min(rec.channels["y"])), float(np.max(rec.channels["y"])))
+        else:
+            y_range = None
+        if self.max_step is None:
+            step = choose_step(nominal, default=DEFAULT_STEP, y_range=y_range)
+            idx = np.arange(n)
+            return _Layout(exp, step, idx, idx, None, None)
+        step = choose_step(nominal, default=self.max_step, y_range=y_range)
+        dt = float(np.median(np.diff(t)))
+        k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
+        # dense samples: everywhere, or for blocked tests only around the
+        # opening (valve moving or open and REST_AFTER s after)
+        dense = np.ones(n, dtype=bool)
+        if exp.blocked and self.rest_spacing is not None and change.any():
+            idx_change = np.flatnonzero(change)
+            lo = max(0, idx_change[0] - k)
+            hi = min(n, idx_change[-1] + 1 + math.ceil(REST_AFTER / dt))
+            dense[:] = False
+            dense[lo:hi] = True
+        rep: list[int] = []
+        groups: list[NDArray[np.int64]] = []
+        m_rest = max(k, round((self.rest_spacing or 0.0) / dt))
+        i = 0
+        while i < n:
+            if dense[i]:
+                j = i
+                while j < n and dense[j]:
+                    j += 1
+                seg = np.arange(i, j, k)
+                rep.extend(seg.tolist())
+                groups.extend(np.array([s]) for s in seg)
+                i = j
+            else:
+                j = i
+                while j < n and not dense[j]:
+                    j += 1
+                for a0 in range(i, j, m_rest):
+                    block = np.arange(a0, min(a0 + m_rest, j))
+                    rep.append(int(block[block.size // 2]))
+                    groups.append(block)
+                i = j
+        rep_arr = np.asarray(rep, dtype=np.int64)
+        keep = np.zeros(n, dtype=bool)
+        keep[rep_arr] = True
+        keep[0] = keep[-1] = True
+        keep[:-1] |= change
+        keep[1:] |= change
+        grid = np.flatnonzero(keep)
+        fields = {}
+        for name in ("u_P", "u_N", "y_ref", "p_chamber"):
+            arr = getattr(exp, name)
+            fields[name] = None if arr is None else arr[grid]
+        exp = dataclasses.replace(exp, time=exp.time[grid], **fields)
+        nsub = None
+        averaged = not dense.all()
+        if averaged:
+            # steps per grid interval: the stability step while the valve is
+            # open, the rest step (centre leakage only) elsewhere
+            h_rest = rest_step(nominal, self.rest_spacing or step, self._tableau.stability)
+            tg = t[grid]
+            dtg = np.diff(tg)
+            dense_iv = dense[grid[:-1]] | dense[grid[1:]]
+            ns = np.where(dense_iv, np.ceil(dtg / step - 1e-9), np.ceil(dtg / h_rest - 1e-9))
+            nsub = np.concatenate([np.maximum(ns, 1), [0]]).astype(np.int64)
+        return _Layout(exp, step, rep_arr, grid, groups if averaged else None, nsub)
+
+    def _flow_layout(self, rec: Recording, exp: Experiment) -> _Layout:
+        """Flow tests: settled samples, averaged per level when ``flow_average``."""
+        n = rec.n_samples
+        settled = _settled(rec, self.flow_settle)
+        if not self.flow_average:
+            rep = np.flatnonzero(settled)
+            grid = np.arange(n)
+            return _Layout(exp, DEFAULT_STEP, rep, grid, None, None)
+        ch = rec.chamber
+        u = rec.channels[f"u_{ch}"]
+        p = rec.channels[f"p_{ch}"]
+        # levels: runs of settled samples
+        edges = np.flatnonzero(np.diff(settled.astype(np.int8)) != 0) + 1
+        bounds = np.concatenate([[0], edges, [n]])
+        rep, groups = [], []
+        p_level = p.copy()
+        for a0, a1 in itertools.pairwise(bounds):
+            if not settled[a0]:
+                continue
+            block = np.arange(a0, a1)
+            rep.append(int(block[block.size // 2]))
+            groups.append(block)
+            p_level[block] = p[block].mean()
+        rep_arr = np.asarray(rep, dtype=np.int64)
+        if rep_arr.size < 2:
+            rep_arr = np.flatnonzero(settled)
+            return _Layout(exp, DEFAULT_STEP, rep_arr, np.arange(n), None, None)
+        fields = {f"u_{ch}": u[rep_arr], "p_chamber": p_level[rep_arr]}
+        other = "N" if ch == "P" else "P"
+        if getattr(exp, f"u_{other}") is not None:
+            fields[f"u_{other}"] = getattr(exp, f"u_{other}")[rep_arr]
+        exp = dataclasses.replace(exp, time=rec.time[rep_arr], **fields)
+        return _Layout(exp, DEFAULT_STEP, rep_arr, rep_arr, groups, None)
+
+    # --------------------------------------------------------------- queries
+    @property
+    def n_data(self) -> int:
+        """Number of compared samples, all blocks."""
+        return int(sum(o.n for o in self.observations))
+
+    @property
+    def n_noise_parameters(self) -> int:
+        """Noise parameters and linear nuisances profiled out, all blocks."""
+        return int(sum(o.noise.n_parameters for o in self.observations)) + self.n_nuisance
+
+    @property
+    def model_parameter_names(self) -> tuple[str, ...]:
+        return tuple(P)
+
+    def model_vectors(self, values: Mapping[str, ArrayLike], n_sets: int) -> NDArray[np.float64]:
+        """Full kernel parameter vectors (n_sets, NP): ``base`` with ``values`` set."""
+        vec = np.tile(self.base, (n_sets, 1))
+        for name, val in values.items():
+            j = P.get(name)
+            if j is not None:
+                vec[:, j] = np.broadcast_to(np.asarray(val, dtype=float), (n_sets,))
+        return vec
+
+    def predict(self, values: Mapping[str, ArrayLike], n_sets: int | None = None) -> Prediction:
+        """Simulate the observations for a batch of parameter sets.
+
+        Parameters
+        ----------
+        values : mapping of str to array_like (n_sets,)
+            Model parameters (canonical names) and nuisance parameters (sensor
+            lags) by name; model parameters not given keep ``base``.
+        n_sets : int, optional
+            Batch size (default: from the first array in ``values``).
+
+        Returns
+        -------
+        Prediction
+            Never raises for bad parameter values: failed simulations have
+            ``ok`` False (and NaN blocks).
+        """
+        if n_sets is None:
+            n_sets = max((np.size(v) for v in values.values()), default=1)
+        vec = self.model_vectors(values, n_sets)
+        out, status = self._simulate(vec, self.initial_states(values, n_sets))
+        self.n_evaluations += n_sets
+        blocks = []
+        ok = np.all(status == 0, axis=1)
+        for o in self.observations:
+            a = self._offsets[o.index]
+            pred = out[:, a + o.rows, self._channel_col[o.channel]]
+            if o.lag is not None:
+                tau = values[o.lag] if isinstance(o.lag, str) else o.lag
+                tau_arr = np.broadcast_to(np.asarray(tau, dtype=float), (n_sets,))
+                bad = ~np.isfinite(pred).all(axis=1)
+                pred = first_order_lag(np.where(bad[:, None], 0.0, pred), o.time, tau_arr)
+                pred[bad] = np.nan
+            corr = self.corrections[len(blocks)]
+            if corr is not None:
+                pred = pred + corr
+            ok &= np.isfinite(pred).all(axis=1)
+            blocks.append(pred)
+        return Prediction(blocks, status, ok)
+
+    def correct_solver(
+        self, values: Mapping[str, float], *, refine: int = 4, method: str = "dp5"
+    ) -> float:
+        """Defect correction of the fixed-step solver at one parameter set.
+
+        Simulates the recordings once with the problem's solver and once with
+        a reference (``method`` at ``refine`` times more steps), and adds the
+        difference delta(t) to every later prediction: near ``values`` the
+        problem then predicts what the reference solver would, at the cost
+        of the coarse one (delta changes with the parameters only at second
+        order). On the virtual rig the coarse solver alone biased the friction
+        by 2e-5 relative, twice its interval from the position data.
+
+        Returns
+        -------
+        float
+            Largest |delta| over the blocks, in units of each block's own
+            residual scale (noise sigma estimated at ``values``): how much
+            the correction matters.
+        """
+        self.corrections = [None] * len(self.observations)
+        if all(e.kind == "flow" for e in self.experiments):
+            return 0.0
+        one = {k: np.asarray([float(v)]) for k, v in values.items()}
+        coarse = self.predict(one, 1)
+        self.n_evaluations -= 1
+        vec = self.model_vectors(one, 1)
+        ref_tab = Simulator(self.structure, method=method).tableau
+        nsub = self.packed.nsub_all * int(refine)
+        out, status = self._simulate(vec, self.initial_states(one, 1), ref_tab, nsub)
+        if np.any(status != 0) or not coarse.ok[0]:
+            return math.nan
+        worst = 0.0
+        corrections: list[NDArray[np.float64] | None] = []
+        for o, c in zip(self.observations, coarse.blocks, strict=True):
+            if o.kind == "flow":
+                corrections.append(None)
+                continue
+            a = self._offsets[o.index]
+            ref = out[0, a + o.rows, self._channel_col[o.channel]]
+            if o.lag is not None:
+                tau = values[o.lag] if isinstance(o.lag, str) else o.lag
+                ref = first_order_lag(ref, o.time, float(tau))
+            delta = ref - c[0]
+            corrections.append(delta)
+            scale = float(np.std(o.data - ref)) or 1.0
+            worst = max(worst, float(np.max(np.abs(delta))) / scale)
+        self.corrections = corrections
+        return worst
+
+    def _simulate(
+        self,
+        vec: NDArray[np.float64],
+        x0s: NDArray[np.float64],
+        tableau: object | None = None,
+        nsub: NDArray[np.int64] | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        pk = self.packed
+        tab = tableau if tableau is not None else self.simulator.tableau
+        n_sets = vec.shape[0]
+        out = np.empty((n_sets, pk.t_all.size, len(self.simulator.channels)))
+        status = np.zeros((n_sets, len(pk.experiments)), dtype=np.int64)
+        ch_sel = np.array([CHANNELS.index(c) for c in self.simulator.channels], np.int64)
+        _integrate_sets(
+            np.ascontiguousarray(vec), np.ascontiguousarray(x0s), pk.cfgs, pk.ctrls, pk.t_all,
+            pk.inp_all, pk.nsub_all if nsub is None else nsub, pk.offsets, tab.a, tab.b, tab.c,
+            ch_sel, out, status,
+        )  # fmt: skip
+        return out, status
+
+    # ---------------------------------------------------------- initial states
+    def _initial_parameters(self) -> dict[str, tuple[int, str, float, str]]:
+        """Initial states that may be parameters: name -> (recording, state, value, unit)."""
+        out: dict[str, tuple[int, str, float, str]] = {}
+        wall = float(self.base[P["wall_temperature"]])
+        for i, exp in enumerate(self.experiments):
+            if exp.kind == "flow":
+                continue
+            names = [f"p_{exp.chamber}"] if exp.blocked else ["y", "p_P", "p_N", "T_P", "T_N"]
+            for state in names:
+                default = exp.initial.get(state)
+                if default is None:
+                    default = (
+                        wall if state.startswith("T") else float(self.base[P["exhaust_pressure"]])
+                    )
+                unit = {"T": "K", "p": "Pa", "y": "m"}[state[0]]
+                out[f"{INITIAL_PREFIX}{exp.name}:{state}"] = (i, state, float(default), unit)
+        return out
+
+    def initial_values(self) -> dict[str, float]:
+        """Estimated initial states by parameter name (see :attr:`initial_parameters`)."""
+        return {n: v[2] for n, v in self.initial_parameters.items()}
+
+    def initial_states(self, values: Mapping[str, ArrayLike], n_sets: int) -> NDArray[np.float64]:
+        """Initial states (n_sets, n_recordings, NX): packed ones, parameters set."""
+        x0s = np.repeat(self.packed.x0s[None, :, :], n_sets, axis=0)
+        for name, (i, state, _v, _u) in self.initial_parameters.items():
+            if name in values:
+                x0s[:, i, _STATE_SLOT[state]] = np.broadcast_to(
+                    np.asarray(values[name], dtype=float), (n_sets,)
+                )
+        return x0s
+
+    def raw_residuals(self, prediction: Prediction) -> list[NDArray[np.float64]]:
+        """data - model per block, (n_sets, n_b) each, nuisances not removed."""
+        return [
+            o.data[None, :] - b for o, b in zip(self.observations, prediction.blocks, strict=True)
+        ]
+
+    def residuals(self, prediction: Prediction) -> list[NDArray[np.float64]]:
+        """Weighted residuals per block, linear nuisances profiled out.
+
+        (data - model) times :attr:`Observation.weight`, projected on the
+        complement of the nuisance basis (see :meth:`linearize`).
+        """
+        out = []
+        for o, r, q in zip(
+            self.observations, self.raw_residuals(prediction), self.bases, strict=True
+        ):
+            if o.weight is not None:
+                r = r * o.weight
+            out.append(r if q is None else r - (r @ q) @ q.T)
+        return out
+
+    def log_weight(self, index: int) -> float:
+        """sum(log weight) of a block: the log-Jacobian of the weighting."""
+        w = self.observations[index].weight
+        return 0.0 if w is None else float(np.sum(np.log(w)))
+
+    # --------------------------------------------------------- linear nuisances
+    def _initial_components(self, index: int) -> list[tuple[str, float]]:
+        """Initial-state components of a recording taken as unknown, with FD steps."""
+        exp = self.experiments[index]
+        if exp.kind == "flow":
+            return []
+        if exp.blocked:
+            return [(f"p_{exp.chamber}", 100.0)]
+        return [("p_P", 100.0), ("p_N", 100.0), ("T_P", 0.5), ("T_N", 0.5)]
+
+    def linearize(self, values: Mapping[str, float]) -> None:
+        """Compute the initial-state sensitivities at one parameter set.
+
+        The initial pressures of a recording (and, for step and free tests,
+        the initial gas temperatures, which the recording rarely measures)
+        are estimated from noisy samples; their error e moves the whole
+        simulated trajectory by S e to first order, S the sensitivity of the
+        compared channel to that initial state. With ``initial_nuisance``
+        the likelihood profiles those coefficients out: the residual is
+        projected on the complement of span(S) (and of a constant for the
+        quantities in ``offsets``, a sensor offset per recording). For
+        Gaussian noise this is the same as integrating the nuisances out
+        under a flat prior, up to a constant. S is held fixed between calls
+        (a smooth likelihood): call this at the start values and again at
+        the point estimate.
+
+        Parameters
+        ----------
+        values : mapping of str to float
+            One parameter set (model and nuisance parameters by name).
+        """
+        if not self.initial_nuisance:
+            self._update_bases()
+            return
+        exps: list[Experiment] = []
+        steps: list[float] = []
+        where: list[tuple[int, str, float] | None] = []
+        source: list[int] = []
+        nominal_of: dict[int, int] = {}
+        wall = float(values.get("wall_temperature", self.base[P["wall_temperature"]]))
+        for i, exp in enumerate(self.experiments):
+            given = {
+                state: float(values[n])
+                for n, (j, state, _v, _u) in self.initial_parameters.items()
+                if j == i and n in values
+            }
+            if given:
+                exp = dataclasses.replace(exp, initial={**exp.initial, **given})
+            nominal_of[i] = len(exps)
+            exps.append(exp)
+            steps.append(self.steps[i])
+            where.append(None)
+            source.append(i)
+            for name, delta in self._initial_components(i):
+                if name in exp.initial:
+                    x0 = exp.initial[name]
+                elif name.startswith("T"):
+                    x0 = wall
+                else:
+                    x0 = float(self.base[P["exhaust_pressure"]])
+                exps.append(dataclasses.replace(exp, initial={**exp.initial, name: x0 + delta}))
+                steps.append(self.steps[i])
+                where.append((i, name, delta))
+                source.append(i)
+        packed = self.simulator.pack(exps, steps)
+        # the same steps per interval as the problem's own packing
+        for j, src in enumerate(source):
+            a0, a1 = self.packed.offsets[src], self.packed.offsets[src + 1]
+            b0 = packed.offsets[j]
+            packed.nsub_all[b0 : b0 + (a1 - a0)] = self.packed.nsub_all[a0:a1]
+        vec = self.model_vectors({k: np.asarray([float(v)]) for k, v in values.items()}, 1)
+        out, status = self.simulator.simulate_batch(vec, packed)
+        if np.any(status != 0):
+            return  # keep the previous sensitivities
+        sens: list[NDArray[np.float64] | None] = []
+        for o in self.observations:
+            a0 = packed.offsets[nominal_of[o.index]]
+            col = self._channel_col[o.channel]
+            base = out[0, a0 + o.rows, col]
+            cols = []
+            for j, w in enumerate(where):
+                if w is None or w[0] != o.index:
+                    continue
+                a = packed.offsets[j]
+                s = (out[0, a + o.rows, col] - base) / w[2]
+                if o.lag is not None:
+                    tau = values[o.lag] if isinstance(o.lag, str) else o.lag
+                    s = first_order_lag(s, o.time, float(tau))
+                if np.all(np.isfinite(s)) and np.max(np.abs(s)) > 1e-6:
+                    cols.append(s)
+            sens.append(np.stack(cols, axis=1) if cols else None)
+        self._sensitivities = sens
+        self._update_bases()
+
+    def _update_bases(self) -> None:
+        bases: list[NDArray[np.float64] | None] = []
+        for o, s in zip(self.observations, self._sensitivities, strict=True):
+            cols = []
+            if o.quantity in self.offsets:
+                cols.append(np.ones(o.n))
+            if s is not None:
+                cols.extend(s.T)
+            if not cols:
+                bases.append(None)
+                continue
+            mat = np.stack(cols, axis=1)
+            if o.weight is not None:
+                mat = mat * o.weight[:, None]
+            q, r = np.linalg.qr(mat)
+            d = np.abs(np.diag(r))
+            bases.append(q[:, d > 1e-10 * np.max(d)])
+        self.bases = bases
+
+    @property
+    def n_nuisance(self) -> int:
+        """Linear nuisance coefficients profiled out, all blocks."""
+        return int(sum(0 if q is None else q.shape[1] for q in self.bases))
+
+    def describe(self) -> list[dict[str, object]]:
+        """One entry per block: recording, channel, samples, noise model, lag, step."""
+        out = []
+        for o in self.observations:
+            out.append(
+                {
+                    "recording": o.recording,
+                    "role": o.role,
+                    "channel": o.channel,
+                    "n": o.n,
+                    "noise": o.noise.describe(),
+                    "lag": o.lag,
+                    "step": self.steps[o.index],
+                }
+            )
+        return out

@@ -1,0 +1,455 @@
+"""Posterior sampling with emcee: seeded, vectorised, resumable, diagnosed.
+
+:func:`run_mcmc` runs an :class:`emcee.EnsembleSampler` with
+``vectorize=True`` (the whole ensemble is one batched simulation) on a
+:class:`~pneumafit.identification.likelihood.LogPosterior`, storing every
+step in an :class:`emcee.backends.HDFBackend` group. The backend keeps the
+generator state with every step, so a run that was interrupted resumes
+where it stopped and ends with exactly the chain an uninterrupted run gives.
+
+Diagnostics (:class:`MCMCResult`):
+
+- acceptance fraction (mean and per walker);
+- integrated autocorrelation time tau per parameter (emcee's estimator),
+  with a warning when the kept chain is shorter than 50 tau;
+- R-hat and bulk ESS from ArviZ, treating each walker as a chain (walkers of
+  an affine-invariant ensemble are not independent chains, so read R-hat as
+  a check of mixing between walkers, not as a proof of convergence);
+- the posterior correlation matrix of the parameter values.
+
+Burn-in: the first ``discard`` steps, 3 tau (estimated on the second half of
+the chain) but at most half the chain, are dropped before any summary.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import emcee
+import numpy as np
+from numpy.typing import NDArray
+
+from pneumafit.identification.parameters import ParameterSet
+
+__all__ = [
+    "MIN_TAU_MULTIPLE",
+    "MCMCResult",
+    "default_moves",
+    "propagate",
+    "run_mcmc",
+    "summarize_chain",
+]
+
+#: A kept chain shorter than this many autocorrelation times gets a warning.
+MIN_TAU_MULTIPLE = 50.0
+#: Standard deviation of the initial ensemble without a covariance, as a
+#: fraction of each internal coordinate's range (1.4 % of the value for a
+#: log-scale parameter spanning six decades).
+INITIAL_SPREAD = 1e-3
+
+
+@dataclass
+class MCMCResult:
+    """Result of :func:`run_mcmc`.
+
+    Attributes
+    ----------
+    name : str
+        Backend group name (the stage).
+    names : tuple of str
+        Sampled (free) parameters, in chain order.
+    chain : ndarray (n_steps, n_walkers, n_free)
+        Internal coordinates (log for log-scale parameters), every step.
+    log_prob : ndarray (n_steps, n_walkers)
+    n_walkers, n_steps : int
+    discard : int
+        Burn-in steps dropped from the summaries.
+    acceptance : float
+        Mean acceptance fraction; ``acceptance_per_walker`` has all.
+    tau : dict of str to float
+        Integrated autocorrelation time (steps) of each parameter.
+    tau_multiple : float
+        Kept chain length over the largest tau.
+    rhat, ess : dict of str to float
+        ArviZ rank-normalised R-hat and bulk ESS, walkers as chains.
+    parameters : ParameterSet
+        Input set with ``std``, ``interval_90``, ``median`` and
+        ``uncertainty="mcmc"`` for the sampled parameters and the posterior
+        correlation attached (values unchanged).
+    correlation : ndarray (n_free, n_free)
+        Posterior correlation of the parameter values.
+    warnings : list of str
+    seconds : float
+        Wall time of this call (sampling only).
+    evaluations : int
+        Log-posterior evaluations (parameter sets) in this call.
+    resumed_from : int
+        Steps found in the backend when the call started (0: a fresh run).
+    seed : int
+    """
+
+    name: str
+    names: tuple[str, ...]
+    chain: NDArray[np.float64]
+    log_prob: NDArray[np.float64]
+    n_walkers: int
+    n_steps: int
+    discard: int
+    acceptance: float
+    acceptance_per_walker: NDArray[np.float64]
+    tau: dict[str, float]
+    tau_multiple: float
+    rhat: dict[str, float]
+    ess: dict[str, float]
+    parameters: ParameterSet
+    correlation: NDArray[np.float64]
+    warnings: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    evaluations: int = 0
+    resumed_from: int = 0
+    seed: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        """The summary written to fit.json (no chains)."""
+        return {
+            "walkers": self.n_walkers,
+            "steps": self.n_steps,
+            "discard": self.discard,
+            "acceptance": self.acceptance,
+            "tau": self.tau,
+            "tau_multiple": self.tau_multiple,
+            "rhat": self.rhat,
+            "ess": self.ess,
+            "parameters": list(self.names),
+            "correlation": [[float(v) for v in row] for row in self.correlation],
+            "seconds": self.seconds,
+            "evaluations": self.evaluations,
+            "resumed_from": self.resumed_from,
+            "seed": self.seed,
+            "warnings": list(self.warnings),
+        }
+
+
+def default_moves() -> list[tuple[Any, float]]:
+    """Differential-evolution moves: 80 % DE, 20 % DE snooker (emcee's moves).
+
+    On the heat posterior of the demo (xi, beta; correlation -0.999) they
+    gave tau = 8-10 steps against 24-39 for the default stretch move, and
+    14-20 against 25-32 on the four friction parameters, for the same cost
+    per step.
+    """
+    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+
+
+def _initial_walkers(
+    log_prob: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    z0: NDArray[np.float64],
+    covariance: NDArray[np.float64] | None,
+    n_walkers: int,
+    rng: np.random.Generator,
+    lower: NDArray[np.float64],
+    upper: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Walkers drawn around z0 from the Laplace covariance, all with finite log_prob."""
+    n = z0.size
+    if covariance is None or not np.all(np.isfinite(covariance)):
+        width = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
+        covariance = np.diag((INITIAL_SPREAD * width) ** 2)
+    cov = 0.5 * (covariance + covariance.T)
+    w, v = np.linalg.eigh(cov)
+    scale = np.sqrt(np.clip(w, 1e-24 * max(float(w.max()), 1e-300), None))
+    walkers = np.empty((n_walkers, n))
+    filled = 0
+    shrink = 1.0
+    for _ in range(50):
+        need = n_walkers - filled
+        cand = z0 + shrink * (rng.standard_normal((need, n)) * scale) @ v.T
+        cand = np.clip(cand, lower, upper)
+        good = np.isfinite(log_prob(cand))
+        take = cand[good]
+        walkers[filled : filled + take.shape[0]] = take
+        filled += take.shape[0]
+        if filled >= n_walkers:
+            return walkers
+        shrink *= 0.5
+    raise RuntimeError(
+        "mcmc: could not place the walkers: the log posterior is -inf around the point estimate"
+    )
+
+
+def _backend(path: Path | None, name: str) -> emcee.backends.Backend:
+    if path is None:
+        return emcee.backends.Backend()
+    return emcee.backends.HDFBackend(os.fspath(path), name=name)
+
+
+def run_mcmc(
+    log_prob: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    parameters: ParameterSet,
+    start: NDArray[np.float64],
+    covariance: NDArray[np.float64] | None = None,
+    *,
+    n_walkers: int = 32,
+    n_steps: int = 2000,
+    seed: int = 0,
+    backend: str | os.PathLike[str] | None = None,
+    name: str = "mcmc",
+    progress: bool | str = False,
+    moves: Any = None,
+) -> MCMCResult:
+    """Sample a log posterior with emcee; resume a stored run when possible.
+
+    Parameters
+    ----------
+    log_prob : callable
+        Vectorised log posterior: (n_walkers, n_free) -> (n_walkers,).
+    parameters : ParameterSet
+        Its free parameters are sampled (internal coordinates).
+    start : ndarray (n_free,)
+        Centre of the initial ensemble (e.g. the point estimate's ``z``).
+    covariance : ndarray, optional
+        Spread of the initial ensemble. Default: :data:`INITIAL_SPREAD` of
+        each coordinate's range, deliberately wider than the posterior: the
+        stick-slip likelihood is rugged, and an ensemble started inside the
+        Laplace ellipse of one local facet stays there (on the test campaigns
+        its friction intervals were 5-70 times too narrow and missed the
+        truth); started wide, the walkers settle over the whole envelope and
+        the burn-in is discarded.
+    n_walkers, n_steps : int
+        Ensemble size (at least 2 n_free) and chain length (steps stored).
+    seed : int
+        Seeds the initial ensemble and emcee's generator; same seed, same chain.
+    backend : path, optional
+        HDF5 file holding the chain in group ``name``. A group with the same
+        shape and fewer steps is resumed; one with ``n_steps`` or more is
+        read back without sampling; a different shape is started afresh.
+    progress : bool or str
+        emcee's tqdm progress bar.
+    moves : optional
+        emcee moves (default :func:`default_moves`).
+
+    Returns
+    -------
+    MCMCResult
+
+    Raises
+    ------
+    ValueError
+        Too few walkers or steps.
+    """
+    n_free = parameters.n_free
+    if n_walkers < 2 * n_free or n_walkers < 4:
+        raise ValueError(
+            f"mcmc {name}: walkers: expected at least {max(2 * n_free, 4)} walkers "
+            f"for {n_free} parameters, found {n_walkers}"
+        )
+    if n_steps < 1:
+        raise ValueError(f"mcmc {name}: steps: expected at least 1, found {n_steps}")
+    path = Path(backend) if backend is not None else None
+    store = _backend(path, name)
+    done = 0
+    if path is not None and path.exists():
+        try:
+            if store.initialized and store.shape == (n_walkers, n_free):
+                done = int(store.iteration)
+            else:
+                done = -1
+        except (OSError, KeyError):
+            done = -1
+    if done < 0 or (done == 0 and path is not None):
+        store.reset(n_walkers, n_free)
+        done = 0
+    t0 = time.perf_counter()
+    evaluations = 0
+
+    def counted(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        nonlocal evaluations
+        evaluations += z.shape[0]
+        return log_prob(z)
+
+    sampler = emcee.EnsembleSampler(
+        n_walkers, n_free, counted, vectorize=True, backend=store,
+        moves=default_moves() if moves is None else moves,
+    )  # fmt: skip
+    remaining = n_steps - done
+    if remaining > 0:
+        if done == 0:
+            lower, upper = parameters.internal_bounds()
+            rng = np.random.default_rng(seed)
+            walkers = _initial_walkers(
+                counted, np.asarray(start, float), covariance, n_walkers, rng, lower, upper
+            )
+            state = emcee.State(
+                walkers, random_state=np.random.RandomState(seed % 2**32).get_state()
+            )
+            sampler.run_mcmc(state, remaining, progress=progress)
+        else:
+            sampler.run_mcmc(None, remaining, progress=progress)
+    seconds = time.perf_counter() - t0
+    chain = store.get_chain()[:n_steps]
+    lp = store.get_log_prob()[:n_steps]
+    accepted = np.asarray(store.accepted, dtype=float)
+    iterations = max(int(store.iteration), 1)
+    result = summarize_chain(chain, lp, parameters, accepted / iterations, name=name, seed=seed)
+    result.seconds = seconds
+    result.evaluations = evaluations
+    result.resumed_from = done
+    return result
+
+
+def summarize_chain(
+    chain: NDArray[np.float64],
+    log_prob: NDArray[np.float64],
+    parameters: ParameterSet,
+    acceptance_per_walker: NDArray[np.float64],
+    *,
+    name: str = "mcmc",
+    seed: int = 0,
+) -> MCMCResult:
+    """Diagnostics and posterior summaries of a stored chain (see module doc)."""
+    import arviz as az
+
+    n_steps, n_walkers, n_free = chain.shape
+    names = parameters.free_names
+    notes: list[str] = []
+    half = chain[n_steps // 2 :]
+    tau_half = _tau(half)
+    finite = tau_half[np.isfinite(tau_half)]
+    discard = int(min(n_steps // 2, math.ceil(3.0 * finite.max()))) if finite.size else 0
+    kept = chain[discard:]
+    tau = _tau(kept)
+    tau_max = float(np.max(tau)) if n_free and np.all(np.isfinite(tau)) else math.nan
+    multiple = kept.shape[0] / tau_max if tau_max > 0 else (0.0 if n_free else math.inf)
+    if not math.isfinite(tau_max) and n_free:
+        notes.append(
+            f"{name}: the autocorrelation time could not be estimated from "
+            f"{kept.shape[0]} steps: the chain is far too short"
+        )
+    elif multiple < MIN_TAU_MULTIPLE:
+        notes.append(
+            f"{name}: the kept chain ({kept.shape[0]} steps) is {multiple:.1f} tau long, "
+            f"shorter than {MIN_TAU_MULTIPLE:g} tau (largest tau {tau_max:.1f} steps): "
+            f"the uncertainty is not reliable; run at least "
+            f"{math.ceil(MIN_TAU_MULTIPLE * tau_max + discard)} steps"
+        )
+    # values, walkers as chains: (n_walkers, n_draws)
+    values = np.empty_like(kept)
+    for j, p in enumerate(parameters.free):
+        values[:, :, j] = p.to_value(kept[:, :, j])
+    rhat: dict[str, float] = {}
+    ess: dict[str, float] = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for j, n in enumerate(names):
+            draws = kept[:, :, j].T
+            rhat[n] = float(az.rhat(draws)) if kept.shape[0] >= 4 else math.nan
+            ess[n] = float(az.ess(draws)) if kept.shape[0] >= 4 else math.nan
+    flat = values.reshape(-1, n_free)
+    out = parameters.copy()
+    for j, p in enumerate(parameters.free):
+        col = flat[:, j]
+        lo, med, hi = np.quantile(col, [0.05, 0.5, 0.95])
+        out = out.replace(
+            p.name, std=float(np.std(col)), interval_90=(float(lo), float(hi)),
+            median=float(med), uncertainty="mcmc",
+        )  # fmt: skip
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.atleast_2d(np.corrcoef(flat, rowvar=False)) if n_free > 1 else np.ones((1, 1))
+    corr = np.nan_to_num(corr)
+    out.correlation = (names, corr)
+    accept = float(np.mean(acceptance_per_walker))
+    if accept < 0.1:
+        notes.append(f"{name}: low acceptance fraction {accept:.2f} (expected 0.2-0.5)")
+    return MCMCResult(
+        name=name, names=names, chain=chain, log_prob=log_prob, n_walkers=n_walkers,
+        n_steps=n_steps, discard=discard, acceptance=accept,
+        acceptance_per_walker=np.asarray(acceptance_per_walker, float),
+        tau={n: float(t) for n, t in zip(names, tau, strict=True)}, tau_multiple=float(multiple),
+        rhat=rhat, ess=ess, parameters=out, correlation=corr, warnings=notes, seed=seed,
+    )  # fmt: skip
+
+
+def _tau(chain: NDArray[np.float64]) -> NDArray[np.float64]:
+    """emcee's integrated autocorrelation time per parameter, without raising."""
+    if chain.shape[0] < 2:
+        return np.full(chain.shape[2], np.nan)
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore")
+        tau = emcee.autocorr.integrated_time(chain, c=5, tol=0, quiet=True)
+    return np.asarray(tau, dtype=float)
+
+
+def summarize_samples(
+    z: NDArray[np.float64], parameters: ParameterSet, uncertainty: str = "mcmc"
+) -> ParameterSet:
+    """Median, std, 90 % interval and correlation of internal samples (n, n_free)."""
+    out = parameters.copy()
+    values = np.empty_like(z)
+    for j, p in enumerate(parameters.free):
+        values[:, j] = p.to_value(z[:, j])
+        lo, med, hi = np.quantile(values[:, j], [0.05, 0.5, 0.95])
+        out = out.replace(
+            p.name, std=float(np.std(values[:, j])), interval_90=(float(lo), float(hi)),
+            median=float(med), uncertainty=uncertainty,
+        )  # fmt: skip
+    n_free = z.shape[1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.atleast_2d(np.corrcoef(values, rowvar=False)) if n_free > 1 else np.ones((1, 1))
+    out.correlation = (parameters.free_names, np.nan_to_num(corr))
+    return out
+
+
+def propagate(
+    result: MCMCResult,
+    joint: ParameterSet,
+    covariance: NDArray[np.float64] | None,
+    *,
+    exclude_groups: tuple[str, ...] = ("initial",),
+    seed: int = 0,
+) -> tuple[ParameterSet, NDArray[np.float64]]:
+    """Add the uncertainty of the parameters a stage held fixed, to first order.
+
+    A stage samples its parameters h with the others v held at the joint
+    estimate: a conditional posterior. For a Gaussian joint posterior of
+    covariance S the marginal of h is the conditional one shifted by
+    A (z_v - mu_v), A = S_hv S_vv^-1, z_v ~ N(mu_v, S_vv): each kept MCMC
+    draw gets such a shift, drawn from the joint Laplace covariance
+    ``covariance`` (internal coordinates of ``joint.free_names``). Parameters
+    of ``exclude_groups`` (the initial states, whose errors the stage's
+    likelihood profiles already) are not propagated.
+
+    Returns
+    -------
+    ParameterSet
+        ``result.parameters`` with the propagated summaries.
+    ndarray (n_draws, n_h)
+        The shifted internal draws.
+    """
+    kept = result.chain[result.discard :].reshape(-1, len(result.names))
+    if covariance is None:
+        return result.parameters, kept
+    free = joint.free_names
+    try:
+        h = [free.index(n) for n in result.names]
+    except ValueError:
+        return result.parameters, kept
+    v = [i for i, n in enumerate(free) if n not in result.names
+         and joint[n].group not in exclude_groups]  # fmt: skip
+    if not v:
+        return result.parameters, kept
+    s_hv = covariance[np.ix_(h, v)]
+    s_vv = covariance[np.ix_(v, v)]
+    a = s_hv @ np.linalg.pinv(s_vv, hermitian=True)
+    extra = a @ s_vv @ a.T
+    w, vecs = np.linalg.eigh(0.5 * (extra + extra.T))
+    root = vecs * np.sqrt(np.clip(w, 0.0, None))
+    rng = np.random.default_rng(seed)
+    z = kept + rng.standard_normal(kept.shape) @ root.T
+    return summarize_samples(z, result.parameters), z

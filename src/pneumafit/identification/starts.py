@@ -1,0 +1,128 @@
+"""Data-driven start values for the staged fit (never the parameter defaults).
+
+A rig engineer reads first estimates off the recordings before fitting:
+the full-opening conductances from the largest measured flows, the friction
+from the force balance of the step tests. Starting there (plus a few generic
+starts) keeps the least-squares fits away from the parameter defaults, which
+for the virtual rig happen to be the truth.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from pneumafit.campaign.model import Recording
+from pneumafit.physics.air import G0, RHO0, T_REF
+from pneumafit.physics.geometry import piston_areas
+
+__all__ = ["friction_starts", "heat_starts", "valve_starts"]
+
+
+def valve_starts(flows: Sequence[Recording], rig: Mapping[str, float]) -> list[dict[str, float]]:
+    """Starts of the servo-distributor characteristic from flow tests.
+
+    Full-opening conductances from the largest inflow (supply path, choked
+    at low chamber pressure) and outflow (exhaust path, choked at high
+    pressure), ISO 6358 q = C rho0 P_up sqrt(T_ref / T); the centre leakage
+    from the flow at the smallest command; generic critical ratio, index,
+    dead band and leakage width. Two starts differ in b and m.
+    """
+    p_s = rig["supply_pressure"]
+    t_a = rig["ambient_temperature"]
+    rt = math.sqrt(T_REF / t_a)
+    c_s, c_e, leak = [], [], []
+    for rec in flows:
+        ch = rec.chamber
+        u = rec.channels[f"u_{ch}"]
+        p = rec.channels[f"p_{ch}"]
+        q = rec.channels[f"qm_{ch}"]
+        top = u >= 0.9 * u.max() if u.max() > 0 else np.zeros(u.size, bool)
+        bottom = u <= 0.9 * u.min() if u.min() < 0 else np.zeros(u.size, bool)
+        if top.any():
+            c_s.append(float(np.max(q[top])) / (RHO0 * p_s * rt))
+        if bottom.any():
+            c_e.append(float(np.max(-q[bottom] / (RHO0 * p[bottom] * rt))))
+        small = np.abs(u) <= np.min(np.abs(u)) + 1e-9
+        if small.any():
+            leak.append(float(np.median(np.abs(q[small]))) / (RHO0 * p_s * rt) * 2.0)
+    cs = float(np.clip(max(c_s) if c_s else 1e-8, 1e-11, 1e-6))
+    ce = float(np.clip(max(c_e) if c_e else cs, 1e-11, 1e-6))
+    cl = float(np.clip(max(leak) if leak else 1e-3 * cs, 1e-14, 1e-9))
+    common = {"valve_C_supply": cs, "valve_C_exhaust": ce, "valve_C_leak": cl,
+              "valve_overlap": 0.5, "valve_leak_width": 1.0}  # fmt: skip
+    return [
+        {**common, "valve_b_supply": 0.4, "valve_b_exhaust": 0.4, "valve_m": 0.5},
+        {**common, "valve_b_supply": 0.2, "valve_b_exhaust": 0.2, "valve_m": 0.7},
+    ]
+
+
+def heat_starts(heat: str) -> list[dict[str, float]]:
+    """Textbook starts of the heat law (physics notes).
+
+    Convection: laminar (xi 0.59, beta 1/4) and turbulent (0.10, 1/3) free
+    convection and one in between; constant lambda: 5, 15 and 40 W/m^2/K;
+    polytropic: k = 1.05, 1.2, 1.35.
+    """
+    if heat == "convection":
+        return [{"xi": 0.59, "beta": 0.25}, {"xi": 0.10, "beta": 1.0 / 3.0},
+                {"xi": 0.25, "beta": 0.29}]  # fmt: skip
+    if heat == "constant-lambda":
+        return [{"lambda": 5.0}, {"lambda": 15.0}, {"lambda": 40.0}]
+    return [{"k": 1.05}, {"k": 1.2}, {"k": 1.35}]
+
+
+def friction_starts(steps: Sequence[Recording], rig: Mapping[str, float]) -> list[dict[str, float]]:
+    """Friction starts from the force balance of step tests, plus a generic one.
+
+    Drive force F_d = S_P P_P - S_N P_N - P_atm (S_P - S_N) - F_ext - M g
+    sin(angle); velocity and acceleration from a Savitzky-Golay filter of
+    the position. On sliding samples (|v| > 20 mm/s) F_d - M a = sign(v)
+    (F_c + b |v|) gives the Coulomb and viscous terms by linear least
+    squares; while the piston is stuck |F_d| stays below F_s, so the 99th
+    percentile of |F_d| on stuck samples is a lower estimate of F_s.
+    """
+    s_p, s_n = piston_areas(rig["bore"], rig["rod"])
+    m = rig["moving_mass"]
+    f_ext = (
+        rig["exhaust_pressure"] * (s_p - s_n)
+        + rig.get("external_force", 0.0)
+        + m * G0 * math.sin(rig.get("mounting_angle", 0.0))
+    )
+    rows_v, rows_f, stuck = [], [], []
+    for rec in steps:
+        ch = rec.channels
+        if not all(k in ch for k in ("y", "p_P", "p_N")):
+            continue
+        dt = float(np.median(np.diff(rec.time)))
+        win = max(5, round(0.021 / dt) | 1)
+        if rec.n_samples <= win:
+            continue
+        v = savgol_filter(ch["y"], win, 2, deriv=1, delta=dt)
+        a = savgol_filter(ch["y"], win, 2, deriv=2, delta=dt)
+        f_d = s_p * ch["p_P"] - s_n * ch["p_N"] - f_ext
+        slide = np.abs(v) > 0.02
+        rows_v.append(v[slide])
+        rows_f.append((f_d - m * a)[slide])
+        stuck.append(np.abs(f_d[np.abs(v) < 1e-4]))
+    generic = {"friction_static": 40.0, "friction_coulomb": 20.0, "friction_viscous": 50.0,
+               "stribeck_velocity": 0.01}  # fmt: skip
+    if not rows_v:
+        return [generic]
+    v = np.concatenate(rows_v)
+    f = np.concatenate(rows_f) * np.sign(v)
+    if v.size < 10:
+        return [generic]
+    design = np.stack([np.ones(v.size), np.abs(v)], axis=1)
+    (f_c, b), *_ = np.linalg.lstsq(design, f, rcond=None)
+    f_c = float(np.clip(f_c, 0.5, 5e3))
+    b = float(np.clip(b, 0.5, 5e4))
+    st = np.concatenate(stuck) if stuck else np.zeros(0)
+    f_s = float(np.percentile(st, 99)) if st.size > 10 else 1.5 * f_c
+    f_s = max(f_s, 1.1 * f_c)
+    data = {"friction_static": f_s, "friction_coulomb": f_c, "friction_viscous": b,
+            "stribeck_velocity": 0.01}  # fmt: skip
+    return [data, generic]

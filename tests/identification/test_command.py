@@ -1,0 +1,169 @@
+"""``fit_command``: bad input, the fit.json contract, determinism, resuming."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from rich.console import Console
+
+from pneumafit.identification import fit_command
+from pneumafit.identification import likelihood as likelihood_module
+from pneumafit.parameters_io import read_parameter_file
+
+#: Short chains: these tests check the plumbing, not the posteriors.
+WALKERS, STEPS = 8, 12
+
+
+def _run(folder: Path, out: Path, console: Console, **kw: object) -> int:
+    args = {"model": "convection", "walkers": WALKERS, "steps": STEPS, "seed": 7, "mcmc": True}
+    args.update(kw)
+    return fit_command(folder, args["model"], out, args["walkers"], args["steps"],
+                       args["seed"], args["mcmc"], console)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"model": "adiabatic"}, "option --model: expected one of"),
+        ({"walkers": 3}, "option --walkers: expected an integer >= 8"),
+        ({"steps": 0}, "option --steps: expected an integer >= 1"),
+        ({"seed": -1}, "option --seed: expected an integer >= 0"),
+    ],
+)
+def test_bad_options_exit_2_with_a_message(
+    small: tuple, tmp_path: Path, console: Console, change: dict, message: str
+) -> None:
+    folder, _, _ = small
+    assert _run(folder, tmp_path / "fit", console, **change) == 2
+    assert message in console.file.getvalue()
+    assert not (tmp_path / "fit").exists()
+
+
+def test_bad_campaign_and_out_exit_2(small: tuple, tmp_path: Path, console: Console) -> None:
+    assert _run(tmp_path / "nowhere", tmp_path / "fit", console) == 2
+    assert "nowhere" in console.file.getvalue()
+    folder, _, _ = small
+    (tmp_path / "file").write_text("x")
+    assert _run(folder, tmp_path / "file", console) == 2
+    assert "expected a folder, found a file" in console.file.getvalue()
+
+
+@pytest.fixture(scope="module")
+def fitted(small: tuple, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    """One short fit of the small campaign (shared by the contract tests)."""
+    folder, _, _ = small
+    out = tmp_path_factory.mktemp("fit") / "small"
+    console = Console(file=__import__("io").StringIO(), width=160)
+    assert _run(folder, out, console) == 0, console.file.getvalue()
+    return out, json.loads((out / "fit.json").read_text())
+
+
+def test_fit_json_keeps_the_contract(fitted: tuple[Path, dict], small: tuple) -> None:
+    out, doc = fitted
+    _, campaign, truth = small
+    assert doc["format"] == "pneumafit-fit" and doc["version"] == 1
+    assert doc["model"] == "convection"
+    assert doc["campaign"]["name"] == campaign.name
+    assert doc["campaign"]["sha256"] == campaign.sha256
+    for name in ("xi", "beta", "friction_static", "friction_coulomb", "friction_viscous",
+                 "stribeck_velocity", "valve_C_supply", "bore"):  # fmt: skip
+        entry = doc["parameters"][name]
+        assert {"value", "unit", "std", "interval_90", "fixed"} <= set(entry)
+    assert doc["parameters"]["bore"]["fixed"] is True
+    xi = doc["parameters"]["xi"]
+    assert xi["fixed"] is False and xi["uncertainty"] == "mcmc"
+    assert xi["interval_90"][0] < xi["value"] < xi["interval_90"][1]
+    assert doc["parameters"]["valve_C_supply"]["uncertainty"] == "laplace"
+    metrics = doc["metrics"]
+    assert {"rmse", "log_likelihood", "aic", "bic", "n_data"} <= set(metrics)
+    assert set(metrics["rmse"]["fit"]) >= {"p_P", "p_N", "y", "qm_P", "qm_N"}
+    assert 200.0 < metrics["rmse"]["validate"]["p_N"] < 5000.0  # Pa: noise is 400 Pa
+    mcmc = doc["mcmc"]
+    assert {"walkers", "steps", "acceptance", "tau", "rhat", "ess"} <= set(mcmc)
+    assert mcmc["walkers"] == WALKERS and mcmc["steps"] == STEPS
+    assert set(mcmc["tau"]) == {
+        "xi",
+        "beta",
+        *[n for n in doc["parameters"] if n.startswith(("friction", "stribeck"))],
+    }
+    assert doc["correlation"]["heat"]["names"] == ["xi", "beta"]
+    prov = doc["provenance"]
+    assert prov["seed"] == 7 and "pneumafit fit" in prov["command"] and prov["created"]
+    # the chains: one group per sampled stage, every step stored
+    with h5py.File(out / "chains.h5") as f:
+        assert set(f) == {"heat", "friction"}
+        assert f["heat"]["chain"].shape[:2] == (STEPS, WALKERS)
+    assert not (out / "chains.partial.h5").exists()
+    # other tools read fit.json as a parameter file
+    model, values = read_parameter_file(out / "fit.json")
+    assert model == "convection" and values["xi"] == pytest.approx(xi["value"])
+    assert abs(values["friction_static"] - truth["friction_static"]) < 1.0
+
+
+def _numbers(doc: dict) -> dict:
+    """fit.json without what legitimately changes between runs (times)."""
+    doc = json.loads(json.dumps(doc))
+    del doc["provenance"]["created"], doc["provenance"]["seconds"]
+    del doc["provenance"]["command"]  # names the output folder
+    for stage in doc["stages"].values():
+        stage.pop("seconds", None)
+        if "mcmc" in stage:
+            stage["mcmc"].pop("seconds", None)
+    for stage in (doc["mcmc"] or {}).get("stages", {}).values():
+        stage.pop("seconds", None)
+    return doc
+
+
+def test_same_seed_same_numbers(fitted: tuple[Path, dict], small: tuple, tmp_path: Path,
+                                console: Console) -> None:  # fmt: skip
+    folder, _, _ = small
+    _, doc = fitted
+    assert _run(folder, tmp_path / "again", console) == 0
+    again = json.loads((tmp_path / "again" / "fit.json").read_text())
+    assert _numbers(again) == _numbers(doc)
+    assert _run(folder, tmp_path / "other", console, seed=8) == 0
+    other = json.loads((tmp_path / "other" / "fit.json").read_text())
+    assert other["parameters"]["xi"]["std"] != doc["parameters"]["xi"]["std"]
+
+
+def test_interrupted_fit_resumes_to_the_same_chains(
+    fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    folder, _, _ = small
+    reference, _ = fitted
+    calls = 0
+    original = likelihood_module.LogPosterior.__call__
+
+    def interrupted(self: object, z: np.ndarray) -> np.ndarray:
+        nonlocal calls
+        calls += 1
+        if calls == 30:  # inside the friction chain (heat: 12 steps + start)
+            raise KeyboardInterrupt
+        return original(self, z)
+
+    monkeypatch.setattr(likelihood_module.LogPosterior, "__call__", interrupted)
+    out = tmp_path / "cut"
+    assert _run(folder, out, console) == 130
+    assert "run the same command again to resume" in console.file.getvalue()
+    assert (out / "chains.partial.h5").exists() and not (out / "fit.json").exists()
+    monkeypatch.setattr(likelihood_module.LogPosterior, "__call__", original)
+    assert _run(folder, out, console) == 0
+    assert "resuming the chains" in console.file.getvalue()
+    with h5py.File(out / "chains.h5") as a, h5py.File(reference / "chains.h5") as b:
+        for group in ("heat", "friction"):
+            assert np.array_equal(a[group]["chain"][:], b[group]["chain"][:])
+            assert np.array_equal(a[group]["log_prob"][:], b[group]["log_prob"][:])
+
+
+def test_no_mcmc_writes_laplace_uncertainties_only(small: tuple, tmp_path: Path,
+                                                   console: Console) -> None:  # fmt: skip
+    folder, _, _ = small
+    assert _run(folder, tmp_path / "lap", console, mcmc=False, walkers=None, steps=None) == 0
+    doc = json.loads((tmp_path / "lap" / "fit.json").read_text())
+    assert doc["mcmc"] is None and not (tmp_path / "lap" / "chains.h5").exists()
+    assert doc["parameters"]["xi"]["uncertainty"] == "laplace"

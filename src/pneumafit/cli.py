@@ -66,6 +66,26 @@ def run(
 
 
 @app.command()
+def fit(
+    campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for fit.json and chains.h5.")],
+    model: Annotated[str, typer.Option(help="convection, constant-lambda or polytropic.")] = (
+        "convection"
+    ),
+    walkers: Annotated[int | None, typer.Option(help="MCMC walkers.")] = None,
+    steps: Annotated[int | None, typer.Option(help="MCMC steps.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,
+    no_mcmc: Annotated[
+        bool, typer.Option("--no-mcmc", help="Point estimates with Laplace intervals only.")
+    ] = False,
+) -> None:
+    """Staged identification (valve, heat transfer, friction, joint) with MCMC."""
+    from pneumafit.identification.command import fit_command
+
+    raise typer.Exit(fit_command(campaign, model, out, walkers, steps, seed, not no_mcmc, console))
+
+
+@app.command()
 def check(
     campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
 ) -> None:

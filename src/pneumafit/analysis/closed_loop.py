@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneumafit.analysis.linear import itae_poles, linearize, place
+from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure
 from pneumafit.simulation import Experiment, Simulator, StateFeedback
@@ -114,7 +115,7 @@ def compare_controllers(
         Designs to compare.
     """
     p = parameters if isinstance(parameters, np.ndarray) else parameter_vector(parameters)
-    stroke = float(p[parameter_names().index("stroke")])
+    stroke = float(p[P["stroke"]])
     y_mid = 0.5 * stroke if y_mid is None else y_mid
     t = np.arange(0.0, duration + 5e-4, 1e-3)
     switch = [0.2, 0.5 * duration]
@@ -144,9 +145,3 @@ def compare_controllers(
             )
         )
     return results
-
-
-def parameter_names() -> list[str]:
-    from pneumafit.models.layout import PARAMETER_NAMES
-
-    return list(PARAMETER_NAMES)

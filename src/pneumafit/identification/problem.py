@@ -49,7 +49,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.campaign.model import Recording
@@ -62,7 +62,7 @@ from pneumafit.identification.noise import (
     noise_model,
 )
 from pneumafit.models import kernel
-from pneumafit.models.layout import CHANNELS, X_PN, X_PP, X_TN, X_TP, X_Y, P
+from pneumafit.models.layout import X_PN, X_PP, X_TN, X_TP, X_Y, P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step
@@ -131,37 +131,6 @@ def _lag_kernel(x: np.ndarray, t: np.ndarray, tau: np.ndarray, y: np.ndarray) ->
             slope = (x[i, k] - x[i, k - 1]) / dt
             # exact for an input linear over the interval
             y[i, k] = a * y[i, k - 1] + x[i, k] - a * x[i, k - 1] - ti * slope * (1.0 - a)
-
-
-@njit(cache=True, parallel=True)
-def _integrate_sets(
-    params: np.ndarray,
-    x0s: np.ndarray,
-    cfgs: np.ndarray,
-    ctrls: np.ndarray,
-    t_all: np.ndarray,
-    inp_all: np.ndarray,
-    nsub_all: np.ndarray,
-    offsets: np.ndarray,
-    tab_a: np.ndarray,
-    tab_b: np.ndarray,
-    tab_c: np.ndarray,
-    ch_sel: np.ndarray,
-    out: np.ndarray,
-    status: np.ndarray,
-) -> None:
-    # Simulator.simulate_batch with an initial state per (set, recording):
-    # initial states are parameters here (x0s has shape (n_sets, n_rec, NX)).
-    n_rec = cfgs.shape[0]
-    for job in prange(params.shape[0] * n_rec):
-        i = job // n_rec
-        r = job - i * n_rec
-        a = offsets[r]
-        b = offsets[r + 1]
-        status[i, r] = kernel.integrate(
-            t_all[a:b], inp_all[a:b], nsub_all[a:b], x0s[i, r], params[i], cfgs[r], ctrls[r],
-            tab_a, tab_b, tab_c, ch_sel, out[i, a:b],
-        )  # fmt: skip
 
 
 #: State slots of the initial states that can be parameters.
@@ -794,18 +763,9 @@ class Problem:
         tableau: object | None = None,
         nsub: NDArray[np.int64] | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-        pk = self.packed
-        tab = tableau if tableau is not None else self.simulator.tableau
-        n_sets = vec.shape[0]
-        out = np.empty((n_sets, pk.t_all.size, len(self.simulator.channels)))
-        status = np.zeros((n_sets, len(pk.experiments)), dtype=np.int64)
-        ch_sel = np.array([CHANNELS.index(c) for c in self.simulator.channels], np.int64)
-        _integrate_sets(
-            np.ascontiguousarray(vec), np.ascontiguousarray(x0s), pk.cfgs, pk.ctrls, pk.t_all,
-            pk.inp_all, pk.nsub_all if nsub is None else nsub, pk.offsets, tab.a, tab.b, tab.c,
-            ch_sel, out, status,
-        )  # fmt: skip
-        return out, status
+        return self.simulator.simulate_batch(
+            vec, self.packed, initial_states=x0s, nsub=nsub, tableau=tableau
+        )
 
     # ---------------------------------------------------------- initial states
     def _initial_parameters(self) -> dict[str, tuple[int, str, float, str]]:

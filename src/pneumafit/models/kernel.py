@@ -927,7 +927,7 @@ def _run_job(
     a = offsets[r]
     b = offsets[r + 1]
     status[i, r] = integrate(
-        t_all[a:b], inp_all[a:b], nsub_all[a:b], x0s[r], params[i], cfgs[r], ctrls[r],
+        t_all[a:b], inp_all[a:b], nsub_all[a:b], x0s[i, r], params[i], cfgs[r], ctrls[r],
         tab_a, tab_b, tab_c, ch_sel, out[i, a:b],
     )  # fmt: skip
 
@@ -957,7 +957,9 @@ def integrate_many(
     Parameters
     ----------
     params : ndarray, shape (n_sets, NP)
-    cfgs, ctrls, x0s : per-recording configuration, controller and initial state.
+    cfgs, ctrls : per-recording configuration and controller.
+    x0s : initial states, shape (n_sets, n_recordings, NX): one per pair, so
+        that initial states can be parameters.
     nsub_all : steps per sample interval, rows as ``t_all``.
     out : ndarray, shape (n_sets, n_rows, n_channels)
     status : ndarray of int64, shape (n_sets, n_recordings)

@@ -224,6 +224,10 @@ class Simulator:
         self,
         parameter_sets: np.ndarray,
         experiments: Sequence[Experiment] | PackedExperiments,
+        *,
+        initial_states: np.ndarray | None = None,
+        nsub: np.ndarray | None = None,
+        tableau: Tableau | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Simulate every parameter set on every experiment, in parallel.
 
@@ -232,6 +236,14 @@ class Simulator:
         parameter_sets : ndarray, shape (n_sets, NP)
             Full parameter vectors (see :func:`parameter_vector`).
         experiments : sequence of Experiment or PackedExperiments
+        initial_states : ndarray, shape (n_sets, n_experiments, NX), optional
+            An initial state per parameter set and experiment (when initial
+            states are fitted); default the experiments' own.
+        nsub : ndarray of int, optional
+            Steps per sample interval, rows as ``packed.t_all`` (default the
+            packed ones).
+        tableau : Tableau, optional
+            Method for this call (default the simulator's).
 
         Returns
         -------
@@ -250,17 +262,28 @@ class Simulator:
                 f"simulator: parameter sets: expected shape (n, {NP}), found {params.shape}"
             )
         n_sets = params.shape[0]
+        n_exp = len(packed.experiments)
         out = np.empty((n_sets, packed.t_all.size, self._ch_sel.size))
-        status = np.zeros((n_sets, len(packed.experiments)), dtype=np.int64)
-        tab = self.tableau
+        status = np.zeros((n_sets, n_exp), dtype=np.int64)
+        tab = self.tableau if tableau is None else tableau
+        if initial_states is None:
+            x0s = np.ascontiguousarray(np.broadcast_to(packed.x0s, (n_sets, n_exp, NX)))
+        else:
+            x0s = np.ascontiguousarray(initial_states, dtype=float)
+            if x0s.shape != (n_sets, n_exp, NX):
+                raise ValueError(
+                    f"simulator: initial_states: expected shape {(n_sets, n_exp, NX)}, "
+                    f"found {x0s.shape}"
+                )
+        nsub_all = packed.nsub_all if nsub is None else nsub
         run = (
             kernel.integrate_many
             if n_sets * len(packed.experiments) > 1
             else (kernel.integrate_many_serial)
         )
         run(
-            params, packed.cfgs, packed.ctrls, packed.x0s, packed.t_all, packed.inp_all,
-            packed.nsub_all, packed.offsets, tab.a, tab.b, tab.c, self._ch_sel, out, status,
+            params, packed.cfgs, packed.ctrls, x0s, packed.t_all, packed.inp_all,
+            nsub_all, packed.offsets, tab.a, tab.b, tab.c, self._ch_sel, out, status,
         )  # fmt: skip
         return out, status
 

@@ -45,6 +45,8 @@ from pneumafit.models.layout import (
     C_SUPPLY_DROP,
     C_VALVE_ORDER,
     C_WALL_MASS,
+    CTRL_DB_AMPLITUDE,
+    CTRL_DB_WIDTH,
     NX,
     P_ANGLE,
     P_BE,
@@ -479,8 +481,10 @@ def commands(
 
     Open loop: measured commands interpolated linearly between samples.
     Closed loop, ``pd`` law: u_P = clip(u0 + kp (y_ref - y) - kd v, -umax,
-    umax); state feedback: u_P = clip(u_e - K (x - x_e), -umax, umax) over
-    x = [y, v, P_N, P_P, T_N, T_P] with the position of x_e following y_ref;
+    umax); state feedback: u_P = clip(c(v), -umax, umax), v = v_e - K (x - x_e)
+    over x = [y, v, P_N, P_P, T_N, T_P] with the position of x_e following
+    y_ref, and c the dead-band compensation c(v) = v + a tanh(v / w) (a, w in
+    the ctrl slots CTRL_DB_AMPLITUDE, CTRL_DB_WIDTH; c(v) = v when w = 0);
     u_N = -u_P, y_ref interpolated linearly (campaign format).
     """
     k1 = k + 1 if k + 1 < inp.shape[0] else k
@@ -493,6 +497,8 @@ def commands(
             u = ctrl[2] - ctrl[4] * (x[X_Y] - y_ref)
             for i in range(1, 6):
                 u -= ctrl[4 + i] * (x[i] - ctrl[10 + i])
+            if ctrl[CTRL_DB_WIDTH] > 0.0:
+                u += ctrl[CTRL_DB_AMPLITUDE] * math.tanh(u / ctrl[CTRL_DB_WIDTH])
         umax = ctrl[3]
         if u > umax:
             u = umax

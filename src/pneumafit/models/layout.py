@@ -60,9 +60,12 @@ HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
 
 # ----------------------------------------------------------------------------
 # Controller vector (float64): pd law [kp, kd, u0, umax, 0...]; state feedback
-# [0, 0, u_e, umax, K (6: y, v, p_N, p_P, T_N, T_P), x_e (6, same order)]
+# [a, w, v_e, umax, K (6: y, v, p_N, p_P, T_N, T_P), x_e (6, same order)], with
+# a, w the dead-band compensation u = v + a tanh(v / w) (off when w = 0)
 # ----------------------------------------------------------------------------
 NCTRL = 16
+CTRL_DB_AMPLITUDE = 0  # state feedback: compensated dead-band half-width a (V)
+CTRL_DB_WIDTH = 1  # state feedback: width w of its tanh (V); 0 = no compensation
 LAW_PD = 1
 LAW_STATE_FEEDBACK = 2
 

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pneumafit.models.layout import (
+    CTRL_DB_AMPLITUDE,
+    CTRL_DB_WIDTH,
     LAW_PD,
     LAW_STATE_FEEDBACK,
     NCTRL,
@@ -55,20 +57,27 @@ class PD:
 @dataclass(frozen=True)
 class StateFeedback:
     """Full-state feedback around an equilibrium (paper's design):
-    u_P = clip(u_e - K (x - x_e), -umax, umax), x = [y, v, P_N, P_P, T_N, T_P].
+    u_P = clip(c(v), -umax, umax), v = u_e - K (x - x_e), x = [y, v, P_N, P_P,
+    T_N, T_P], u_N = -u_P.
 
     The position entry of x_e follows the reference y_ref(t); the other
     entries are the equilibrium's. A gain for the 4-state (polytropic) model
-    has zeros on the temperatures.
+    has zeros on the temperatures. c is the dead-band compensation
+    c(v) = v + a tanh(v / w) (a = ``deadband``, w = ``deadband_width``), the
+    identity when w = 0; with it on, ``u_e`` is the controller-side
+    equilibrium v_e, c(v_e) being the valve's equilibrium command
+    (:func:`pneumafit.analysis.linear.deadband_compensation`).
 
     Attributes: gain K (6,) in V per SI state unit, x_e (6,) SI, u_e (V),
-    umax (V).
+    umax (V), deadband a (V), deadband_width w (V).
     """
 
     gain: tuple[float, ...]
     x_e: tuple[float, ...]
     u_e: float
     umax: float = 10.0
+    deadband: float = 0.0
+    deadband_width: float = 0.0
 
     law = LAW_STATE_FEEDBACK
 
@@ -81,6 +90,11 @@ class StateFeedback:
                 f"{len(gain)} and {len(x_e)}"
             )
         gain = gain + (0.0,) * (6 - len(gain))  # a 4-state gain ignores temperatures
+        if not (self.deadband >= 0.0 and self.deadband_width >= 0.0):
+            raise ValueError(
+                f"state feedback: dead-band compensation: expected a >= 0 and w >= 0 V, "
+                f"found {self.deadband} and {self.deadband_width}"
+            )
         object.__setattr__(self, "gain", gain)
         object.__setattr__(self, "x_e", x_e)
 
@@ -93,6 +107,9 @@ class StateFeedback:
         """Controller vector of the kernel (layout.NCTRL)."""
         out = np.zeros(NCTRL)
         out[2], out[3] = self.u_e, self.umax
+        if self.deadband_width > 0.0:
+            out[CTRL_DB_AMPLITUDE] = self.deadband
+            out[CTRL_DB_WIDTH] = self.deadband_width
         out[4:10] = self.gain
         out[10:16] = self.x_e
         return out

@@ -33,6 +33,13 @@ Polytropic model (4 states): d(dP/dt)/dv = -k P S / V (the paper prints + for
 chamber P), d(dP/dt)/dP = k r T0 q'_P / V, d(dP/dt)/du = k r T0 q'_u / V.
 
 State order (paper): [y, v, P_N, P_P, T_N, T_P]; input u = u_P = -u_N.
+
+Dead-band compensation. With the controller output v passed through
+u = c(v) = v + a tanh(v / w) before the valve (a the overlap), the plant seen
+by the controller is f(x, c(v)); its equilibrium is the same (c(v_e) = u_e)
+and its input column is B c'(v_e), c'(v) = 1 + (a / w) sech^2(v / w). The
+width w is chosen so that this local gain equals the valve's gain just
+outside the dead band (:func:`deadband_compensation`; docs/physics.md).
 """
 
 from __future__ import annotations
@@ -45,7 +52,21 @@ import numpy as np
 from scipy.optimize import brentq
 
 from pneumafit.models import kernel
-from pneumafit.models.layout import NX, X_PN, X_PP, X_TN, X_TP, X_V, X_Y, P
+from pneumafit.models.layout import (
+    C_INPUT,
+    CTRL_DB_AMPLITUDE,
+    CTRL_DB_WIDTH,
+    LAW_STATE_FEEDBACK,
+    NCTRL,
+    NX,
+    X_PN,
+    X_PP,
+    X_TN,
+    X_TP,
+    X_V,
+    X_Y,
+    P,
+)
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure
 from pneumafit.physics.air import GAMMA, R_AIR
@@ -213,6 +234,120 @@ def _gains(p: np.ndarray, u: float, pres: float) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
+class DeadbandCompensation:
+    """Smoothed inverse of the valve's dead band, u = c(v) = v + a tanh(v / w).
+
+    The state-feedback law's output v goes through c before the valve
+    (kernel ``commands``), so the orifice opens as soon as |v| exceeds a few w.
+
+    Attributes
+    ----------
+    amplitude : float
+        a, the dead-band half-width compensated (V): the valve overlap.
+    width : float
+        w, the width of the transition through the band (V), > 0.
+    """
+
+    amplitude: float
+    width: float
+
+    def __post_init__(self) -> None:
+        if not (self.amplitude >= 0.0 and self.width > 0.0):
+            raise ValueError(
+                f"dead-band compensation: expected a >= 0 V and w > 0 V, found "
+                f"a = {self.amplitude} and w = {self.width}"
+            )
+
+    def __call__(self, v: float) -> float:
+        """Valve command u (V) for a controller output v (V)."""
+        return float(v + self.amplitude * math.tanh(v / self.width))
+
+    def slope(self, v: float) -> float:
+        """du/dv (-) at controller output v (V)."""
+        return float(1.0 + self.amplitude / self.width / math.cosh(v / self.width) ** 2)
+
+    def inverse(self, u: float) -> float:
+        """Controller output v (V) with c(v) = u (c rises strictly, so v is unique)."""
+        span = abs(u) + self.amplitude + 1.0
+        return float(brentq(lambda v: self(v) - u, -span, span, xtol=1e-15, rtol=1e-15))
+
+
+def _force_gain(p: np.ndarray, u: float, p_p: float, p_n: float, y: float) -> float:
+    """Rate of piston force per volt through both valves at command u (N/s/V):
+    sum over chambers of S r T0 |dq/du| / V (the force-producing part of B)."""
+    s_p, s_n = piston_areas(p[P["bore"]], p[P["rod"]])
+    v_p, v_n = chamber_volumes(y, p[P["stroke"]], s_p, s_n, p[P["dead_volume_P"]],
+                               p[P["dead_volume_N"]])  # fmt: skip
+    g_p = _gains(p, u, p_p)[1]
+    g_n = _gains(p, -u, p_n)[1]
+    return R_AIR * p[P["wall_temperature"]] * (s_p * g_p / v_p + s_n * g_n / v_n)
+
+
+def deadband_compensation(
+    parameters: Mapping[str, float] | np.ndarray, y: float, *, margin: float = 2.0
+) -> DeadbandCompensation | None:
+    """Dead-band compensation whose gain at the equilibrium matches the open valve.
+
+    Amplitude a = the valve overlap u_0. The width w solves
+
+        c'(v_e) G(u_e) = [G(u_0 + m eps) + G(-u_0 - m eps)] / 2,   c(v_e) = u_e,
+
+    where G(u) = sum_X S_X r T_0 |dq_X/du| / V_X is the rate of piston force
+    per volt through both valves at the equilibrium pressures of eq. 10 (the
+    force-producing combination of the B column of eqs. 13-14), eps the width
+    over which the orifice edge is rounded (0.05 V) and m = ``margin``: the
+    right side is the gain of the valve just outside its dead band, averaged
+    over opening to supply and to exhaust. The compensated plant's linear
+    model then has the open valve's flow gain, instead of the centre
+    leakage's.
+
+    Parameters
+    ----------
+    parameters : mapping or ndarray
+        SI parameter values.
+    y : float
+        Equilibrium position (m).
+    margin : float
+        Multiple of the rounding width past the overlap where the open gain
+        is taken (-).
+
+    Returns
+    -------
+    DeadbandCompensation or None
+        None when the valve has no overlap or its centre gain already matches
+        the open one (nothing to compensate).
+
+    Raises
+    ------
+    ValueError
+        When no equilibrium exists at y.
+    """
+    from pneumafit.physics.valve import OPENING_SMOOTHING
+
+    p = _vec(parameters)
+    eq = equilibrium(p, y)
+    if not eq.exists:
+        raise ValueError(eq.message)
+    a = float(p[P["valve_overlap"]])
+    if a <= 0.0:
+        return None
+    u_open = a + margin * OPENING_SMOOTHING
+    g_open = 0.5 * (_force_gain(p, u_open, eq.p_P, eq.p_N, y)
+                    + _force_gain(p, -u_open, eq.p_P, eq.p_N, y))  # fmt: skip
+    ratio = g_open / _force_gain(p, eq.u, eq.p_P, eq.p_N, y)
+    if not ratio > 1.0 or abs(eq.u) >= a:
+        return None
+
+    def excess(log_w: float) -> float:
+        comp = DeadbandCompensation(a, math.exp(log_w))
+        return comp.slope(comp.inverse(eq.u)) - ratio
+
+    # c'(v_e) falls from infinity (w -> 0) to 1 (w -> infinity)
+    log_w = brentq(excess, math.log(1e-6 * a), math.log(1e3 * a), xtol=1e-12)
+    return DeadbandCompensation(a, math.exp(log_w))
+
+
+@dataclass(frozen=True)
 class LinearModel:
     """dx/dt = A x + B u around an equilibrium (paper eqs. 13-14).
 
@@ -225,6 +360,14 @@ class LinearModel:
     states: tuple[str, ...]
     equilibrium: Equilibrium
     lambda_e: float | None
+    compensation: DeadbandCompensation | None = None
+
+    @property
+    def v_e(self) -> float:
+        """Controller-side equilibrium command (V): c^-1(u_e), or u_e uncompensated."""
+        if self.compensation is None:
+            return float(self.equilibrium.u)
+        return self.compensation.inverse(self.equilibrium.u)
 
     @property
     def poles(self) -> np.ndarray:
@@ -240,6 +383,7 @@ def linearize(
     order: int = 6,
     lambda_e: float = 15.0,
     k: float | None = None,
+    compensation: DeadbandCompensation | None = None,
 ) -> LinearModel:
     """Analytic linear model around the equilibrium at y (see module docstring).
 
@@ -257,6 +401,9 @@ def linearize(
         value where there is one; the paper's 15 by default.
     k : float, optional
         Polytropic index; default the parameter set's ``k``.
+    compensation : DeadbandCompensation, optional
+        Model the plant seen through u = c(v): B is multiplied by c'(v_e),
+        the input is v (V).
 
     Raises
     ------
@@ -294,7 +441,9 @@ def linearize(
             A[ip, 1] = -kk * pres * s / vol
             A[ip, ip] = kk * r * t0 * qp / vol
             B[ip, 0] = kk * r * t0 * qu / vol
-        return LinearModel(A, B, STATES_6[:4], eq, None)
+        if compensation is not None:
+            B *= compensation.slope(compensation.inverse(eq.u))
+        return LinearModel(A, B, STATES_6[:4], eq, None, compensation)
     for ip, it, s, vol, pres, qp, qu, leak, area in chambers:
         A[ip, 1] = -g * pres * s / vol
         A[ip, ip] = g * r * t0 * qp / vol
@@ -304,7 +453,9 @@ def linearize(
         A[it, it] = -t0 * ((g + 1) * r * leak / 2 + (g - 1) * lambda_e * area) / (pres * vol)
         B[ip, 0] = g * r * t0 * qu / vol
         B[it, 0] = (g - 1) * r * t0**2 * qu / (pres * vol)
-    return LinearModel(A, B, STATES_6, eq, lambda_e)
+    if compensation is not None:
+        B *= compensation.slope(compensation.inverse(eq.u))
+    return LinearModel(A, B, STATES_6, eq, lambda_e, compensation)
 
 
 def numerical_jacobian(
@@ -314,13 +465,16 @@ def numerical_jacobian(
     order: int = 6,
     lambda_e: float = 15.0,
     rel_step: float = 1e-6,
+    compensation: DeadbandCompensation | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(A, B) by central differences of the compiled right-hand side.
 
     The model evaluated is the one the analytic linearization describes: the
     constant-lambda structure at lambda_e (order 6) or the polytropic one
     (order 4), with friction reduced to its viscous term (the linear model's
-    friction), sliding mode so that F_f = b v.
+    friction), sliding mode so that F_f = b v. With ``compensation`` the input
+    is the controller output v, mapped to the valve command by the compiled
+    state-feedback law (kernel ``commands``, zero gain) around v_e = c^-1(u_e).
     """
     p = _vec(parameters).copy()
     p[P["friction_static"]] = 0.0
@@ -338,8 +492,22 @@ def numerical_jacobian(
     aux = np.empty(kernel.NAUX)
     scale = np.array([p[P["stroke"]], 1.0, eq.p_N, eq.p_P, eq.T, eq.T])
 
+    ctrl = np.zeros(NCTRL)
+    ctrl[3] = np.inf  # no command limit
+    law_cfg = cfg.copy()
+    law_cfg[C_INPUT] = LAW_STATE_FEEDBACK
+    inp = np.zeros((2, 4))
+    if compensation is not None:
+        ctrl[CTRL_DB_AMPLITUDE] = compensation.amplitude
+        ctrl[CTRL_DB_WIDTH] = compensation.width
+        u_e = compensation.inverse(eq.u)
+    else:
+        u_e = eq.u
+
     def f(x: np.ndarray, u: float) -> np.ndarray:
-        kernel.rhs(x, 1, u, -u, p, d, cfg, dx, aux)
+        ctrl[2] = u  # zero gains: the law returns c(u) (or u)
+        u_valve = kernel.commands(x, inp, 0, 0.0, law_cfg, ctrl)[0]
+        kernel.rhs(x, 1, u_valve, -u_valve, p, d, cfg, dx, aux)
         return dx[list(slots)].copy()
 
     A = np.zeros((order, order))
@@ -348,9 +516,11 @@ def numerical_jacobian(
         xp, xm = x0.copy(), x0.copy()
         xp[slot] += h
         xm[slot] -= h
-        A[:, j] = (f(xp, eq.u) - f(xm, eq.u)) / (2 * h)
-    hu = rel_step * max(1.0, abs(eq.u))
-    B = ((f(x0, eq.u + hu) - f(x0, eq.u - hu)) / (2 * hu))[:, None]
+        A[:, j] = (f(xp, u_e) - f(xm, u_e)) / (2 * h)
+    hu = rel_step * max(1.0, abs(u_e))
+    if compensation is not None:
+        hu = rel_step * compensation.width
+    B = ((f(x0, u_e + hu) - f(x0, u_e - hu)) / (2 * hu))[:, None]
     return A, B
 
 

@@ -277,6 +277,109 @@ def design(
     console.print(f"wrote {out / f'design_{order}.json'} and figures")
 
 
+@app.command(name="closed-loop")
+def closed_loop(
+    params: Annotated[Path, typer.Argument(help="fit.json, a parameter file or a truth.json.")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for JSON and figures.")] = Path(
+        "out/closed_loop"
+    ),
+    w0: Annotated[
+        float | None,
+        typer.Option(help="ITAE frequency scale (rad/s); default the largest within the limit."),
+    ] = None,
+    position: Annotated[
+        str | None, typer.Option(help="Operating position (default half stroke).")
+    ] = None,
+    steps: Annotated[
+        str, typer.Option(help="Reference offsets from the position, one per hold.")
+    ] = "30,0,-30,0 mm",
+    hold: Annotated[str, typer.Option(help="Time at each reference.")] = "2.5 s",
+    plant: Annotated[
+        Path | None,
+        typer.Option(help="Parameters of the nonlinear plant (e.g. a rig's truth.json)."),
+    ] = None,
+    umax: Annotated[str, typer.Option(help="Valve command limit.")] = "10 V",
+    placement: Annotated[str, typer.Option(help="dominant or itae (the paper's, order n).")] = (
+        "dominant"
+    ),
+    no_compensation: Annotated[
+        bool, typer.Option("--no-compensation", help="No dead-band compensation.")
+    ] = False,
+    lambda_e: LambdaOption = None,
+) -> None:
+    """Both state-feedback designs run on the nonlinear model: steps and air (Figs. 9-11)."""
+    from pneumafit.analysis.closed_loop import (
+        PLACEMENTS,
+        compare_controllers,
+        largest_w0,
+        read_plant_file,
+    )
+    from pneumafit.models import parameter_vector
+    from pneumafit.models.layout import P
+    from pneumafit.models.structure import get_structure
+    from pneumafit.outputs.closed_loop_report import write_closed_loop
+
+    if placement not in PLACEMENTS:
+        raise PneumafitInputError(
+            f"option --placement: expected one of {', '.join(PLACEMENTS)}, found {placement!r}"
+        )
+    if w0 is not None and not w0 > 0:
+        raise PneumafitInputError(f"option --w0: expected a positive frequency, found {w0}")
+    structure, values = read_plant_file(params)
+    design_params = parameter_vector(values)
+    nominal = values.get("lambda", 15.0) if structure.heat == "constant-lambda" else 15.0
+    if plant is not None:
+        plant_structure, plant_values = read_plant_file(plant)
+        plant_params = parameter_vector(plant_values)
+    else:
+        plant_structure, plant_params = structure, design_params
+    if plant_structure.heat != "convection":  # the nonlinear model has variable lambda
+        plant_structure = get_structure("convection")
+    stroke = float(design_params[P["stroke"]])
+    y_mid = 0.5 * stroke if position is None else _quantity(position, "m", "--position")
+    numbers, _, unit = steps.strip().partition(" ")
+    offsets = [_quantity(f"{v} {unit}".strip(), "m", "--steps") for v in numbers.split(",")]
+    limit = _quantity(umax, "V", "--umax")
+    hold_s = _quantity(hold, "s", "--hold")
+    kwargs = dict(lambda_e=lambda_e or nominal, compensate=not no_compensation,
+                  placement=placement)  # fmt: skip
+    if w0 is None:
+        biggest = max(abs(v) for v in offsets) or 0.01
+        w0 = largest_w0(design_params, y_mid, biggest, umax=limit, **kwargs)
+        console.print(f"w0 = {w0:.3g} rad/s: the largest keeping a {biggest * 1e3:g} mm step "
+                      f"within 90 % of {limit:g} V")  # fmt: skip
+    results = compare_controllers(
+        design_params, w0=w0, y_mid=y_mid, steps=offsets, hold=hold_s, umax=limit,
+        plant=plant_structure, plant_parameters=plant_params, **kwargs,
+    )  # fmt: skip
+    inputs = {"parameters": str(params), "plant": str(plant or params),
+              "plant_structure": plant_structure.name or plant_structure.heat, "w0_rad_s": w0,
+              "position_m": y_mid, "steps_m": offsets, "hold_s": hold_s, "umax_V": limit,
+              **kwargs}  # fmt: skip
+    write_closed_loop(results, out, inputs=inputs)
+    table = Table(title=f"closed loop on the nonlinear model, w0 = {w0:.3g} rad/s")
+    for column in ("controller", "step", "overshoot", "settling", "final error", "max |u|",
+                   "air", "exergy"):  # fmt: skip
+        table.add_column(column, justify="right")
+    for r in results:
+        if not r.ok:
+            table.add_row(r.name, "failed", r.message, "", "", "", "", "")
+            continue
+        for s in r.steps:
+            table.add_row(r.name, f"{s.size * 1e3:+.1f} mm", f"{s.overshoot * 1e3:.2f} mm",
+                          f"{s.settling_time:.3f} s", f"{s.final_error * 1e3:+.2f} mm",
+                          f"{s.max_abs_u:.2f} V", f"{s.air_mass * 1e6:.1f} mg",
+                          f"{s.exergy:.1f} J")  # fmt: skip
+    console.print(table)
+    for r in results:
+        if r.ok:
+            console.print(f"{r.name}: {r.air_mass * 1e3:.4f} g of air ({r.exergy:.1f} J), "
+                          f"stiction band {r.stiction_band * 1e3:.1f} mm")  # fmt: skip
+    console.print(f"wrote {out / 'closed_loop.json'} and figures")
+    if not all(r.ok for r in results):
+        raise typer.Exit(1)
+
+
 @app.command()
 def export(
     fit: Annotated[Path, typer.Argument(help="fit.json or a parameter file.")],

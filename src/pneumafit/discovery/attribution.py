@@ -1,0 +1,816 @@
+"""Attribution: which catalog effect the residual of a fit asks for.
+
+After a fit, the measured pressure of each chamber changes at a rate the
+fitted model does not give. For every ``fit`` recording with a moving or
+relaxing chamber (charge, discharge, step tests) this module forms the
+*derivative-level residual*
+
+    r_X(t) = d/dt [P_X,measured - P_X,model](t)            (Pa/s)
+
+(Savitzky-Golay slope over ``window``, :func:`~.phases.smoothed_rate`) along
+the fitted simulation, and regresses it on the *signature* of each catalog
+effect (:data:`~.catalog.EFFECTS`, docs/effects.md): the term the effect adds
+to dP_X/dt (paper eq. 9, docs/physics.md), evaluated along the fitted
+simulation and written so that its coefficient is the effect's own
+parameter, in its SI unit:
+
+=====================  ==============================================  ===========================
+effect                 regressor in dP_X/dt (per unit parameter)       coefficient
+=====================  ==============================================  ===========================
+chamber_leakage        -+ gamma r T_up (P_P - P_N) / V_X                G_cl (kg/s/Pa)
+external_leakage       - gamma r T_l (P_X - P_atm) / V_X                G_el (kg/s/Pa)
+valve_dynamics         - d/dt [gamma r T_in q_X / V_X]                  tau (s)
+wall_thermal_mass      (gamma - 1) lambda A / V_X * int lambda (T - T_w) dt   1 / C_w (m^2 K/J)
+forced_convection      (gamma - 1) max(q_X, 0) A (T_w - T) / V_X        K_fc (W/m^2/K/(kg/s))
+supply_pressure_drop   - gamma r T_atm q_s,X (q_s,P + q_s,N) / (P_S V_X) R (Pa/(kg/s))
+=====================  ==============================================  ===========================
+
+(first order in the effect: the spool lag as q(u_s) = q(u) - tau dq/dt, the
+wall warming as T_w - T_w0 = int lambda (T - T_w0) dt / C_w, the supply drop
+through the sonic sensitivity dq/dP_S = q / P_S). Every physical coefficient
+is positive: a regression that needs a negative one says the effect acts the
+other way round, which no value of it can do.
+
+The columns are standardised and regressed with sequentially thresholded
+least squares (``pysindy.STLSQ``) with negative coefficients removed; a
+moving-block bootstrap of the rows (blocks of ``block`` seconds, the residual
+rate being correlated over the window) gives each effect's *inclusion
+probability* and a spread of its coefficient. Each effect's evidence:
+
+- ``inclusion_probability``: fraction of bootstrap fits keeping it (> 0);
+- ``variance_explained``: R^2 of the residual rate by that effect alone
+  (non-negative coefficient), weighted rows;
+- ``phase_match``: cosine between the residual rate's sum of squares per
+  phase (:mod:`.phases`) and that of the effect's fitted term: 1 when the
+  effect acts where the misfit is made;
+- ``coefficient``: median bootstrap coefficient, the suggested start of the
+  refit (SI, the effect's principal parameter; for the wall, C_w = 1/coef).
+
+``score = inclusion_probability * variance_explained * phase_match``; the
+candidates are ranked by it. A candidate is *supported* when its inclusion
+probability is at least :data:`MIN_INCLUSION` and it explains at least
+:data:`MIN_VARIANCE` of the residual rate; only supported candidates are
+refitted (:mod:`.refit`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import savgol_filter
+
+from pneumafit.campaign.model import Campaign, Recording
+from pneumafit.discovery.catalog import EFFECTS, get_effect
+from pneumafit.discovery.phases import PHASES, label_phases, window_samples
+from pneumafit.models.structure import ModelStructure
+from pneumafit.simulation import Experiment, Simulator
+
+__all__ = [
+    "GAMMA",
+    "MIN_INCLUSION",
+    "MIN_VARIANCE",
+    "R_AIR",
+    "Attribution",
+    "Candidate",
+    "Rows",
+    "attribute",
+    "build_rows",
+    "signature_features",
+]
+
+#: Ratio of specific heats and gas constant of air (docs/physics.md).
+GAMMA = 1.4
+R_AIR = 287.0
+#: A candidate is refitted only with at least this inclusion probability ...
+MIN_INCLUSION = 0.5
+#: ... and this share of the residual rate's (weighted) sum of squares explained alone.
+MIN_VARIANCE = 0.02
+#: Width (s) of the Savitzky-Golay window of the residual rate.
+WINDOW = 0.05
+#: Rows kept: one sample in ``DECIMATE`` (the rate is smooth over the window).
+DECIMATE = 5
+#: Length (s) of the bootstrap blocks.
+BLOCK = 0.2
+#: Pressure step (Pa) of the finite-difference sensitivity d(dP/dt)/dP.
+SENS_STEP = 200.0
+#: Rows where the model's rate changes by more than this per pascal of its
+#: own pressure (1/s) are left out: there (a chamber about to reach supply or
+#: exhaust pressure with the valve open) a kilopascal of sensor error moves
+#: the model's rate by more than a missing effect does.
+MAX_SENSITIVITY = 100.0
+#: Uncertainty (Pa) of the measured pressure at which the model's rate is
+#: evaluated (sensor offset left after the median correction, smoothed
+#: noise): a row's weight is 1 / sqrt(s_rate^2 + (S * PRESSURE_UNCERTAINTY)^2),
+#: S the rate's sensitivity to the pressure (1/s).
+PRESSURE_UNCERTAINTY = 1000.0
+
+
+# ----------------------------------------------------------------- rows
+@dataclass
+class Rows:
+    """The regression data: one row per kept sample, chamber and recording.
+
+    Attributes
+    ----------
+    rate : ndarray, shape (n,)
+        Residual rate r_X (Pa/s).
+    features : dict of str to ndarray, shape (n,)
+        Effect name -> its signature regressor (Pa/s per unit coefficient).
+    phase : ndarray of str, shape (n,)
+        Phase of the row's sample (:data:`~.phases.PHASES`).
+    group : ndarray of int, shape (n,)
+        Bootstrap block of the row.
+    weight : ndarray, shape (n,)
+        Row weight (s/Pa): the inverse of the residual rate's expected
+        spread without a missing effect (noise, and the model's sensitivity
+        to the measured pressure times :data:`PRESSURE_UNCERTAINTY`).
+    source : list of str
+        ``"<file>:<chamber>"`` per segment (for messages).
+    """
+
+    rate: NDArray[np.float64]
+    features: dict[str, NDArray[np.float64]]
+    phase: NDArray[np.str_]
+    group: NDArray[np.int64]
+    weight: NDArray[np.float64]
+    source: list[str] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return int(self.rate.size)
+
+
+def _smooth(values: NDArray[np.float64], width: int) -> NDArray[np.float64]:
+    return savgol_filter(values, width, 1, mode="interp") if width >= 3 else values
+
+
+def _rate(values: NDArray[np.float64], width: int, dt: float) -> NDArray[np.float64]:
+    if width < 3:
+        return np.gradient(values, dt)
+    return savgol_filter(values, width, 1, deriv=1, delta=dt, mode="interp")
+
+
+def signature_features(
+    sim: Mapping[str, NDArray[np.float64]],
+    chamber: str,
+    values: Mapping[str, float],
+    time: NDArray[np.float64],
+    width: int,
+) -> dict[str, NDArray[np.float64]]:
+    """Each catalog effect's term in dP_X/dt per unit of its parameter.
+
+    Parameters
+    ----------
+    sim : mapping of str to ndarray
+        Simulated channels along the recording (SI): ``y``, ``p_P``,
+        ``p_N``, ``T_P``, ``T_N``, ``qm_P``, ``qm_N``, ``lambda_P``,
+        ``lambda_N``.
+    chamber : {"P", "N"}
+        Chamber X whose pressure rate the terms enter.
+    values : mapping of str to float
+        Model parameters (SI): geometry, supply and exhaust pressures,
+        ambient and wall temperatures.
+    time : ndarray
+        Sample times (s).
+    width : int
+        Savitzky-Golay window (samples) for the rate in the valve term.
+
+    Returns
+    -------
+    dict of str to ndarray
+        Effect name -> regressor (Pa/s per unit coefficient, see the module
+        table).
+    """
+    bore, rod, stroke = values["bore"], values["rod"], values["stroke"]
+    v0p, v0n = values["dead_volume_P"], values["dead_volume_N"]
+    p_atm, p_s = values["exhaust_pressure"], values["supply_pressure"]
+    t_atm, t_w = values["ambient_temperature"], values["wall_temperature"]
+    s_p = 0.25 * math.pi * bore * bore
+    s_n = 0.25 * math.pi * (bore * bore - rod * rod)
+    y = np.asarray(sim["y"], float)
+    if chamber == "P":
+        vol = v0p + s_p * y
+        area = 2.0 * s_p + math.pi * bore * (v0p / s_p + y)
+    else:
+        vol = v0n + s_n * (stroke - y)
+        area = 2.0 * s_n + math.pi * (bore + rod) * (v0n / s_n + stroke - y)
+    p_p, p_n = np.asarray(sim["p_P"], float), np.asarray(sim["p_N"], float)
+    pres = p_p if chamber == "P" else p_n
+    temp = np.asarray(sim[f"T_{chamber}"], float)
+    q = np.asarray(sim[f"qm_{chamber}"], float)
+    lam = np.asarray(sim[f"lambda_{chamber}"], float)
+    dt = float(np.median(np.diff(time)))
+    out: dict[str, NDArray[np.float64]] = {}
+    # chamber leakage P -> N at the upstream temperature, opposite signs
+    t_up = np.where(p_p > p_n, sim["T_P"], sim["T_N"])
+    sign = -1.0 if chamber == "P" else 1.0
+    out["chamber_leakage"] = sign * GAMMA * R_AIR * t_up * (p_p - p_n) / vol
+    # external leakage X -> atmosphere
+    t_l = np.where(pres > p_atm, temp, t_atm)
+    out["external_leakage"] = -GAMMA * R_AIR * t_l * (pres - p_atm) / vol
+    # spool lag: q(u_s) ~ q(u) - tau dq/dt on the valve's enthalpy term
+    t_in = np.where(q > 0.0, t_atm, temp)
+    h = GAMMA * R_AIR * t_in * q / vol
+    out["valve_dynamics"] = -_rate(h, width, dt)
+    # wall thermal mass: T_w - T_w0 ~ int lambda (T - T_w0) dt / C_w
+    flux = lam * (temp - t_w)
+    warm = np.concatenate([[0.0], np.cumsum(0.5 * (flux[1:] + flux[:-1]) * np.diff(time))])
+    out["wall_thermal_mass"] = (GAMMA - 1.0) * lam * area * warm / vol
+    # forced convection: lambda += K_fc q_s while filling
+    q_in = np.maximum(q, 0.0)
+    out["forced_convection"] = (GAMMA - 1.0) * q_in * area * (t_w - temp) / vol
+    # supply line drop: P_S' = P_S - R q_draw, sonic dq/dP_S = q / P_S
+    q_draw = np.maximum(np.asarray(sim["qm_P"], float), 0.0) + np.maximum(
+        np.asarray(sim["qm_N"], float), 0.0
+    )
+    out["supply_pressure_drop"] = -GAMMA * R_AIR * t_atm * q_in * q_draw / (p_s * vol)
+    return {k: v for k, v in out.items() if k in EFFECTS}
+
+
+def _initial(rec: Recording, values: Mapping[str, float]) -> dict[str, float]:
+    prefix = f"initial:{rec.file}:"
+    return {k[len(prefix) :]: float(v) for k, v in values.items() if k.startswith(prefix)}
+
+
+def model_values(values: Mapping[str, float]) -> dict[str, float]:
+    """The model parameters among fitted values (initial states dropped)."""
+    return {k: float(v) for k, v in values.items() if not k.startswith("initial:")}
+
+
+def simulate_recording(
+    rec: Recording, structure: ModelStructure, values: Mapping[str, float]
+) -> dict[str, NDArray[np.float64]] | None:
+    """Simulate one recording with the fitted values and initial states.
+
+    Returns the simulated channels (SI) or None when the simulation failed.
+    """
+    exp = Experiment.from_recording(rec)
+    exp = dataclasses.replace(exp, initial={**exp.initial, **_initial(rec, values)})
+    result = Simulator(structure).simulate(model_values(values), exp)
+    if not result.ok:
+        return None
+    return dict(result.channels)
+
+
+def _slope_kernel(width: int) -> NDArray[np.float64]:
+    """Weights that turn a rate sampled at the samples into the
+    Savitzky-Golay (order 1) slope of its integral over ``width`` samples.
+
+    The order-1 slope over k = -M..M is sum k x_k / sum k^2; by parts it is
+    a weighted mean of the increments x_j - x_{j-1}, weight
+    (M (M + 1) - j (j - 1)) / 2 / sum k^2, j = -M+1..M: a parabola.
+    """
+    m = width // 2
+    j = np.arange(-m + 1, m + 1)
+    w = (m * (m + 1) - j * (j - 1)) / 2.0
+    return w / w.sum()
+
+
+def _smooth_rate(values: NDArray[np.float64], width: int) -> NDArray[np.float64]:
+    """A rate smoothed as the Savitzky-Golay slope smooths a derivative."""
+    if width < 3:
+        return values
+    mid = 0.5 * (values[1:] + values[:-1])  # rate over each sample interval
+    w = _slope_kernel(width)
+    m = width // 2
+    out = np.full(values.size, np.nan)
+    conv = np.convolve(mid, w[::-1], mode="valid")  # increments j = n-m+1 .. n+m
+    out[m : m + conv.size] = conv
+    return out
+
+
+def _rate_noise(values: NDArray[np.float64], width: int, dt: float) -> float:
+    """Standard deviation (Pa/s) of the Savitzky-Golay slope from white sensor noise.
+
+    The noise sigma comes from second differences (robust: MAD), the slope's
+    from its weights: sigma / (dt sqrt(sum k^2)).
+    """
+    d2 = np.diff(values, 2)
+    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+    m = width // 2
+    return sigma / (dt * math.sqrt(m * (m + 1) * (2 * m + 1) / 3.0)) if m else sigma / dt
+
+
+def _smooth_max(values: NDArray[np.float64], width: int) -> NDArray[np.float64]:
+    """Largest value over a centred window of ``width`` samples."""
+    from scipy.ndimage import maximum_filter1d
+
+    return maximum_filter1d(np.nan_to_num(values, nan=np.inf), size=max(width, 1), mode="nearest")
+
+
+def model_rates(
+    rec: Recording,
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    sim: Mapping[str, NDArray[np.float64]],
+    width: int,
+) -> dict[str, NDArray[np.float64]]:
+    """The model's pressure rates at the measured state, and its flows there.
+
+    The kernel's right-hand side (:func:`pneumafit.models.kernel.rhs`) is
+    evaluated at every sample with the *measured* pressures (smoothed over
+    the window), position and velocity (step tests; Savitzky-Golay slope of
+    the position), the simulated gas temperatures (the sensors are too slow
+    to give them) and the measured commands. Unlike the rate of the output
+    residual, this rate carries no feedback of an error accumulated
+    earlier (e.g. a flow that depends on an already wrong pressure).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``dp_P``, ``dp_N`` (Pa/s), the valve flows ``qm_P``, ``qm_N``
+        (kg/s), ``lambda_P``, ``lambda_N`` (W/m^2/K) at the measured state,
+        and the state used: ``p_P``, ``p_N``, ``T_P``, ``T_N``, ``y``.
+    """
+    from pneumafit.models import kernel
+    from pneumafit.models.layout import (
+        NX,
+        X_PN,
+        X_PP,
+        X_TN,
+        X_TP,
+        X_TWN,
+        X_TWP,
+        X_UN,
+        X_UP,
+        X_V,
+        X_Y,
+    )  # fmt: skip
+    from pneumafit.models.parameters import parameter_vector
+
+    model = model_values(values)
+    p = parameter_vector(model)
+    d = np.empty(kernel.ND)
+    kernel.derive(p, d)
+    exp = Experiment.from_recording(rec)
+    cfg = structure.config(blocked=exp.blocked, chamber=exp.chamber, closed_loop=0)
+    t = rec.time
+    n = t.size
+    dt = float(np.median(np.diff(t)))
+    inp = exp.inputs()
+
+    short = max(3, (width // 4) | 1)
+
+    def smooth(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return savgol_filter(x, short, 1, mode="interp") if n > short else x
+
+    state: dict[str, NDArray[np.float64]] = {}
+    for ch in ("p_P", "p_N"):
+        meas = rec.channels.get(ch)
+        if meas is None:
+            state[ch] = np.asarray(sim[ch], float)
+            continue
+        # the sensor's offset (the fit profiles one per recording) is not in the gas
+        resid = np.asarray(meas, float) - sim[ch]
+        offset = float(np.nanmedian(resid)) if np.isfinite(resid).any() else 0.0
+        state[ch] = smooth(np.asarray(meas, float) - offset)
+    for ch in ("T_P", "T_N"):
+        state[ch] = np.asarray(sim[ch], float)
+    if exp.blocked:
+        state["y"] = np.asarray(sim["y"], float)
+        vel = np.zeros(n)
+    else:
+        ymeas = np.asarray(rec.channels.get("y", sim["y"]), float)
+        state["y"] = smooth(ymeas)
+        vel = _rate(ymeas, width, dt)
+    # wall temperatures (effect wall_thermal_mass): integrate their ODE along
+    # the simulated gas temperature and heat-transfer coefficient
+    t_wall = {"P": np.full(n, model.get("wall_temperature", p[kernel.P_TW])),
+              "N": np.full(n, model.get("wall_temperature", p[kernel.P_TW]))}  # fmt: skip
+    if structure.effects.get("wall_thermal_mass"):
+        c_w = p[kernel.P_WCAP]
+        h_o = p[kernel.P_WOUT]
+        t_amb = p[kernel.P_TAMB]
+        for ch in ("P", "N"):
+            lam = np.asarray(sim[f"lambda_{ch}"], float)
+            gas = state[f"T_{ch}"]
+            tw = t_wall[ch]
+            for k in range(1, n):
+                rate_k = (lam[k - 1] + h_o) / c_w
+                target = (lam[k - 1] * gas[k - 1] + h_o * t_amb) / (lam[k - 1] + h_o)
+                tw[k] = target + (tw[k - 1] - target) * math.exp(-rate_k * (t[k] - t[k - 1]))
+    x = np.zeros(NX)
+    dx = np.empty(NX)
+    aux = np.empty(kernel.NAUX)
+    dx2 = np.empty(NX)
+    aux2 = np.empty(kernel.NAUX)
+    keys = ("dp_P", "dp_N", "qm_P", "qm_N", "lambda_P", "lambda_N", "sens_P", "sens_N")
+    out = {k: np.full(n, np.nan) for k in keys}
+    u_eff = {"P": np.asarray(sim.get("u_P", inp[:, 0]), float),
+             "N": np.asarray(sim.get("u_N", inp[:, 1]), float)}  # fmt: skip
+    for k in range(n):
+        x[:] = 0.0
+        x[X_Y] = state["y"][k]
+        x[X_V] = vel[k]
+        x[X_PP] = state["p_P"][k]
+        x[X_PN] = state["p_N"][k]
+        x[X_TP] = state["T_P"][k]
+        x[X_TN] = state["T_N"][k]
+        x[X_TWP] = t_wall["P"][k]
+        x[X_TWN] = t_wall["N"][k]
+        x[X_UP] = u_eff["P"][k]
+        x[X_UN] = u_eff["N"][k]
+        mode = 0 if exp.blocked or vel[k] == 0.0 else (1 if vel[k] > 0 else -1)
+        kernel.rhs(x, mode, inp[k, 0], inp[k, 1], p, d, cfg, dx, aux)
+        out["dp_P"][k] = dx[X_PP]
+        out["dp_N"][k] = dx[X_PN]
+        # sensitivity of each chamber's rate to its own pressure (1/s)
+        for slot, key in ((X_PP, "sens_P"), (X_PN, "sens_N")):
+            x0 = x[slot]
+            x[slot] = x0 + SENS_STEP
+            kernel.rhs(x, mode, inp[k, 0], inp[k, 1], p, d, cfg, dx2, aux2)
+            hi = dx2[slot]
+            x[slot] = x0 - SENS_STEP
+            kernel.rhs(x, mode, inp[k, 0], inp[k, 1], p, d, cfg, dx2, aux2)
+            out[key][k] = (hi - dx2[slot]) / (2.0 * SENS_STEP)
+            x[slot] = x0
+        out["qm_P"][k] = aux[kernel.A_QP]
+        out["qm_N"][k] = aux[kernel.A_QN]
+        out["lambda_P"][k] = aux[kernel.A_LAMP]
+        out["lambda_N"][k] = aux[kernel.A_LAMN]
+    out.update(state)
+    return out
+
+
+def build_rows(
+    campaign: Campaign,
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    *,
+    role: str = "fit",
+    window: float = WINDOW,
+    decimate: int = DECIMATE,
+    block: float = BLOCK,
+    max_sensitivity: float = MAX_SENSITIVITY,
+) -> Rows:
+    """Residual rates and signature regressors of a campaign's recordings.
+
+    For each recording and chamber: r_X = SG slope of the measured P_X minus
+    the model's dP_X/dt at the measured state (:func:`model_rates`),
+    smoothed the same way; the regressors are the effects' terms
+    (:func:`signature_features`) at that state, smoothed alike.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    structure : ModelStructure
+        The fitted structure.
+    values : mapping of str to float
+        Fitted values (SI), with the initial states as
+        ``initial:<file>:<state>`` (fit.json's ``nuisance.initial_states``).
+    role : str
+        Recordings used (``fit``: the ones the model was fitted to).
+    window : float
+        Savitzky-Golay window (s) of the rates.
+    decimate : int
+        Keep one sample in ``decimate``.
+    block : float
+        Bootstrap block length (s).
+    max_sensitivity : float
+        Rows whose window holds a sample where the model's rate is more
+        sensitive than this to its own pressure (1/s) are left out
+        (:data:`MAX_SENSITIVITY`).
+
+    Returns
+    -------
+    Rows
+    """
+    rates: list[NDArray[np.float64]] = []
+    feats: dict[str, list[NDArray[np.float64]]] = {name: [] for name in EFFECTS}
+    phases: list[NDArray[np.str_]] = []
+    groups: list[NDArray[np.int64]] = []
+    weights: list[NDArray[np.float64]] = []
+    sources: list[str] = []
+    next_group = 0
+    model = model_values(values)
+    for rec in campaign.by_role(role):
+        if rec.kind not in ("charge", "discharge", "step"):
+            continue
+        sim = simulate_recording(rec, structure, values)
+        if sim is None:
+            continue
+        t = rec.time
+        width = window_samples(t, window)
+        if width < 3:
+            continue
+        dt = float(np.median(np.diff(t)))
+        at = model_rates(rec, structure, values, sim, width)
+        labels = label_phases(rec)
+        chambers = [rec.chamber] if rec.kind in ("charge", "discharge") else ["P", "N"]
+        for ch in chambers:
+            name = f"p_{ch}"
+            if ch is None or name not in rec.channels:
+                continue
+            meas = np.asarray(rec.channels[name], float)
+            mask = rec.mask.get(name, np.ones(rec.n_samples, bool)) & np.isfinite(meas)
+            if mask.sum() < 3 * width:
+                continue
+            meas = np.where(mask, meas, np.interp(t, t[mask], meas[mask]))
+            rate = _rate(meas, width, dt) - _smooth_rate(at[f"dp_{ch}"], width)
+            terms = signature_features(at, ch, model, t, width)
+            keep = mask & np.isfinite(rate)
+            sens = _smooth_max(np.abs(at[f"sens_{ch}"]), width)
+            keep &= sens <= max_sensitivity
+            noise = _rate_noise(meas, width, dt)
+            weight = 1.0 / np.sqrt(noise**2 + (sens * PRESSURE_UNCERTAINTY) ** 2)
+            keep &= np.arange(t.size) % max(int(decimate), 1) == 0
+            smoothed = {k: _smooth_rate(v, width) for k, v in terms.items()}
+            for v in smoothed.values():
+                keep &= np.isfinite(v)
+            rates.append(rate[keep])
+            weights.append(weight[keep])
+            for k in feats:
+                feats[k].append(smoothed[k][keep])
+            phases.append(labels[keep])
+            blk = np.floor((t[keep] - t[0]) / block).astype(np.int64)
+            groups.append(blk + next_group)
+            next_group += int(blk.max(initial=0)) + 1
+            sources.append(f"{rec.file}:{ch}")
+    if not rates:
+        raise ValueError(
+            f"campaign {campaign.name!r}: attribution: expected {role} charge, discharge or step "
+            "recordings with pressures, found none"
+        )
+    return Rows(
+        rate=np.concatenate(rates),
+        features={k: np.concatenate(v) for k, v in feats.items()},
+        phase=np.concatenate(phases),
+        group=np.concatenate(groups),
+        weight=np.concatenate(weights),
+        source=sources,
+    )
+
+
+# ----------------------------------------------------------------- regression
+@dataclass(frozen=True)
+class Candidate:
+    """One catalog effect's evidence in the residual.
+
+    Attributes
+    ----------
+    effect : str
+        Effect name (:data:`~.catalog.EFFECTS`).
+    score : float
+        inclusion_probability * variance_explained * phase_match (0..1).
+    inclusion_probability : float
+        Fraction of bootstrap sparse fits keeping the effect with a positive
+        coefficient.
+    variance_explained : float
+        R^2 of the residual rate by the effect alone (coefficient >= 0).
+    phase_match : float
+        Cosine between the per-phase sums of squares of the residual rate and
+        of the effect's fitted term.
+    coefficient : float
+        Median bootstrap coefficient (SI unit of :attr:`coefficient_unit`),
+        NaN when never kept.
+    coefficient_interval : tuple of float
+        5 % and 95 % bootstrap quantiles of the coefficient (over fits that
+        kept it).
+    coefficient_unit : str
+    suggested : dict of str to float
+        Start values of the effect's parameters for the refit (SI), the
+        regression's where it is physical and inside the catalog bounds, else
+        the catalog's typical values.
+    phases : dict of str to float
+        Share of the effect's fitted term (sum of squares) in each phase.
+    supported : bool
+        inclusion_probability >= :data:`MIN_INCLUSION` and
+        variance_explained >= :data:`MIN_VARIANCE`.
+    """
+
+    effect: str
+    score: float
+    inclusion_probability: float
+    variance_explained: float
+    phase_match: float
+    coefficient: float
+    coefficient_interval: tuple[float, float]
+    coefficient_unit: str
+    suggested: dict[str, float]
+    phases: dict[str, float]
+    supported: bool
+
+    def evidence(self) -> dict[str, Any]:
+        """JSON-ready evidence (discovery.json ``candidates[].evidence``)."""
+        return {
+            "inclusion_probability": self.inclusion_probability,
+            "variance_explained": self.variance_explained,
+            "phase_match": self.phase_match,
+            "coefficient": _finite(self.coefficient),
+            "coefficient_interval_90": [_finite(x) for x in self.coefficient_interval],
+            "coefficient_unit": self.coefficient_unit,
+            "suggested_start": dict(self.suggested),
+            "phase_share": dict(self.phases),
+            "catalog_phases": list(get_effect(self.effect).phases),
+            "supported": self.supported,
+        }
+
+
+@dataclass
+class Attribution:
+    """Result of :func:`attribute`.
+
+    Attributes
+    ----------
+    candidates : list of Candidate
+        Every catalog effect, best score first.
+    n_rows : int
+        Rows regressed.
+    rate_rms : float
+        RMS residual rate (Pa/s).
+    residual_phases : dict of str to float
+        Share of the residual rate's sum of squares per phase.
+    explained : float
+        R^2 of the full sparse model (all effects kept by the full-data fit).
+    n_bootstrap : int
+    """
+
+    candidates: list[Candidate]
+    n_rows: int
+    rate_rms: float
+    residual_phases: dict[str, float]
+    explained: float
+    n_bootstrap: int
+
+    def supported(self) -> list[Candidate]:
+        """Supported candidates, best first."""
+        return [c for c in self.candidates if c.supported]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "n_rows": self.n_rows,
+            "rate_rms": self.rate_rms,
+            "residual_phases": self.residual_phases,
+            "explained": self.explained,
+            "n_bootstrap": self.n_bootstrap,
+        }
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+_COEFFICIENT_UNIT = {
+    "chamber_leakage": "kg/s/Pa",
+    "external_leakage": "kg/s/Pa",
+    "valve_dynamics": "s",
+    "wall_thermal_mass": "m^2 K/J (1/C_w)",
+    "forced_convection": "W/m^2/K/(kg/s)",
+    "supply_pressure_drop": "Pa/(kg/s)",
+}
+
+
+def _sparse_fit(
+    x: NDArray[np.float64], y: NDArray[np.float64], threshold: float
+) -> NDArray[np.float64]:
+    """STLSQ (pysindy) on standardised columns with negative coefficients removed.
+
+    Returns coefficients in the standardised units (0 where dropped).
+    """
+    import pysindy as ps
+
+    active = np.ones(x.shape[1], dtype=bool)
+    coef = np.zeros(x.shape[1])
+    for _ in range(x.shape[1]):
+        if not active.any():
+            break
+        opt = ps.STLSQ(threshold=threshold, alpha=1e-6, max_iter=20)
+        opt.fit(x[:, active], y[:, None])
+        c = np.asarray(opt.coef_, float).reshape(-1)
+        coef[:] = 0.0
+        coef[active] = c
+        negative = coef < 0.0
+        if not negative.any():
+            break
+        active &= ~negative
+        coef[negative] = 0.0
+    return coef
+
+
+def _phase_shares(values: NDArray[np.float64], phase: NDArray[np.str_]) -> NDArray[np.float64]:
+    ss = np.array([float(np.sum(values[phase == p] ** 2)) for p in PHASES])
+    total = ss.sum()
+    return ss / total if total > 0 else ss
+
+
+def attribute(
+    rows: Rows,
+    *,
+    rng: np.random.Generator,
+    n_bootstrap: int = 100,
+    threshold: float = 0.05,
+    effects: Sequence[str] | None = None,
+) -> Attribution:
+    """Rank the catalog effects by their evidence in the residual rates.
+
+    Parameters
+    ----------
+    rows : Rows
+        From :func:`build_rows`.
+    rng : numpy.random.Generator
+        Draws the bootstrap blocks.
+    n_bootstrap : int
+        Bootstrap sparse fits.
+    threshold : float
+        STLSQ threshold on the standardised coefficients (the share of the
+        residual rate's standard deviation a term must carry per standard
+        deviation of its regressor).
+    effects : sequence of str, optional
+        Effects to consider (default: the whole catalog).
+
+    Returns
+    -------
+    Attribution
+    """
+    names = [n for n in (effects or list(EFFECTS)) if n in rows.features]
+    w = rows.weight
+    y = rows.rate * w
+    ys = float(np.std(y)) or 1.0
+    cols = np.column_stack([rows.features[n] * w for n in names])
+    scale = np.std(cols, axis=0)
+    usable = scale > 0
+    scale = np.where(usable, scale, 1.0)
+    x = cols / scale
+    z = y / ys
+    full = _sparse_fit(x[:, usable], z, threshold)
+    coef_full = np.zeros(len(names))
+    coef_full[usable] = full
+    fitted = x @ coef_full
+    explained = 1.0 - float(np.sum((z - fitted) ** 2)) / float(np.sum(z * z))
+
+    blocks = np.unique(rows.group)
+    index = [np.flatnonzero(rows.group == b) for b in blocks]
+    boot = np.zeros((n_bootstrap, len(names)))
+    for i in range(n_bootstrap):
+        pick = rng.integers(0, len(index), len(index))
+        sel = np.concatenate([index[j] for j in pick])
+        c = np.zeros(len(names))
+        c[usable] = _sparse_fit(x[sel][:, usable], z[sel], threshold)
+        boot[i] = c
+    resid_share = _phase_shares(y, rows.phase)
+    out: list[Candidate] = []
+    for j, name in enumerate(names):
+        f = x[:, j]
+        fy, ff = float(f @ z), float(f @ f)
+        alone = fy / ff if ff > 0 and fy > 0 else 0.0
+        r2 = alone * fy / float(z @ z) if alone > 0 else 0.0
+        share = _phase_shares(alone * f, rows.phase) if alone > 0 else np.zeros(len(PHASES))
+        norm = float(np.linalg.norm(share) * np.linalg.norm(resid_share))
+        match = float(share @ resid_share) / norm if norm > 0 else 0.0
+        kept = boot[:, j] > 0
+        prob = float(kept.mean())
+        phys = boot[kept, j] * ys / scale[j]
+        if phys.size:
+            coef = float(np.median(phys))
+            lo, hi = (float(v) for v in np.quantile(phys, [0.05, 0.95]))
+        else:
+            coef, lo, hi = math.nan, math.nan, math.nan
+        out.append(
+            Candidate(
+                effect=name,
+                score=prob * r2 * match,
+                inclusion_probability=prob,
+                variance_explained=r2,
+                phase_match=match,
+                coefficient=coef,
+                coefficient_interval=(lo, hi),
+                coefficient_unit=_COEFFICIENT_UNIT.get(name, ""),
+                suggested=suggested_start(name, coef),
+                phases=dict(zip(PHASES, (float(s) for s in share), strict=True)),
+                supported=prob >= MIN_INCLUSION and r2 >= MIN_VARIANCE,
+            )
+        )
+    out.sort(key=lambda c: (-c.score, -c.inclusion_probability, c.effect))
+    return Attribution(
+        candidates=out,
+        n_rows=rows.n,
+        rate_rms=float(np.sqrt(np.mean(y * y))),
+        residual_phases=dict(zip(PHASES, (float(s) for s in resid_share), strict=True)),
+        explained=explained,
+        n_bootstrap=n_bootstrap,
+    )
+
+
+def suggested_start(effect: str, coefficient: float) -> dict[str, float]:
+    """Refit start of an effect's parameters from a regression coefficient.
+
+    The coefficient is the principal parameter itself (the wall capacity is
+    its inverse); it is used when finite, positive and inside the catalog's
+    fitting bounds, else the catalog's typical value.
+    """
+    eff = get_effect(effect)
+    start = eff.typical_values()
+    if not (math.isfinite(coefficient) and coefficient > 0.0):
+        return start
+    principal = eff.parameter_names()[0]
+    value = 1.0 / coefficient if effect == "wall_thermal_mass" else coefficient
+    par = eff.parameter(principal)
+    if par.lower <= value <= par.upper:
+        start[principal] = float(value)
+    return start

@@ -334,6 +334,7 @@ def closed_loop(
     else:
         plant_structure, plant_params = structure, design_params
     if plant_structure.heat != "convection":  # the nonlinear model has variable lambda
+        console.print(f"plant: the convection model with the {plant_structure.heat} file's values")
         plant_structure = get_structure("convection")
     stroke = float(design_params[P["stroke"]])
     y_mid = 0.5 * stroke if position is None else _quantity(position, "m", "--position")
@@ -374,7 +375,8 @@ def closed_loop(
     for r in results:
         if r.ok:
             console.print(f"{r.name}: {r.air_mass * 1e3:.4f} g of air ({r.exergy:.1f} J), "
-                          f"stiction band {r.stiction_band * 1e3:.1f} mm")  # fmt: skip
+                          f"max |u| {r.max_abs_u:.2f} V ({r.saturation:.1%} of samples at the "
+                          f"limit), stiction band {r.stiction_band * 1e3:.1f} mm")  # fmt: skip
     console.print(f"wrote {out / 'closed_loop.json'} and figures")
     if not all(r.ok for r in results):
         raise typer.Exit(1)

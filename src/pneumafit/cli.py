@@ -86,6 +86,24 @@ def fit(
 
 
 @app.command()
+def discover(
+    campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
+    fit: Annotated[Path, typer.Option("--fit", help="Base fit: fit.json or its folder.")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for discovery.json and the report.")],
+    seed: Annotated[int, typer.Option(help="Seed of the bootstrap and the refits.")] = 0,
+    rounds: Annotated[int, typer.Option(help="Largest number of rounds.")] = 2,
+    per_round: Annotated[int, typer.Option("--per-round", help="Refits per round.")] = 3,
+) -> None:
+    """Find the effect a fit's residual asks for, refit with it, report before/after."""
+    from pneumafit.discovery.command import discover_command
+
+    code = discover_command(
+        campaign, fit, out, seed=seed, rounds=rounds, per_round=per_round, console=console
+    )
+    raise typer.Exit(code)
+
+
+@app.command()
 def check(
     campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
 ) -> None:

@@ -24,3 +24,25 @@ def clean_run(clean_rig: VirtualRig) -> RigRun:
 def leak_run() -> RigRun:
     """Quick campaign with an undeclared chamber leakage (default size, 5e-11 kg/s/Pa)."""
     return VirtualRig(effects={"chamber_leakage": None}, seed=SEED).run("quick")
+
+
+# ------------------------------------------------------------ discovery loop
+# One small campaign per hidden effect, fitted once (base convection model,
+# no MCMC) and run through discovery once per session: see discovery_helpers.
+
+
+@pytest.fixture(scope="session")
+def discovery_cases(tmp_path_factory: pytest.TempPathFactory) -> object:
+    """``case(effect)``: the :class:`DiscoveryCase` of a hidden effect (None: none),
+    made on first use and kept for the session."""
+    from discovery_helpers import run_case
+
+    root = tmp_path_factory.mktemp("discover")
+    cache: dict[str | None, object] = {}
+
+    def case(effect: str | None) -> object:
+        if effect not in cache:
+            cache[effect] = run_case(root, effect)
+        return cache[effect]
+
+    return case

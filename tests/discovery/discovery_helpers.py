@@ -74,3 +74,102 @@ def ar1(seed: int, n: int, phi: float) -> np.ndarray:
     for t in range(1, n):
         x[t] = phi * x[t - 1] + w[t]
     return x
+
+
+# ------------------------------------------------------------ discovery loop
+BAR = 1.0e5
+#: Seed of the discovery-loop campaigns.
+LOOP_SEED = 5
+
+#: Effect sizes used by the loop tests (None: the rig's EFFECT_DEFAULTS, all
+#: clearly visible on :func:`discovery_protocol`; see tests/discovery/test_loop.py).
+LOOP_EFFECTS: dict[str, float | None] = {
+    "chamber_leakage": None,
+    "external_leakage": None,
+    "valve_dynamics": None,
+    "wall_thermal_mass": None,
+    "forced_convection": None,
+    "supply_pressure_drop": None,
+}
+
+
+def discovery_protocol() -> Any:
+    """Small protocol where every catalog effect shows in the pressures.
+
+    Fit: a flow test of valve P (valve stage), a charge of P at 0.1 m, a
+    discharge of P at 0.3 m and a charge of N at 0.3 m (1.5 s: filling,
+    emptying and 1 s of relaxation: leakages, wall mass, forced convection,
+    spool lag, supply drop), one closed-loop step test (1.5 s: friction,
+    and both chambers at once, which sets chamber leakage apart from
+    external leakage). Validate: a charge of P at another position and
+    amplitude, a discharge of N, a second step test.
+    """
+    from pneumafit.rig import BlockedTest, FlowTest, Protocol, StepTest
+
+    cmds = (-10.0, -3.0, -0.4, 0.0, 0.4, 3.0, 10.0)
+    tests = (
+        FlowTest(file="flow_P.h5", chamber="P", commands=cmds,
+                 pressures=(2.0 * BAR, 5.0 * BAR), dwell=0.3),
+        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.1,
+                    amplitude=10.0, opening_time=0.3, duration=1.5),
+        BlockedTest(file="discharge_P.h5", kind="discharge", chamber="P", position=0.3,
+                    amplitude=8.0, opening_time=0.5, duration=1.5),
+        BlockedTest(file="charge_N.h5", kind="charge", chamber="N", position=0.3,
+                    amplitude=10.0, opening_time=0.25, duration=1.5),
+        StepTest(file="step_1.h5", start=0.25, steps=((0.3, 0.35), (0.9, 0.2)), duration=1.5,
+                 preroll=2.0),
+        BlockedTest(file="charge_P_v.h5", kind="charge", chamber="P", position=0.25,
+                    amplitude=6.0, opening_time=0.4, duration=1.5, role="validate"),
+        BlockedTest(file="discharge_N_v.h5", kind="discharge", chamber="N", position=0.2,
+                    amplitude=10.0, opening_time=0.4, duration=1.5, role="validate"),
+        StepTest(file="step_v.h5", start=0.3, steps=((0.3, 0.2), (0.9, 0.32)), duration=1.5,
+                 preroll=2.0, role="validate"),
+    )  # fmt: skip
+    return Protocol(name="discovery-small", description="discovery loop tests", tests=tests)
+
+
+@dataclasses.dataclass
+class DiscoveryCase:
+    """A campaign with a hidden effect, its base fit and the discovery result."""
+
+    effect: str | None
+    folder: Any
+    campaign: Any
+    truth: dict[str, Any]
+    fit_path: Any
+    result: Any
+    seconds: float
+
+
+def run_case(root: Any, effect: str | None, value: float | None = None) -> DiscoveryCase:
+    """Record the campaign (virtual rig: DP5 0.1 ms truth, sensor noise), fit
+    the base convection model (no MCMC, no solver correction: faster, and
+    discovery reads the option from fit.json), write fit.json, discover."""
+    import time
+
+    from pneumafit.campaign import read_campaign
+    from pneumafit.discovery.refit import BaseFit, discover
+    from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
+
+    t0 = time.perf_counter()
+    name = effect or "clean"
+    folder = root / name
+    if effect is None:
+        effects: dict[str, float | None] = {}
+    else:
+        effects = {effect: LOOP_EFFECTS.get(effect) if value is None else value}
+    run = VirtualRig(seed=LOOP_SEED, effects=effects).write(folder, discovery_protocol())
+    campaign = read_campaign(folder)
+    options = FitOptions(mcmc=False, correct_solver=False)
+    fit = identify(campaign, "convection", options=options, seed=0)
+    fit_path = root / f"{name}_fit" / "fit.json"
+    fit_path.parent.mkdir(parents=True, exist_ok=True)
+    write_fit_json(fit_path, fit_document(fit, campaign, seed=0, options=options))
+    import json
+
+    base = BaseFit.from_document(json.loads(fit_path.read_text()))
+    result = discover(campaign, base, seed=0)
+    return DiscoveryCase(
+        effect=effect, folder=folder, campaign=campaign, truth=dict(run.truth),
+        fit_path=fit_path, result=result, seconds=time.perf_counter() - t0,
+    )  # fmt: skip

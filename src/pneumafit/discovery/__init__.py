@@ -10,8 +10,21 @@
 - :mod:`.phases`: the phases of a test (filling, emptying, relaxation,
   motion, rest).
 - :mod:`.correlation`: the statistics themselves.
+- :mod:`.attribution`: which effect the residual asks for (residual rates
+  regressed on the effects' signatures, sparse and bootstrapped).
+- :mod:`.refit`: the refit loop (:func:`discover`), kept effects must
+  improve both BIC and the held-out error.
+- :mod:`.command`: ``pneumafit discover`` (discovery.json and the report).
 """
 
+from pneumafit.discovery.attribution import (
+    Attribution,
+    Candidate,
+    Rows,
+    attribute,
+    build_rows,
+    signature_features,
+)
 from pneumafit.discovery.catalog import (
     EFFECTS,
     PRIOR_KINDS,
@@ -32,6 +45,7 @@ from pneumafit.discovery.correlation import (
     whiteness_band,
 )
 from pneumafit.discovery.phases import PHASES, PhaseRules, label_phases
+from pneumafit.discovery.refit import BaseFit, Discovery, discover, refit
 from pneumafit.discovery.residuals import (
     DEFAULT_MAX_LAG,
     OUTPUT_CHANNELS,
@@ -52,8 +66,12 @@ __all__ = [
     "OUTPUT_CHANNELS",
     "PHASES",
     "PRIOR_KINDS",
+    "Attribution",
+    "BaseFit",
+    "Candidate",
     "ChannelResiduals",
     "Correlation",
+    "Discovery",
     "Effect",
     "EffectParameter",
     "EffectPrior",
@@ -61,19 +79,25 @@ __all__ = [
     "PhaseRules",
     "PhaseStats",
     "ResidualReport",
+    "Rows",
     "SignatureTerm",
     "SummaryRow",
+    "attribute",
     "autocorrelation",
+    "build_rows",
     "cross_correlation",
     "cross_correlation_band",
+    "discover",
     "effects_for_phase",
     "format_summary",
     "get_effect",
     "label_phases",
     "ljung_box",
     "plot_residuals",
+    "refit",
     "register_effect",
     "residual_analysis",
+    "signature_features",
     "summarize",
     "whiteness_band",
 ]

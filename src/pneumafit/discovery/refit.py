@@ -72,7 +72,7 @@ __all__ = [
 #: Channels whose validation RMSE decides (and the tests check).
 PRESSURES: tuple[str, ...] = ("p_P", "p_N")
 #: Largest least-squares iterations of a refit round (scipy nfev).
-REFIT_NFEV = 40
+REFIT_NFEV = 30
 #: The pressure residual of the fit recordings counts as explained when its
 #: RMS is within this factor of the sensor noise (estimated from the data).
 NOISE_FACTOR = 1.5
@@ -550,7 +550,7 @@ def discover(
     """
     say = log or (lambda _m: None)
     t0 = time.perf_counter()
-    streams = np.random.SeedSequence(seed).spawn(2 * rounds * (per_round + 1) + 2)
+    streams = np.random.SeedSequence(seed).spawn(rounds * (2 * per_round + 1) + 1)
     stream = iter(np.random.default_rng(s) for s in streams)
     noise = pressure_noise(campaign)
     say("base model on the refit problem ...")
@@ -587,15 +587,21 @@ def discover(
             say(f"round {r}: no candidate is supported by the residual")
             break
         kept = False
+        ok = False
         for cand in tried:
-            starts = _starts(cand)
-            say(f"round {r}: refit with {cand.effect} from {_fmt_start(starts)} ...")
-            model = refit(
-                campaign, base, current, cand.effect, starts, rng=next(stream), max_nfev=max_nfev
-            )
-            ok, reason = _accept(model, current)
-            say(f"  {cand.effect}: {reason} ({model.seconds:.1f} s)")
-            steps.append(Step(r, cand.effect, starts[0], model, ok, reason))
+            # the regression's start first; the catalog's typical value only
+            # when that refit is not kept (multi-start only if needed)
+            for start in _starts(cand):
+                say(f"round {r}: refit with {cand.effect} from {_fmt_start([start])} ...")
+                model = refit(
+                    campaign, base, current, cand.effect, [start], rng=next(stream),
+                    max_nfev=max_nfev,
+                )  # fmt: skip
+                ok, reason = _accept(model, current)
+                say(f"  {cand.effect}: {reason} ({model.seconds:.1f} s)")
+                steps.append(Step(r, cand.effect, dict(start), model, ok, reason))
+                if ok:
+                    break
             if ok:
                 current = model
                 selected.append(cand.effect)

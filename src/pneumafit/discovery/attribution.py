@@ -673,6 +673,8 @@ def _sparse_fit(
 
     Returns coefficients in the standardised units (0 where dropped).
     """
+    import warnings
+
     import pysindy as ps
 
     active = np.ones(x.shape[1], dtype=bool)
@@ -681,7 +683,10 @@ def _sparse_fit(
         if not active.any():
             break
         opt = ps.STLSQ(threshold=threshold, alpha=1e-6, max_iter=20)
-        opt.fit(x[:, active], y[:, None])
+        with warnings.catch_warnings():
+            # "eliminated all coefficients" is an answer here, not a problem
+            warnings.simplefilter("ignore", UserWarning)
+            opt.fit(x[:, active], y[:, None])
         c = np.asarray(opt.coef_, float).reshape(-1)
         coef[:] = 0.0
         coef[active] = c
@@ -786,7 +791,7 @@ def attribute(
                 supported=prob >= MIN_INCLUSION and r2 >= MIN_VARIANCE,
             )
         )
-    out.sort(key=lambda c: (-c.score, -c.inclusion_probability, c.effect))
+    out.sort(key=lambda c: (-c.score, -c.inclusion_probability, -c.variance_explained, c.effect))
     return Attribution(
         candidates=out,
         n_rows=rows.n,

@@ -1,0 +1,379 @@
+"""Replay a campaign through one fitted model: traces and error metrics.
+
+A fit (the content of a ``fit.json``) gives the model parameters, the
+structure (heat law, air properties) and the fitted initial states of the
+``fit`` recordings. :func:`evaluate_fit` simulates every recording of the
+campaign with them and compares every measured channel the model predicts,
+the same way the identification computes ``fit.json: metrics.rmse``
+(:func:`pneumafit.identification.staged._metrics`):
+
+- the recordings are bound to a :class:`~pneumafit.identification.Problem`
+  with every comparable channel, no averaging at rest, no flow-level means,
+  no profiled offsets, at the identification's largest step (every k-th
+  sample with k dt <= step is compared, flow tests on settled samples);
+- initial states: the fitted ones for ``fit`` recordings, estimated from the
+  data (line intercept over the first 50 ms) for ``validate`` ones;
+- the simulation is the identification's reference solver (DP5 at four
+  times the steps), which is what the fit's defect-corrected predictions
+  reproduce;
+- temperatures are compared after the first-order sensor lag of the fit
+  (``metrics.temperature_sensor_lag``); a fit without one gets the lag that
+  best fits its own prediction (1-D search, as the identification does).
+
+Unlike the identification, the temperature is compared for the polytropic
+model too: it predicts the gas at the wall temperature throughout, and the
+size of that error is the point of the comparison (paper, section 2).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.campaign.model import Campaign
+from pneumafit.identification.problem import (
+    COMPARABLE_CHANNELS,
+    INITIAL_PREFIX,
+    MAX_STEP,
+    QUANTITIES,
+    Problem,
+    first_order_lag,
+)
+from pneumafit.identification.staged import fit_structure
+from pneumafit.models.structure import MODELS, ModelStructure
+from pneumafit.parameters_io import parse_parameters
+from pneumafit.simulation import Simulator
+
+__all__ = [
+    "TRACE_CHANNELS",
+    "ChannelError",
+    "ModelEvaluation",
+    "RecordingTrace",
+    "channel_error",
+    "evaluate_fit",
+    "fit_values",
+]
+
+#: Channels kept in the simulated traces (for figures and the JSON).
+TRACE_CHANNELS: tuple[str, ...] = ("y", "p_P", "p_N", "T_P", "T_N", "qm_P", "qm_N", "u_P", "u_N")
+#: Reference solver of the comparison: method and step refinement over the
+#: problem's steps (the identification's defect correction uses the same).
+REFERENCE_METHOD = "dp5"
+REFERENCE_REFINE = 4
+
+
+@dataclass(frozen=True)
+class ChannelError:
+    """Errors of one simulated channel against its measurement.
+
+    Attributes
+    ----------
+    n : int
+        Samples compared.
+    rmse : float
+        Root-mean-square error (SI: Pa, m, K, kg/s).
+    fit_percent : float
+        Normalised fit (%), as MATLAB ``compare``:
+        100 (1 - ||y - yhat|| / ||y - mean(y)||); 100 is a perfect fit,
+        0 is no better than the mean, negative is worse. NaN for a constant
+        measurement.
+    max_abs_error : float
+        Largest absolute error (SI).
+    sum_squares : float
+        sum (y - yhat)^2, for pooling over recordings.
+    """
+
+    n: int
+    rmse: float
+    fit_percent: float
+    max_abs_error: float
+    sum_squares: float
+
+    def as_dict(self) -> dict[str, float | int]:
+        return {
+            "n": self.n,
+            "rmse": self.rmse,
+            "fit_percent": self.fit_percent,
+            "max_abs_error": self.max_abs_error,
+        }
+
+
+def channel_error(measured: NDArray[np.float64], simulated: NDArray[np.float64]) -> ChannelError:
+    """RMSE, normalised fit (%) and largest absolute error of a simulated channel.
+
+    Parameters
+    ----------
+    measured, simulated : ndarray, shape (n,)
+        Same samples, same SI unit.
+
+    Returns
+    -------
+    ChannelError
+    """
+    y = np.asarray(measured, dtype=float)
+    r = y - np.asarray(simulated, dtype=float)
+    ss = float(np.sum(r * r))
+    spread = float(np.linalg.norm(y - np.mean(y)))
+    fit = 100.0 * (1.0 - math.sqrt(ss) / spread) if spread > 0.0 else math.nan
+    return ChannelError(
+        n=int(y.size),
+        rmse=math.sqrt(ss / y.size) if y.size else math.nan,
+        fit_percent=fit,
+        max_abs_error=float(np.max(np.abs(r))) if y.size else math.nan,
+        sum_squares=ss,
+    )
+
+
+@dataclass
+class RecordingTrace:
+    """One recording simulated with one model.
+
+    Attributes
+    ----------
+    recording, kind, role : str
+    time : ndarray
+        Simulated sample times (s): the problem's integration grid.
+    simulated : dict of str to ndarray
+        :data:`TRACE_CHANNELS` (SI), the gas temperatures without sensor lag.
+    compared : dict of str to (ndarray, ndarray, ndarray)
+        Per compared channel: times (s), measured values and simulated
+        values as the sensor reads them (temperatures after the lag).
+    errors : dict of str to ChannelError
+    ok : bool
+        The simulation succeeded.
+    """
+
+    recording: str
+    kind: str
+    role: str
+    time: NDArray[np.float64]
+    simulated: dict[str, NDArray[np.float64]]
+    compared: dict[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]
+    errors: dict[str, ChannelError]
+    ok: bool = True
+
+
+@dataclass
+class ModelEvaluation:
+    """A campaign replayed through one fitted model.
+
+    Attributes
+    ----------
+    model : str
+    structure : ModelStructure
+    traces : list of RecordingTrace
+        One per simulated recording, campaign order.
+    temperature_sensor_lag : float or None
+        Time constant (s) of the sensor lag applied to temperatures.
+    lag_source : str
+        ``"fit"`` (from fit.json) or ``"estimated"`` (1-D search here).
+    warnings : list of str
+    """
+
+    model: str
+    structure: ModelStructure
+    traces: list[RecordingTrace]
+    temperature_sensor_lag: float | None
+    lag_source: str
+    warnings: list[str] = field(default_factory=list)
+
+    def pooled(self, role: str, by: str = "channel") -> dict[str, ChannelError]:
+        """Errors pooled over the ``role`` recordings, per channel or per quantity.
+
+        Parameters
+        ----------
+        role : {"fit", "validate"}
+        by : {"channel", "quantity"}
+            Pool per channel (``p_P``, ...) or per quantity (``pressure``:
+            ``p_P`` and ``p_N`` together, ...).
+
+        Returns
+        -------
+        dict of str to ChannelError
+            ``fit_percent`` is NaN (it is defined per recording).
+        """
+        acc: dict[str, list[float]] = {}
+        for tr in self.traces:
+            if tr.role != role:
+                continue
+            for c, e in tr.errors.items():
+                key = c if by == "channel" else QUANTITIES[c]
+                a = acc.setdefault(key, [0.0, 0.0, 0.0])
+                a[0] += e.sum_squares
+                a[1] += e.n
+                a[2] = max(a[2], e.max_abs_error)
+        return {
+            k: ChannelError(int(n), math.sqrt(ss / n), math.nan, mx, ss)
+            for k, (ss, n, mx) in acc.items()
+            if n > 0
+        }
+
+
+def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStructure, dict]:
+    """Model name, fitted structure and values (model parameters and initial states).
+
+    Parameters
+    ----------
+    document : mapping
+        A parsed fit.json (format ``pneumafit-fit``).
+    where : str
+        The file, for messages.
+
+    Returns
+    -------
+    model : str
+    structure : ModelStructure
+    values : dict of str to float
+        SI values by canonical name, plus ``initial:<file>:<state>`` for the
+        fitted initial states.
+
+    Raises
+    ------
+    PneumafitInputError
+        Not a fit document, or an unknown model.
+    """
+    if document.get("format") != "pneumafit-fit":
+        raise PneumafitInputError(
+            f"{where}: format: expected 'pneumafit-fit' (a fit.json written by pneumafit fit), "
+            f"found {document.get('format')!r}"
+        )
+    model, values = parse_parameters(dict(document), where)
+    if model not in MODELS:
+        raise PneumafitInputError(
+            f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
+        )
+    air = (document.get("structure") or {}).get("air_properties") or "sutherland"
+    structure = fit_structure(model, air)
+    initial = (document.get("nuisance") or {}).get("initial_states") or {}
+    for key, entry in initial.items():
+        value = entry.get("value") if isinstance(entry, Mapping) else entry
+        if isinstance(value, int | float) and math.isfinite(value):
+            values[f"{INITIAL_PREFIX}{key}"] = float(value)
+    return model, structure, values
+
+
+def evaluate_fit(
+    campaign: Campaign,
+    document: Mapping[str, Any],
+    *,
+    where: str = "fit.json",
+    max_step: float | None = MAX_STEP,
+) -> ModelEvaluation:
+    """Simulate every recording of a campaign with a fit and compare (module doc).
+
+    Parameters
+    ----------
+    campaign : Campaign
+    document : mapping
+        The parsed fit.json.
+    where : str
+        The file, for messages.
+    max_step : float or None
+        Largest integration step (s) of the comparison grid (as the fit).
+
+    Returns
+    -------
+    ModelEvaluation
+
+    Raises
+    ------
+    PneumafitInputError
+        Not a fit document.
+    """
+    model, structure, values = fit_values(document, where)
+    recs = list(campaign.recordings)
+    problem = Problem(
+        recs, structure, values, channels=COMPARABLE_CHANNELS, max_step=max_step,
+        initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
+    )  # fmt: skip
+    one = {k: np.array([v]) for k, v in values.items()}
+    vec = problem.model_vectors(one, 1)
+    x0s = problem.initial_states(one, 1)
+    sim = Simulator(structure, method=REFERENCE_METHOD, channels=TRACE_CHANNELS)
+    nsub = problem.packed.nsub_all * REFERENCE_REFINE
+    out, status = sim.simulate_batch(vec, problem.packed, initial_states=x0s, nsub=nsub)
+    col = {c: j for j, c in enumerate(TRACE_CHANNELS)}
+    offsets = problem.packed.offsets
+    warnings: list[str] = []
+
+    metrics = document.get("metrics") or {}
+    lag = metrics.get("temperature_sensor_lag")
+    lag_source = "fit"
+    if not (isinstance(lag, int | float) and lag > 0):
+        lag, lag_source = None, "estimated"
+
+    # the compared blocks: the problem's observations, plus the measured gas
+    # temperatures the problem leaves out for the polytropic structure
+    blocks: list[tuple[int, str, NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]]
+    blocks = [(o.index, o.channel, o.time, o.data, o.rows) for o in problem.observations]
+    have = {(o.index, o.channel) for o in problem.observations}
+    for i, rec in enumerate(problem.recordings):
+        if rec.kind == "flow":
+            continue
+        ref = next(o for o in problem.observations if o.index == i)
+        for c in ("T_P", "T_N"):
+            if (i, c) in have or c not in rec.channels:
+                continue
+            if rec.kind in ("charge", "discharge") and c[-1] != rec.chamber:
+                continue
+            idx = np.searchsorted(rec.time, ref.time)
+            keep = rec.mask.get(c, np.ones(rec.n_samples, bool))[idx]
+            if keep.sum() >= 3:
+                blocks.append((i, c, ref.time[keep], rec.channels[c][idx][keep], ref.rows[keep]))
+
+    def simulated(i: int, c: str, rows: NDArray[np.int64]) -> NDArray[np.float64]:
+        return out[0, offsets[i] + rows, col[c]]
+
+    if lag is None:
+        temps = [
+            (t, d, simulated(i, c, r))
+            for i, c, t, d, r in blocks
+            if QUANTITIES[c] == "temperature" and status[0, i] == 0
+        ]
+        if temps and structure.heat != "polytropic":
+            lag = _best_lag(temps)
+    traces: list[RecordingTrace] = []
+    for i, rec in enumerate(problem.recordings):
+        sl = slice(offsets[i], offsets[i + 1])
+        ok = bool(status[0, i] == 0)
+        if not ok:
+            warnings.append(f"{model}: {rec.file}: the simulation failed (status {status[0, i]})")
+        trace = RecordingTrace(
+            recording=rec.file, kind=rec.kind, role=rec.role,
+            time=problem.experiments[i].time.copy(),
+            simulated={c: out[0, sl, col[c]].copy() for c in TRACE_CHANNELS},
+            compared={}, errors={}, ok=ok,
+        )  # fmt: skip
+        for j, c, t, d, r in blocks:
+            if j != i:
+                continue
+            pred = simulated(i, c, r)
+            if QUANTITIES[c] == "temperature" and lag:
+                pred = first_order_lag(pred, t, lag) if np.all(np.isfinite(pred)) else pred
+            trace.compared[c] = (t, d, pred)
+            if ok and np.all(np.isfinite(pred)):
+                trace.errors[c] = channel_error(d, pred)
+        traces.append(trace)
+    return ModelEvaluation(model, structure, traces, lag, lag_source if lag else "none", warnings)
+
+
+def _best_lag(blocks: list[tuple[Any, Any, Any]]) -> float | None:
+    """Sensor time constant (s) that best fits the temperatures.
+
+    The same bounded 1-D search over log(tau) in [1 ms, 10 s] as the
+    identification's ``_sensor_lag`` (which works on a Problem's blocks).
+    """
+    from scipy.optimize import minimize_scalar
+
+    def cost(log_tau: float) -> float:
+        tau = math.exp(log_tau)
+        return sum(float(np.sum((d - first_order_lag(p, t, tau)) ** 2)) for t, d, p in blocks)
+
+    sol = minimize_scalar(cost, bounds=(math.log(1e-3), math.log(10.0)), method="bounded")
+    return float(math.exp(sol.x))

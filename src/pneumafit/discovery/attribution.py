@@ -62,12 +62,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.discovery.catalog import EFFECTS, get_effect
 from pneumafit.discovery.phases import PHASES, label_phases, window_samples
+from pneumafit.models import kernel, layout
 from pneumafit.models.structure import ModelStructure
 from pneumafit.simulation import Experiment, Simulator
 
@@ -97,6 +99,10 @@ WINDOW = 0.05
 DECIMATE = 5
 #: Length (s) of the bootstrap blocks.
 BLOCK = 0.2
+#: Smallest spool time constant (s) a refit starts from: the fitting
+#: problem integrates with fixed steps up to 4 ms (Kutta RK3, stable for
+#: tau > ~1.6 ms).
+MIN_SPOOL_START = 2.0e-3
 #: Pressure step (Pa) of the finite-difference sensitivity d(dP/dt)/dP.
 SENS_STEP = 200.0
 #: Rows where the model's rate changes by more than this per pascal of its
@@ -130,6 +136,9 @@ class Rows:
         Row weight (s/Pa): the inverse of the residual rate's expected
         spread without a missing effect (noise, and the model's sensitivity
         to the measured pressure times :data:`PRESSURE_UNCERTAINTY`).
+    nuisance : dict of str to ndarray, shape (n,)
+        Base-model parameter -> the rate's sensitivity to it (Pa/s per
+        unit): what a refit of the base parameters alone could change.
     source : list of str
         ``"<file>:<chamber>"`` per segment (for messages).
     """
@@ -140,6 +149,7 @@ class Rows:
     group: NDArray[np.int64]
     weight: NDArray[np.float64]
     source: list[str] = field(default_factory=list)
+    nuisance: dict[str, NDArray[np.float64]] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -297,6 +307,30 @@ def _rate_noise(values: NDArray[np.float64], width: int, dt: float) -> float:
     return sigma / (dt * math.sqrt(m * (m + 1) * (2 * m + 1) / 3.0)) if m else sigma / dt
 
 
+@njit(cache=True)
+def _rates_along(
+    xs: np.ndarray, modes: np.ndarray, cmds: np.ndarray, p: np.ndarray, d: np.ndarray,
+    cfg: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """dP_P/dt, dP_N/dt, q_P, q_N, lambda_P, lambda_N at each state row (kernel rhs)."""
+    n = xs.shape[0]
+    out = np.empty((n, 6))
+    dx = np.empty(xs.shape[1])
+    aux = np.empty(kernel.NAUX)
+    x = np.empty(xs.shape[1])
+    for k in range(n):
+        for i in range(xs.shape[1]):
+            x[i] = xs[k, i]
+        kernel.rhs(x, modes[k], cmds[k, 0], cmds[k, 1], p, d, cfg, dx, aux)
+        out[k, 0] = dx[layout.X_PP]
+        out[k, 1] = dx[layout.X_PN]
+        out[k, 2] = aux[kernel.A_QP]
+        out[k, 3] = aux[kernel.A_QN]
+        out[k, 4] = aux[kernel.A_LAMP]
+        out[k, 5] = aux[kernel.A_LAMN]
+    return out
+
+
 def _smooth_max(values: NDArray[np.float64], width: int) -> NDArray[np.float64]:
     """Largest value over a centred window of ``width`` samples."""
     from scipy.ndimage import maximum_filter1d
@@ -310,6 +344,7 @@ def model_rates(
     values: Mapping[str, float],
     sim: Mapping[str, NDArray[np.float64]],
     width: int,
+    parameters: Sequence[str] = (),
 ) -> dict[str, NDArray[np.float64]]:
     """The model's pressure rates at the measured state, and its flows there.
 
@@ -326,9 +361,11 @@ def model_rates(
     dict of str to ndarray
         ``dp_P``, ``dp_N`` (Pa/s), the valve flows ``qm_P``, ``qm_N``
         (kg/s), ``lambda_P``, ``lambda_N`` (W/m^2/K) at the measured state,
-        and the state used: ``p_P``, ``p_N``, ``T_P``, ``T_N``, ``y``.
+        the rates' sensitivities to their own pressure ``sens_P``,
+        ``sens_N`` (1/s) and to each of ``parameters``
+        (``param:<name>:P``, ``param:<name>:N``; central differences), and
+        the state used: ``p_P``, ``p_N``, ``T_P``, ``T_N``, ``y``.
     """
-    from pneumafit.models import kernel
     from pneumafit.models.layout import (
         NX,
         X_PN,
@@ -395,45 +432,52 @@ def model_rates(
                 rate_k = (lam[k - 1] + h_o) / c_w
                 target = (lam[k - 1] * gas[k - 1] + h_o * t_amb) / (lam[k - 1] + h_o)
                 tw[k] = target + (tw[k - 1] - target) * math.exp(-rate_k * (t[k] - t[k - 1]))
-    x = np.zeros(NX)
-    dx = np.empty(NX)
-    aux = np.empty(kernel.NAUX)
-    dx2 = np.empty(NX)
-    aux2 = np.empty(kernel.NAUX)
-    keys = ("dp_P", "dp_N", "qm_P", "qm_N", "lambda_P", "lambda_N", "sens_P", "sens_N")
-    out = {k: np.full(n, np.nan) for k in keys}
-    u_eff = {"P": np.asarray(sim.get("u_P", inp[:, 0]), float),
-             "N": np.asarray(sim.get("u_N", inp[:, 1]), float)}  # fmt: skip
-    for k in range(n):
-        x[:] = 0.0
-        x[X_Y] = state["y"][k]
-        x[X_V] = vel[k]
-        x[X_PP] = state["p_P"][k]
-        x[X_PN] = state["p_N"][k]
-        x[X_TP] = state["T_P"][k]
-        x[X_TN] = state["T_N"][k]
-        x[X_TWP] = t_wall["P"][k]
-        x[X_TWN] = t_wall["N"][k]
-        x[X_UP] = u_eff["P"][k]
-        x[X_UN] = u_eff["N"][k]
-        mode = 0 if exp.blocked or vel[k] == 0.0 else (1 if vel[k] > 0 else -1)
-        kernel.rhs(x, mode, inp[k, 0], inp[k, 1], p, d, cfg, dx, aux)
-        out["dp_P"][k] = dx[X_PP]
-        out["dp_N"][k] = dx[X_PN]
-        # sensitivity of each chamber's rate to its own pressure (1/s)
-        for slot, key in ((X_PP, "sens_P"), (X_PN, "sens_N")):
-            x0 = x[slot]
-            x[slot] = x0 + SENS_STEP
-            kernel.rhs(x, mode, inp[k, 0], inp[k, 1], p, d, cfg, dx2, aux2)
-            hi = dx2[slot]
-            x[slot] = x0 - SENS_STEP
-            kernel.rhs(x, mode, inp[k, 0], inp[k, 1], p, d, cfg, dx2, aux2)
-            out[key][k] = (hi - dx2[slot]) / (2.0 * SENS_STEP)
-            x[slot] = x0
-        out["qm_P"][k] = aux[kernel.A_QP]
-        out["qm_N"][k] = aux[kernel.A_QN]
-        out["lambda_P"][k] = aux[kernel.A_LAMP]
-        out["lambda_N"][k] = aux[kernel.A_LAMN]
+    xs = np.zeros((n, NX))
+    xs[:, X_Y] = state["y"]
+    xs[:, X_V] = vel
+    xs[:, X_PP] = state["p_P"]
+    xs[:, X_PN] = state["p_N"]
+    xs[:, X_TP] = state["T_P"]
+    xs[:, X_TN] = state["T_N"]
+    xs[:, X_TWP] = t_wall["P"]
+    xs[:, X_TWN] = t_wall["N"]
+    xs[:, X_UP] = np.asarray(sim.get("u_P", inp[:, 0]), float)
+    xs[:, X_UN] = np.asarray(sim.get("u_N", inp[:, 1]), float)
+    modes = np.where(vel > 0.0, 1, np.where(vel < 0.0, -1, 0)).astype(np.int64)
+    if exp.blocked:
+        modes[:] = 0
+    cmds = np.ascontiguousarray(inp[:, :2])
+    base = _rates_along(xs, modes, cmds, p, d, cfg)
+    out: dict[str, NDArray[np.float64]] = {
+        "dp_P": base[:, 0], "dp_N": base[:, 1], "qm_P": base[:, 2], "qm_N": base[:, 3],
+        "lambda_P": base[:, 4], "lambda_N": base[:, 5],
+    }  # fmt: skip
+    # sensitivity of each chamber's rate to its own pressure (1/s)
+    for slot, col, key in ((X_PP, 0, "sens_P"), (X_PN, 1, "sens_N")):
+        hi, lo = xs.copy(), xs.copy()
+        hi[:, slot] += SENS_STEP
+        lo[:, slot] -= SENS_STEP
+        out[key] = (
+            _rates_along(hi, modes, cmds, p, d, cfg)[:, col]
+            - _rates_along(lo, modes, cmds, p, d, cfg)[:, col]
+        ) / (2.0 * SENS_STEP)
+    # sensitivities to the base model's own parameters (Pa/s per unit)
+    from pneumafit.models.layout import P as P_INDEX
+
+    for name in parameters:
+        j = P_INDEX.get(name)
+        if j is None:
+            continue
+        h = 1e-3 * abs(p[j]) if p[j] != 0.0 else 1e-6
+        rates = []
+        for sign in (1.0, -1.0):
+            q = p.copy()
+            q[j] += sign * h
+            dq = np.empty(kernel.ND)
+            kernel.derive(q, dq)
+            rates.append(_rates_along(xs, modes, cmds, q, dq, cfg))
+        out[f"param:{name}:P"] = (rates[0][:, 0] - rates[1][:, 0]) / (2.0 * h)
+        out[f"param:{name}:N"] = (rates[0][:, 1] - rates[1][:, 1]) / (2.0 * h)
     out.update(state)
     return out
 
@@ -443,11 +487,12 @@ def build_rows(
     structure: ModelStructure,
     values: Mapping[str, float],
     *,
-    role: str = "fit",
+    role: str | None = None,
     window: float = WINDOW,
     decimate: int = DECIMATE,
     block: float = BLOCK,
     max_sensitivity: float = MAX_SENSITIVITY,
+    parameters: Sequence[str] = (),
 ) -> Rows:
     """Residual rates and signature regressors of a campaign's recordings.
 
@@ -464,8 +509,10 @@ def build_rows(
     values : mapping of str to float
         Fitted values (SI), with the initial states as
         ``initial:<file>:<state>`` (fit.json's ``nuisance.initial_states``).
-    role : str
-        Recordings used (``fit``: the ones the model was fitted to).
+    role : str, optional
+        Recordings used: ``fit``, ``validate`` or None for every recording
+        (default). Attribution only ranks candidates; the refit uses the fit
+        recordings only and the held-out ones judge it.
     window : float
         Savitzky-Golay window (s) of the rates.
     decimate : int
@@ -476,6 +523,10 @@ def build_rows(
         Rows whose window holds a sample where the model's rate is more
         sensitive than this to its own pressure (1/s) are left out
         (:data:`MAX_SENSITIVITY`).
+    parameters : sequence of str
+        Base-model parameters (valve, heat) whose rate sensitivities become
+        nuisance regressors (:attr:`Rows.nuisance`): a base fit may have bent
+        them to mimic the missing effect, and a refit moves them again.
 
     Returns
     -------
@@ -486,10 +537,12 @@ def build_rows(
     phases: list[NDArray[np.str_]] = []
     groups: list[NDArray[np.int64]] = []
     weights: list[NDArray[np.float64]] = []
+    nuis: dict[str, list[NDArray[np.float64]]] = {}
     sources: list[str] = []
     next_group = 0
     model = model_values(values)
-    for rec in campaign.by_role(role):
+    recordings = campaign.recordings if role is None else campaign.by_role(role)
+    for rec in recordings:
         if rec.kind not in ("charge", "discharge", "step"):
             continue
         sim = simulate_recording(rec, structure, values)
@@ -500,7 +553,7 @@ def build_rows(
         if width < 3:
             continue
         dt = float(np.median(np.diff(t)))
-        at = model_rates(rec, structure, values, sim, width)
+        at = model_rates(rec, structure, values, sim, width, parameters)
         labels = label_phases(rec)
         chambers = [rec.chamber] if rec.kind in ("charge", "discharge") else ["P", "N"]
         for ch in chambers:
@@ -523,8 +576,17 @@ def build_rows(
             smoothed = {k: _smooth_rate(v, width) for k, v in terms.items()}
             for v in smoothed.values():
                 keep &= np.isfinite(v)
+            for name in parameters:
+                col = at.get(f"param:{name}:{ch}")
+                if col is not None:
+                    sm = _smooth_rate(col, width)
+                    keep &= np.isfinite(sm)
             rates.append(rate[keep])
             weights.append(weight[keep])
+            for name in parameters:
+                col = at.get(f"param:{name}:{ch}")
+                col = np.zeros(t.size) if col is None else _smooth_rate(col, width)
+                nuis.setdefault(name, []).append(col[keep])
             for k in feats:
                 feats[k].append(smoothed[k][keep])
             phases.append(labels[keep])
@@ -534,8 +596,8 @@ def build_rows(
             sources.append(f"{rec.file}:{ch}")
     if not rates:
         raise ValueError(
-            f"campaign {campaign.name!r}: attribution: expected {role} charge, discharge or step "
-            "recordings with pressures, found none"
+            f"campaign {campaign.name!r}: attribution: expected {role or 'any'} charge, discharge "
+            "or step recordings with pressures, found none"
         )
     return Rows(
         rate=np.concatenate(rates),
@@ -544,6 +606,7 @@ def build_rows(
         group=np.concatenate(groups),
         weight=np.concatenate(weights),
         source=sources,
+        nuisance={k: np.concatenate(v) for k, v in nuis.items()},
     )
 
 
@@ -736,8 +799,18 @@ def attribute(
     names = [n for n in (effects or list(EFFECTS)) if n in rows.features]
     w = rows.weight
     y = rows.rate * w
-    ys = float(np.std(y)) or 1.0
     cols = np.column_stack([rows.features[n] * w for n in names])
+    if rows.nuisance:
+        # Frisch-Waugh: what the base parameters could absorb is projected
+        # out of the residual rate and of every regressor
+        nmat = np.column_stack([v * w for v in rows.nuisance.values()])
+        nscale = np.std(nmat, axis=0)
+        nmat = nmat[:, nscale > 0] / nscale[nscale > 0]
+        if nmat.size:
+            q, _r = np.linalg.qr(nmat)
+            y = y - q @ (q.T @ y)
+            cols = cols - q @ (q.T @ cols)
+    ys = float(np.std(y)) or 1.0
     scale = np.std(cols, axis=0)
     usable = scale > 0
     scale = np.where(usable, scale, 1.0)
@@ -815,6 +888,10 @@ def suggested_start(effect: str, coefficient: float) -> dict[str, float]:
         return start
     principal = eff.parameter_names()[0]
     value = 1.0 / coefficient if effect == "wall_thermal_mass" else coefficient
+    if effect == "valve_dynamics":
+        # a spool faster than the fitting integrator's step cannot be simulated
+        # by it (fixed-step RK3 at up to 4 ms is stable for tau > ~1.6 ms)
+        value = max(value, MIN_SPOOL_START)
     par = eff.parameter(principal)
     if par.lower <= value <= par.upper:
         start[principal] = float(value)

@@ -13,8 +13,11 @@
    the catalog's typical value (two starts, the best kept);
 3. keep the effect only if the held-out (``validate``) pressure RMSE *and*
    the Bayesian information criterion of the joint profile likelihood
-   (k ln n - 2 ln L, the effect's parameters counted) both improve; the
-   first kept candidate ends the round;
+   (k ln n - 2 ln L, the effect's parameters counted) both improve. The
+   candidates scoring at least :data:`CONTENDER_FRACTION` of the best are
+   all refitted and the kept one with the lowest BIC wins the round (the
+   lowest held-out error among those within :data:`BIC_TIE`); weaker
+   candidates are refitted only when none of those is kept;
 4. repeat from 1 with the grown structure (at most ``rounds`` rounds),
    unless the pressure residual of the fit recordings is already at the
    sensor noise.
@@ -72,6 +75,13 @@ __all__ = [
 
 #: Channels whose validation RMSE decides (and the tests check).
 PRESSURES: tuple[str, ...] = ("p_P", "p_N")
+#: Candidates scoring at least this fraction of the best one are all refitted
+#: and the best kept: the attribution alone does not separate them.
+CONTENDER_FRACTION = 0.5
+#: Refits whose BIC differ by less than this are not told apart by the fit
+#: data (Kass and Raftery: "not worth more than a bare mention"); the
+#: held-out error decides between them.
+BIC_TIE = 2.0
 #: Largest least-squares iterations of a refit round (scipy nfev).
 REFIT_NFEV = 30
 #: The pressure residual of the fit recordings counts as explained when its
@@ -447,7 +457,10 @@ def refit(
             if math.isfinite(est2.log_likelihood):
                 est = est2
                 new_values.update(est.parameters.values())
-        ll = est.log_likelihood
+        # the profile log-likelihood at the estimate (noise re-estimated there),
+        # as the base model's is evaluated
+        final_ps = ps.with_values({k: v for k, v in new_values.items() if k in ps})
+        ll = LogLikelihood(prob, final_ps).at_values(final_ps.values())
     scores = (
         rmse(campaign, structure, new_values, max_step=base.max_step)
         if math.isfinite(ll)
@@ -571,7 +584,9 @@ def discover(
             say(f"round {r}: the fit residual is at the sensor noise; nothing left to explain")
             break
         say(f"round {r}: attribution of the residual rates ...")
-        rows = build_rows(campaign, current.structure, current.values)
+        rows = build_rows(
+            campaign, current.structure, current.values, parameters=_rate_parameters(base)
+        )
         att = attribute(
             rows, rng=next(stream), n_bootstrap=n_bootstrap,
             effects=[e for e in _catalog_names() if e not in current.structure.effects],
@@ -597,9 +612,15 @@ def discover(
                 f"round {r}: no candidate is supported by the residual rates, but the residual "
                 f"is above the noise: refitting the {len(tried)} best ranked"
             )
-        kept = False
-        ok = False
+        # candidates whose evidence is close to the best one's are all refitted
+        # and the best kept (BIC); a weaker one only when none of them is kept
+        top = tried[0].score
+        contenders = {c.effect for c in tried if c.score >= CONTENDER_FRACTION * top}
+        passed: list[tuple[Candidate, Model]] = []
         for cand in tried:
+            if passed and cand.effect not in contenders:
+                break
+            ok = False
             # the regression's start first; the catalog's typical value only
             # when that refit is not kept (multi-start only if needed)
             for start in _starts(cand):
@@ -614,11 +635,23 @@ def discover(
                 if ok:
                     break
             if ok:
-                current = model
-                selected.append(cand.effect)
-                history.append(current)
-                kept = True
-                break
+                passed.append((cand, model))
+        best = _best(passed)
+        kept = best is not None
+        if best is not None:
+            current = best[1]
+            selected.append(best[0].effect)
+            history.append(current)
+            for step in steps:
+                if step.round == r and step.accepted and step.model is not current:
+                    step.accepted = False
+                    step.reason = (
+                        "passed, but "
+                        + best[0].effect
+                        + " did better (BIC): "
+                        + (step.reason.removeprefix("kept: "))
+                    )
+            say(f"round {r}: kept {best[0].effect}")
         if not kept:
             break
     unexplained, statement = _statement(base_model, current, selected, noise, attributions)
@@ -628,6 +661,25 @@ def discover(
         steps=steps, noise=noise, unexplained=unexplained, statement=statement, seed=seed,
         seconds=time.perf_counter() - t0, rounds_history=history,
     )  # fmt: skip
+
+
+def _best(passed: Sequence[tuple[Candidate, Model]]) -> tuple[Candidate, Model] | None:
+    """The kept refit with the lowest BIC; among refits within
+    :data:`BIC_TIE` of it (the fit data cannot tell them apart, e.g. chamber
+    and external leakage on blocked tests only), the lowest held-out error."""
+    if not passed:
+        return None
+    low = min(m.bic for _c, m in passed)
+    near = [(c, m) for c, m in passed if m.bic - low < BIC_TIE]
+    return min(near, key=lambda cm: (cm[1].pressure_rmse("validate"), cm[1].bic))
+
+
+def _rate_parameters(base: BaseFit) -> list[str]:
+    """Free base parameters that change the pressure rates at a given state
+    (valve and heat; friction acts through the motion, which is measured)."""
+    from pneumafit.models.layout import SPECS
+
+    return [n for n in base.free if n in SPECS and SPECS[n].group in ("valve", "heat")]
 
 
 def _catalog_names() -> list[str]:

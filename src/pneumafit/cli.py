@@ -86,6 +86,28 @@ def fit(
 
 
 @app.command()
+def compare(
+    campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for comparison.json and figures.")],
+    fits: Annotated[
+        list[Path] | None,
+        typer.Option("--fits", help="Fit folder (holding fit.json) to reuse; repeatable."),
+    ] = None,
+    walkers: Annotated[int | None, typer.Option(help="MCMC walkers of the fits made.")] = None,
+    steps: Annotated[int | None, typer.Option(help="MCMC steps of the fits made.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,
+    no_mcmc: Annotated[
+        bool, typer.Option("--no-mcmc", help="Fits made here: Laplace intervals only.")
+    ] = False,
+) -> None:
+    """Fit (or reuse) the convection, constant-lambda and polytropic models and compare them."""
+    from pneumafit.comparison import compare_command
+
+    code = compare_command(campaign, out, fits or [], walkers, steps, seed, not no_mcmc, console)
+    raise typer.Exit(code)
+
+
+@app.command()
 def discover(
     campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
     fit: Annotated[Path, typer.Option("--fit", help="Base fit: fit.json or its folder.")],

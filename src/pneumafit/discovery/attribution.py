@@ -92,7 +92,7 @@ R_AIR = 287.0
 #: A candidate is refitted only with at least this inclusion probability ...
 MIN_INCLUSION = 0.5
 #: ... and this share of the residual rate's (weighted) sum of squares explained alone.
-MIN_VARIANCE = 0.02
+MIN_VARIANCE = 0.05
 #: Width (s) of the Savitzky-Golay window of the residual rate.
 WINDOW = 0.05
 #: Rows kept: one sample in ``DECIMATE`` (the rate is smooth over the window).

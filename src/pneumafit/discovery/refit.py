@@ -622,7 +622,7 @@ def discover(
                 break
             ok = False
             # the regression's start first; the catalog's typical value only
-            # when that refit is not kept (multi-start only if needed)
+            # when that refit failed or did not even improve the likelihood
             for start in _starts(cand):
                 say(f"round {r}: refit with {cand.effect} from {_fmt_start([start])} ...")
                 model = refit(
@@ -632,7 +632,9 @@ def discover(
                 ok, reason = _accept(model, current)
                 say(f"  {cand.effect}: {reason} ({model.seconds:.1f} s)")
                 steps.append(Step(r, cand.effect, dict(start), model, ok, reason))
-                if ok:
+                if ok or model.log_likelihood > current.log_likelihood:
+                    # kept, or converged somewhere better than the current
+                    # model: another start is not needed
                     break
             if ok:
                 passed.append((cand, model))

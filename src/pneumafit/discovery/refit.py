@@ -3,17 +3,19 @@
 :func:`discover` runs the loop of docs/effects.md ("Refit loop"):
 
 1. attribute the base fit's residual (:mod:`.attribution`);
-2. for each *supported* candidate in rank order (at most
-   ``per_round``; when none is supported but the fit residual is above the
-   sensor noise, the best-ranked ones), add the effect to the structure and refit every
-   ``fit`` recording at once (:func:`refit`): the effect's parameters,
-   the valve, heat and friction parameters (those the base fit's joint stage
-   freed) and the recordings' initial states free, from the base estimate,
-   the effect's parameters started at the regression's suggestion and at
-   the catalog's typical value (two starts, the best kept);
+2. for each *supported* candidate in rank order (at most ``per_round``;
+   in the first round, when none is supported but the fit residual is above
+   the sensor noise, the best-ranked ones), add the effect to the structure
+   and refit every ``fit`` recording at once (:func:`refit`): the effect's
+   parameters, the valve, heat and friction parameters (those the base
+   fit's joint stage freed) and the recordings' initial states free, from
+   the current estimate, the effect's parameters started at the
+   regression's suggestion (and at the catalog's typical value only when
+   that refit fails or does not raise the likelihood);
 3. keep the effect only if the held-out (``validate``) pressure RMSE *and*
    the Bayesian information criterion of the joint profile likelihood
-   (k ln n - 2 ln L, the effect's parameters counted) both improve. The
+   (k ln n - 2 ln L, the effect's parameters counted) both improve, and its
+   parameter does not end at the bound where the effect vanishes. The
    candidates scoring at least :data:`CONTENDER_FRACTION` of the best are
    all refitted and the kept one with the lowest BIC wins the round (the
    lowest held-out error among those within :data:`BIC_TIE`); weaker
@@ -31,8 +33,8 @@ settings as the joint stage of :func:`~pneumafit.identification.identify`
 base and the refitted log-likelihoods are comparable: the base one is
 evaluated on the same problem at the base estimate.
 
-BIC rather than AIC decides (both are reported): with n ~ 10^4 compared
-samples BIC asks ~4.6 log-likelihood units per added parameter, AIC only 1,
+BIC rather than AIC decides (both are reported): with n ~ 10^3 to 10^4
+compared samples BIC asks ~3.5 to 4.6 log-likelihood units per added parameter, AIC only 1,
 which a chance improvement on a misspecified model easily gives.
 """
 
@@ -82,8 +84,11 @@ CONTENDER_FRACTION = 0.5
 #: data (Kass and Raftery: "not worth more than a bare mention"); the
 #: held-out error decides between them.
 BIC_TIE = 2.0
+#: An effect whose principal parameter ends within this log-distance
+#: (ln, ~2 %) of the bound where it vanishes is not kept.
+VANISHING = 0.02
 #: Largest least-squares iterations of a refit round (scipy nfev).
-REFIT_NFEV = 30
+REFIT_NFEV = 40
 #: The pressure residual of the fit recordings counts as explained when its
 #: RMS is within this factor of the sensor noise (estimated from the data).
 NOISE_FACTOR = 1.5
@@ -112,6 +117,9 @@ class BaseFit:
         Largest integration step (s).
     correct_solver : bool
         Whether the base fit used the solver's defect correction.
+    temperature_sensor_lag : float or None
+        Temperature sensor time constant (s) of fit.json's metrics, used for
+        the temperature RMSEs.
     """
 
     structure: ModelStructure
@@ -121,6 +129,7 @@ class BaseFit:
     offsets: tuple[str, ...] = ("pressure",)
     max_step: float | None = MAX_STEP
     correct_solver: bool = True
+    temperature_sensor_lag: float | None = None
 
     @classmethod
     def from_document(cls, doc: Mapping[str, Any]) -> BaseFit:
@@ -148,6 +157,7 @@ class BaseFit:
             offsets=tuple(opts.get("offsets") or ("pressure",)),
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
+            temperature_sensor_lag=(doc.get("metrics") or {}).get("temperature_sensor_lag"),
         )
 
 
@@ -326,15 +336,17 @@ def rmse(
     values: Mapping[str, float],
     *,
     max_step: float | None = MAX_STEP,
+    temperature_lag: float | None = None,
 ) -> dict[str, dict[str, float]]:
     """RMSE per role and channel on every sample (SI), as fit.json's ``metrics.rmse``.
 
     Fit recordings start from their fitted initial states, the others from
     the data; no sensor offset is removed; the fixed-step solver is
-    corrected at ``values``; temperatures after a fitted sensor lag.
+    corrected at ``values``; temperatures after the sensor lag (the
+    ``temperature_sensor_lag`` value, else ``temperature_lag`` s).
     """
     channels = ("p_P", "p_N", "y", "T_P", "T_N", "qm_P", "qm_N")
-    lag = values.get("temperature_sensor_lag")
+    lag = values.get("temperature_sensor_lag", temperature_lag)
     out: dict[str, dict[str, float]] = {}
     for role in ("fit", "validate"):
         recs = campaign.by_role(role)
@@ -387,7 +399,10 @@ def evaluate_model(
     return Model(
         effects=tuple(effects), structure=structure, values=dict(values), parameters=None,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
-        rmse=rmse(campaign, structure, values, max_step=base.max_step),
+        rmse=rmse(
+            campaign, structure, values, max_step=base.max_step,
+            temperature_lag=base.temperature_sensor_lag,
+        ),
         seconds=time.perf_counter() - t0, evaluations=prob.n_evaluations,
     )  # fmt: skip
 
@@ -462,7 +477,13 @@ def refit(
         final_ps = ps.with_values({k: v for k, v in new_values.items() if k in ps})
         ll = LogLikelihood(prob, final_ps).at_values(final_ps.values())
     scores = (
-        rmse(campaign, structure, new_values, max_step=base.max_step)
+        rmse(
+            campaign,
+            structure,
+            new_values,
+            max_step=base.max_step,
+            temperature_lag=base.temperature_sensor_lag,
+        )
         if math.isfinite(ll)
         else {"fit": {}, "validate": {}}
     )
@@ -501,9 +522,28 @@ def pressure_noise(campaign: Campaign) -> float:
 
 
 # ----------------------------------------------------------------- the loop
+def _vanishing(model: Model, effect: str) -> str | None:
+    """A message when the effect's principal parameter sits at the bound where
+    the effect vanishes (lower bound; upper for the wall's heat capacity)."""
+    eff = get_effect(effect)
+    name = eff.parameter_names(model.structure.effects.get(effect))[0]
+    par = eff.parameter(name)
+    value = model.values.get(name, math.nan)
+    bound = par.upper if effect == "wall_thermal_mass" else par.lower
+    if math.isfinite(value) and value > 0 and abs(math.log(value / bound)) < VANISHING:
+        return (
+            f"{name} went to {value:.3g} {par.unit}, the bound where the effect vanishes: the "
+            "gain came from the other parameters"
+        )
+    return None
+
+
 def _accept(candidate: Model, current: Model) -> tuple[bool, str]:
     if not math.isfinite(candidate.log_likelihood):
         return False, "the refit failed (every simulation of every start)"
+    vanished = _vanishing(candidate, candidate.effects[-1])
+    if vanished:
+        return False, "rejected: " + vanished
     d_bic = candidate.bic - current.bic
     d_aic = candidate.aic - current.aic
     v_new, v_old = candidate.pressure_rmse("validate"), current.pressure_rmse("validate")
@@ -603,10 +643,14 @@ def discover(
             if current.pressure_rmse("fit") <= NOISE_FACTOR * noise:
                 say(f"round {r}: no candidate is supported, and the residual is at the noise")
                 break
+            if r > 1:
+                say(f"round {r}: no candidate is supported by the residual rates")
+                break
             # the base fit may have bent its own parameters to mimic the effect
             # (a leak mimicked by the valve's centre leakage on a single blocked
             # test): the rate residual is then small, but the refit can still
             # gain; the best-ranked candidates are refitted, the refit decides
+            # (first round only: later rounds start from a refitted model)
             tried = att.candidates[:per_round]
             say(
                 f"round {r}: no candidate is supported by the residual rates, but the residual "
@@ -650,7 +694,7 @@ def discover(
                     step.reason = (
                         "passed, but "
                         + best[0].effect
-                        + " did better (BIC): "
+                        + " did better (lower BIC, or within 2 of it a lower held-out error): "
                         + (step.reason.removeprefix("kept: "))
                     )
             say(f"round {r}: kept {best[0].effect}")

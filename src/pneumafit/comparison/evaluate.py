@@ -27,6 +27,7 @@ size of that error is the point of the comparison (paper, section 2).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -248,8 +249,17 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
         raise PneumafitInputError(
             f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
-    air = (document.get("structure") or {}).get("air_properties") or "sutherland"
-    structure = fit_structure(model, air)
+    described = document.get("structure") or {}
+    air = described.get("air_properties") or "sutherland"
+    try:
+        structure = fit_structure(model, air)
+        effects = described.get("effects") or {}
+        if effects:  # a fit with optional effects is replayed with them
+            structure = dataclasses.replace(
+                structure, effects={k: int(v) for k, v in effects.items()}
+            )
+    except (ValueError, TypeError) as exc:
+        raise PneumafitInputError(f"{where}: structure: {exc}") from None
     initial = (document.get("nuisance") or {}).get("initial_states") or {}
     for key, entry in initial.items():
         value = entry.get("value") if isinstance(entry, Mapping) else entry

@@ -136,6 +136,24 @@ def check(
 
 
 @app.command()
+def report(
+    run_dir: Annotated[Path, typer.Argument(help="Run folder (pneumafit run/fit outputs).")],
+    out: Annotated[
+        Path | None, typer.Option("--out", help="HTML file (default RUN_DIR/report.html).")
+    ] = None,
+    campaign: Annotated[
+        Path | None,
+        typer.Option("--campaign", help="Campaign folder (default: the one the fits recorded)."),
+    ] = None,
+) -> None:
+    """Validation report: one self-contained HTML file from a run folder."""
+    from pneumafit.outputs.report import write_report
+
+    write_report(run_dir, out or Path(run_dir) / "report.html", campaign=campaign, console=console)
+    raise typer.Exit(0)
+
+
+@app.command()
 def rig(
     out: Annotated[Path, typer.Option("--out", help="Folder to write the campaign into.")],
     effect: Annotated[

@@ -1,0 +1,943 @@
+"""The validation report: one self-contained HTML file from a run folder.
+
+:func:`write_report` reads the files the other stages wrote into a run folder
+(it never fits, and never imports their code beyond the readers), renders a
+section from whatever is there and labels a section whose inputs are
+missing "not run" (a file that cannot be read: "error", with the reason).
+Figures are embedded as base64 PNG; the page needs no network. What each
+section shows and from which file: ``docs/report.md``.
+
+Run folder layout read (all optional)::
+
+    RUN/summary.json                      pneumafit run (campaign path, nominal replay)
+    RUN/fits/<model>/fit.json, chains.h5  pneumafit fit, model in MODELS
+    RUN/comparison/comparison.json, *.png model comparison
+    RUN/linear/linear.json, design_4.json, design_6.json, *.png
+    RUN/closed_loop/closed_loop.json, *.png
+    RUN/discovery/discovery.json, discovery.md, *.png
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.fileio import write_text_atomic
+from pneumafit.outputs.report_html import (
+    Section,
+    channel_value,
+    embed_png_file,
+    esc,
+    fmt,
+    note,
+    page,
+    table,
+)
+
+__all__ = ["FIT_MODELS", "SECTIONS", "write_report"]
+
+#: Fits looked for, in this order: ``RUN/fits/<model>/fit.json``.
+FIT_MODELS = ("convection", "constant-lambda", "polytropic")
+
+#: Sections of the report, in order: (anchor, heading).
+SECTIONS = (
+    ("campaign", "Campaign summary"),
+    ("measurement", "Measurement against the three models"),
+    ("residuals", "Residual diagnostics"),
+    ("parameters", "Parameters with 90 % intervals"),
+    ("mcmc", "MCMC: corner plots, traces and diagnostics"),
+    ("comparison", "Model comparison"),
+    ("linear", "Pole maps and gain schedule"),
+    ("discovery", "Discovery: before and after"),
+    ("air", "Closed loop and air consumption"),
+)
+
+_ROLES = ("fit", "validate")
+
+
+# --------------------------------------------------------------------- inputs
+def _read_json(path: Path) -> tuple[Any, str | None]:
+    """(document, None), (None, None) when absent, (None, reason) when unreadable."""
+    if not path.is_file():
+        return None, None
+    try:
+        return json.loads(path.read_text(encoding="utf-8")), None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        return None, f"{path}: not readable as JSON ({exc})"
+
+
+def _not_found(*paths: Path) -> str:
+    names = " and ".join(f"<code>{esc(p)}</code>" for p in paths)
+    return note(f"not run: {names} not found.", "notrun")
+
+
+def _pngs(folder: Path, listed: Any = None) -> list[Path]:
+    """PNG files of a folder: those a document lists first, then the rest by name."""
+    found: list[Path] = []
+    if isinstance(listed, list):
+        for name in listed:
+            p = folder / str(name)
+            if p.suffix.lower() == ".png" and p.is_file() and p not in found:
+                found.append(p)
+    if folder.is_dir():
+        found += [p for p in sorted(folder.glob("*.png")) if p not in found]
+    return found
+
+
+def _figures(paths: list[Path]) -> str:
+    parts = []
+    for p in paths:
+        try:
+            parts.append(embed_png_file(p))
+        except OSError as exc:
+            parts.append(note(f"{esc(p)}: not readable ({esc(exc)})", "error"))
+    return "\n".join(parts)
+
+
+#: Display of SI keys by suffix: (suffix, factor, unit).
+_KEY_UNITS = (
+    ("_rad_s", 1.0, "rad/s"), ("_kg", 1e3, "g"), ("_J", 1.0, "J"), ("_Pa", 1e-3, "kPa"),
+    ("_m", 1e3, "mm"), ("_s", 1.0, "s"), ("_V", 1.0, "V"), ("_K", 1.0, "K"),
+    ("_fraction", 100.0, "%"),
+)  # fmt: skip
+
+
+def _by_key(key: str, value: Any) -> str:
+    """A value whose unit its key names (``air_mass_kg``), in a display unit."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        for suffix, factor, unit in _KEY_UNITS:
+            if key.endswith(suffix):
+                return fmt(float(value) * factor, unit)
+        if key in ("p_P", "p_N", "y", "T_P", "T_N", "qm_P", "qm_N"):
+            return channel_value(key, value)
+        return fmt(value)
+    if (
+        isinstance(value, list)
+        and len(value) <= 8
+        and all(isinstance(v, int | float | str | None) for v in value)
+    ):
+        return ", ".join(_by_key(key, v) for v in value)
+    if isinstance(value, Mapping | list):
+        text = json.dumps(value, default=str)
+        return f"<code>{esc(text if len(text) < 300 else text[:300] + ' ...')}</code>"
+    return esc(value)
+
+
+def _kv_table(doc: Mapping[str, Any], caption: str = "", skip: tuple[str, ...] = ()) -> str:
+    rows = [[esc(k), _by_key(str(k), v)] for k, v in doc.items() if k not in skip]
+    return table(["key", "value"], rows, caption=caption)
+
+
+def _channel_table(
+    values: Mapping[str, Any], rows_label: str, caption: str = "", rows: list[str] | None = None
+) -> str:
+    """{row: {channel: SI}} as a table, channels in display units."""
+    keys = rows if rows is not None else [k for k in values if isinstance(values[k], Mapping)]
+    channels: list[str] = []
+    for k in keys:
+        for c in values.get(k) or {}:
+            if c not in channels:
+                channels.append(c)
+    body = [
+        [esc(k), *(channel_value(c, (values.get(k) or {}).get(c)) for c in channels)] for k in keys
+    ]
+    return table([rows_label, *channels], body, caption=caption)
+
+
+class _Run:
+    """What was found in a run folder (each input read once)."""
+
+    def __init__(self, run_dir: Path, campaign: Path | None) -> None:
+        self.dir = run_dir
+        self.summary, self.summary_error = _read_json(run_dir / "summary.json")
+        self.fits: dict[str, tuple[dict[str, Any], Path]] = {}
+        self.fit_errors: dict[str, str] = {}
+        for model in FIT_MODELS:
+            path = run_dir / "fits" / model / "fit.json"
+            doc, error = _read_json(path)
+            if error:
+                self.fit_errors[model] = error
+            elif doc is not None:
+                if not isinstance(doc, dict) or doc.get("format") != "pneumafit-fit":
+                    found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+                    self.fit_errors[model] = (
+                        f"{path}: format: expected 'pneumafit-fit', found {found!r}"
+                    )
+                elif not isinstance(doc.get("parameters"), dict):
+                    self.fit_errors[model] = f"{path}: parameters: expected an object"
+                else:
+                    self.fits[model] = (doc, path)
+        self.campaign_path, self.campaign_origin = self._campaign_path(campaign)
+        self.campaign: Any = None
+        self.campaign_error: str | None = None
+        self.replays: list[Any] = []
+        self.replay_errors: dict[str, str] = {}
+
+    def _campaign_path(self, given: Path | None) -> tuple[Path | None, str]:
+        if given is not None:
+            return given, "given"
+        sources: list[tuple[Any, str]] = [
+            (doc.get("campaign"), f"fits/{model}/fit.json") for model, (doc, _) in self.fits.items()
+        ]
+        comparison, _ = _read_json(self.dir / "comparison" / "comparison.json")
+        if isinstance(comparison, dict):
+            sources.append((comparison.get("campaign"), "comparison/comparison.json"))
+        if isinstance(self.summary, dict):
+            sources.append((self.summary.get("campaign"), "summary.json"))
+        for entry, origin in sources:
+            if isinstance(entry, Mapping) and isinstance(entry.get("path"), str):
+                path = Path(entry["path"])
+                if not path.is_absolute() and not path.exists():
+                    path = self.dir / path
+                return path, origin
+        return None, ""
+
+    def load_campaign(self) -> None:
+        from pneumafit.campaign import read_campaign
+
+        if self.campaign_path is None:
+            return
+        try:
+            self.campaign = read_campaign(self.campaign_path)
+        except Exception as exc:  # a campaign error is a section, never a crash
+            self.campaign_error = f"{self.campaign_path}: {exc}"
+
+    def replay(self, console: Console | None) -> None:
+        from pneumafit.outputs.report_models import replay_fit
+
+        if self.campaign is None:
+            return
+        for model, (doc, path) in self.fits.items():
+            started = time.perf_counter()
+            try:
+                self.replays.append(replay_fit(self.campaign, doc, path, model))
+            except Exception as exc:  # a bad fit.json is reported in its section
+                self.replay_errors[model] = f"{path}: {exc}"
+            if console is not None:
+                console.print(
+                    f"report: simulated the campaign with the {model} fit "
+                    f"({time.perf_counter() - started:.1f} s)"
+                )
+
+
+# ------------------------------------------------------------------- sections
+def _campaign_section(run: _Run) -> tuple[str, str, str]:
+    parts = []
+    inventory = [
+        ("pneumafit run", "summary.json"),
+        *((f"fit {m}", f"fits/{m}/fit.json") for m in FIT_MODELS),
+        *((f"chains {m}", f"fits/{m}/chains.h5") for m in FIT_MODELS),
+        ("comparison", "comparison/comparison.json"),
+        ("linear analysis", "linear/linear.json"),
+        ("designs", "linear/design_4.json, linear/design_6.json"),
+        ("closed loop", "closed_loop/closed_loop.json"),
+        ("discovery", "discovery/discovery.json"),
+    ]
+    rows = []
+    for stage, files in inventory:
+        found = all((run.dir / f.strip()).is_file() for f in files.split(","))
+        rows.append([esc(stage), f"<code>{esc(files)}</code>", "found" if found else
+                     "<em>not found</em>"])  # fmt: skip
+    parts.append("<h3>Run folder</h3>")
+    parts.append(table(["stage", "file", "status"], rows,
+                       caption=f"What {run.dir} holds"))  # fmt: skip
+    for model, error in run.fit_errors.items():
+        parts.append(note(f"fit {esc(model)}: {esc(error)}", "error"))
+    if run.summary_error:
+        parts.append(note(esc(run.summary_error), "error"))
+    source = f"campaign folder ({esc(run.campaign_origin) or 'not recorded'})"
+    if run.campaign_path is None:
+        parts.append(
+            note(
+                "not run: no campaign folder was given (<code>--campaign</code>) or recorded "
+                "(fit.json <code>campaign.path</code>, comparison.json, summary.json).",
+                "notrun",
+            )
+        )
+        return "\n".join(parts), "not run", source
+    if run.campaign is None:
+        parts.append(note(f"campaign not readable: {esc(run.campaign_error)}", "error"))
+        return "\n".join(parts), "error", source
+    c = run.campaign
+    parts.append("<h3>Campaign</h3>")
+    parts.append(table(
+        ["name", "folder", "recordings", "fit", "validate", "description"],
+        [[esc(c.name), f"<code>{esc(c.path)}</code>", fmt(len(c.recordings)),
+          fmt(len(c.by_role("fit"))), fmt(len(c.by_role("validate"))), esc(c.description)]],
+    ))  # fmt: skip
+    rig = c.rig.as_parameters()
+    from pneumafit.models.layout import SPECS
+
+    parts.append(table(
+        ["rig parameter", "value"],
+        [[esc(k), fmt(v, SPECS[k].unit if k in SPECS else "")] for k, v in rig.items()],
+        caption="Rig (from campaign.toml, SI units)",
+    ))  # fmt: skip
+    rec_rows = []
+    for r in c.recordings:
+        chans = ", ".join(f"{n} [{r.units.get(n, '?')}]" for n in r.channels)
+        where = f"chamber {r.chamber}" if r.chamber else ""
+        if r.piston_position is not None:
+            where += f", piston at {r.piston_position * 1e3:.0f} mm"
+        if r.controller is not None:
+            where += f"; {r.controller}"
+        rec_rows.append([
+            f"<code>{esc(r.file)}</code>", esc(r.kind), esc(r.role), fmt(r.duration, "s"),
+            esc(chans), fmt(r.sample_rate, "Hz"), esc(where.strip(";, ")),
+        ])  # fmt: skip
+    parts.append(table(
+        ["file", "kind", "role", "duration", "channels [file units]", "sample rate", "setup"],
+        rec_rows, caption="Recordings",
+    ))  # fmt: skip
+    if c.warnings:
+        parts.append(note("campaign warnings: " + "; ".join(esc(w) for w in c.warnings), "warn"))
+    summary = run.summary
+    if isinstance(summary, dict) and isinstance(summary.get("models"), Mapping):
+        parts.append("<h3>Nominal replay (<code>pneumafit run</code>, untuned models)</h3>")
+        parts.append(note(esc(summary.get("parameters", ""))))
+        rows = []
+        channels: list[str] = []
+        for res in summary["models"].values():
+            for role in _ROLES:
+                for ch in ((res or {}).get("rmse") or {}).get(role) or {}:
+                    if ch not in channels:
+                        channels.append(ch)
+        for model, res in summary["models"].items():
+            for role in _ROLES:
+                row = ((res or {}).get("rmse") or {}).get(role) or {}
+                rows.append([esc(model), esc(role), *(channel_value(ch, row.get(ch))
+                                                      for ch in channels)])  # fmt: skip
+        parts.append(table(["model", "role", *(f"RMSE {ch}" for ch in channels)], rows))
+    return "\n".join(parts), "ok", source
+
+
+def _need_fits(run: _Run) -> str | None:
+    if run.fits:
+        return None
+    paths = [run.dir / "fits" / m / "fit.json" for m in FIT_MODELS]
+    return _not_found(*paths)
+
+
+def _measurement_section(run: _Run) -> tuple[str, str, str]:
+    from pneumafit.outputs.report_models import render_measurement
+
+    source = "the campaign and <code>fits/&lt;model&gt;/fit.json</code> (simulated here)"
+    missing = _need_fits(run)
+    if missing:
+        return missing, "not run", source
+    if run.campaign is None:
+        return note("not run: the campaign could not be read (see the campaign summary).",
+                    "notrun"), "not run", source  # fmt: skip
+    parts = [note(f"{esc(m)}: could not simulate: {esc(e)}", "error")
+             for m, e in run.replay_errors.items()]  # fmt: skip
+    absent = [m for m in FIT_MODELS if m not in run.fits]
+    if absent:
+        parts.append(note("not run for " + ", ".join(esc(m) for m in absent)
+                          + ": no fit.json.", "notrun"))  # fmt: skip
+    if not run.replays:
+        return "\n".join(parts), "error", source
+    parts.append(render_measurement(run.campaign, run.replays))
+    status = "ok" if not absent and not run.replay_errors else "partial"
+    return "\n".join(parts), status, source
+
+
+def _residual_section(run: _Run) -> tuple[str, str, str]:
+    from pneumafit.outputs.report_models import render_residuals
+
+    source = ("<code>fits/convection/fit.json</code>, simulated; "
+              "<code>pneumafit.discovery.residual_analysis</code>")  # fmt: skip
+    replay = next((r for r in run.replays if r.model == "convection"), None)
+    if replay is None:
+        if "convection" not in run.fits:
+            return _not_found(run.dir / "fits" / "convection" / "fit.json"), "not run", source
+        return note("not run: the convection fit could not be simulated (see above).",
+                    "notrun"), "not run", source  # fmt: skip
+    body, status = render_residuals(run.campaign, replay)
+    return body, status, source
+
+
+def _interval(entry: Mapping[str, Any], key: str, unit: str) -> str:
+    iv = entry.get(key)
+    if isinstance(iv, list) and len(iv) == 2:
+        return f"[{fmt(iv[0])}, {fmt(iv[1])}]" + (f"&nbsp;{esc(unit)}" if unit else "")
+    return "-"
+
+
+def _parameter_section(run: _Run) -> tuple[str, str, str]:
+    source = "<code>fits/&lt;model&gt;/fit.json</code> <code>parameters</code>"
+    missing = _need_fits(run)
+    if missing:
+        return missing, "not run", source
+    parts = [note(
+        "value: the joint least-squares estimate; 90 % interval: the 5 and 95 % quantiles of "
+        "the posterior (<em>mcmc</em>) or of the joint Laplace approximation "
+        "(<em>laplace</em>). Rig parameters are fixed from the campaign."
+    )]  # fmt: skip
+    fixed_rows: dict[str, list[str]] = {}
+    for model in FIT_MODELS:
+        if model not in run.fits:
+            parts.append(f"<h3>{esc(model)}</h3>" + note("not run: no fit.json.", "notrun"))
+            continue
+        doc, path = run.fits[model]
+        structure = doc.get("structure") or {}
+        parts.append(
+            f"<h3>{esc(model)} <small>({esc(structure.get('name', ''))}, air "
+            f"properties {esc(structure.get('air_properties', '?'))})</small></h3>"
+        )
+        rows = []
+        for name, e in doc["parameters"].items():
+            if not isinstance(e, Mapping):
+                continue
+            unit = str(e.get("unit") or "")
+            if e.get("fixed"):
+                fixed_rows.setdefault(name, [esc(name)]).append(fmt(e.get("value"), unit))
+                continue
+            rows.append([
+                esc(name), esc(e.get("group", "")), fmt(e.get("value"), unit),
+                fmt(e.get("std"), unit, 3), _interval(e, "interval_90", unit),
+                esc(e.get("uncertainty") or "-"), _interval(e, "laplace_interval_90", unit),
+            ])  # fmt: skip
+        parts.append(
+            table(
+                [
+                    "parameter",
+                    "group",
+                    "value",
+                    "std",
+                    "90 % interval",
+                    "from",
+                    "Laplace 90 % interval",
+                ],
+                rows,
+                caption=f"Estimated parameters ({path})",
+            )
+        )
+        warnings = doc.get("warnings") or []
+        if warnings:
+            parts.append("<details><summary>" + f"{len(warnings)} warning(s) of this fit"
+                         + "</summary>" + "".join(note(esc(w), "warn") for w in warnings)
+                         + "</details>")  # fmt: skip
+    if fixed_rows:
+        models = [m for m in FIT_MODELS if m in run.fits]
+        parts.append("<details><summary>Fixed parameters (rig and defaults)</summary>"
+                     + table(["parameter", *models],
+                             [r + ["-"] * (len(models) + 1 - len(r)) for r in fixed_rows.values()])
+                     + "</details>")  # fmt: skip
+    return "\n".join(parts), "ok" if len(run.fits) == len(FIT_MODELS) else "partial", source
+
+
+def _mcmc_section(run: _Run) -> tuple[str, str, str]:
+    from pneumafit.outputs.report_mcmc import render_chains
+
+    source = ("<code>fits/&lt;model&gt;/fit.json</code> <code>mcmc</code> and "
+              "<code>fits/&lt;model&gt;/chains.h5</code>")  # fmt: skip
+    missing = _need_fits(run)
+    if missing:
+        return missing, "not run", source
+    parts = []
+    statuses = []
+    for model in FIT_MODELS:
+        parts.append(f"<h3>{esc(model)}</h3>")
+        if model not in run.fits:
+            parts.append(note("not run: no fit.json.", "notrun"))
+            statuses.append("not run")
+            continue
+        doc, path = run.fits[model]
+        try:
+            body, status = render_chains(doc, path.parent)
+        except Exception as exc:  # a broken chains file is reported, not raised
+            body, status = note(f"{esc(path.parent)}: {esc(exc)}", "error"), "error"
+        parts.append(body)
+        statuses.append(status)
+    if all(s == "ok" for s in statuses):
+        status = "ok"
+    elif all(s == "not run" for s in statuses):
+        status = "not run"
+    else:
+        status = "partial"
+    return "\n".join(parts), status, source
+
+
+def _criteria_rows(models: list[str], entries: Mapping[str, Any]) -> list[list[str]]:
+    rows = []
+    for m in models:
+        e = entries.get(m) or {}
+        post = e.get("posterior") if isinstance(e.get("posterior"), Mapping) else {}
+        waic = post.get("waic") if isinstance(post, Mapping) else None
+        loo = post.get("loo") if isinstance(post, Mapping) else None
+        rows.append([
+            esc(m), fmt(e.get("log_likelihood")), fmt(e.get("aic")), fmt(e.get("bic")),
+            fmt(e.get("n_data")), fmt(e.get("n_parameters")),
+            fmt(waic if not isinstance(waic, Mapping) else waic.get("value", waic.get("waic"))),
+            fmt(loo if not isinstance(loo, Mapping) else loo.get("value", loo.get("loo"))),
+        ])  # fmt: skip
+    return rows
+
+
+_CRITERIA_HEADER = ["model", "log-likelihood", "AIC", "BIC", "data points", "parameters",
+                    "WAIC", "PSIS-LOO"]  # fmt: skip
+
+
+def _comparison_section(run: _Run) -> tuple[str, str, str]:
+    folder = run.dir / "comparison"
+    path = folder / "comparison.json"
+    source = f"<code>{esc(path)}</code> and its figures"
+    doc, error = _read_json(path)
+    parts = []
+    status = "ok"
+    if error:
+        parts.append(note(esc(error), "error"))
+        status = "error"
+    elif doc is None:
+        parts.append(_not_found(path))
+        status = "not run"
+    elif not isinstance(doc, dict):
+        parts.append(note(f"{esc(path)}: expected a JSON object, found "
+                          f"{esc(type(doc).__name__)}", "error"))  # fmt: skip
+        status = "error"
+    else:
+        if doc.get("format") not in (None, "pneumafit-comparison"):
+            parts.append(
+                note(
+                    f"{esc(path)}: format {esc(doc.get('format'))!s}, expected "
+                    "pneumafit-comparison; shown as far as it can be read.",
+                    "warn",
+                )
+            )
+        models = doc.get("models")
+        if not isinstance(models, list):
+            models = [m for m in FIT_MODELS if isinstance(doc.get(m), Mapping)]
+        models = [str(m) for m in models if isinstance(doc.get(str(m)), Mapping)]
+        if not models:
+            parts.append(note(f"{esc(path)}: no model entries found.", "warn"))
+            status = "partial"
+        for role in _ROLES:
+            for key, label in (("rmse", "RMSE"), ("rmse_by_quantity", "RMSE by quantity"),
+                               ("max_abs_error", "largest absolute error")):  # fmt: skip
+                values = {m: ((doc[m].get(key) or {}).get(role) or {}) for m in models
+                          if isinstance(doc[m].get(key), Mapping)}  # fmt: skip
+                if any(values.values()):
+                    parts.append(_channel_table(values, "model", f"{label}, {role} recordings"))
+        if models:
+            parts.append(table(_CRITERIA_HEADER, _criteria_rows(models, doc),
+                               caption="Information criteria (lower is better)"))  # fmt: skip
+        best = doc.get("best")
+        if isinstance(best, Mapping) and best:
+            parts.append(_kv_table(best, caption="Best model per channel and criterion"))
+        for m in models:
+            for w in doc[m].get("warnings") or []:
+                parts.append(note(f"{esc(m)}: {esc(w)}", "warn"))
+        parts.append(_figures(_pngs(folder, doc.get("figures"))))
+    if run.fits:
+        models = [m for m in FIT_MODELS if m in run.fits]
+        parts.append("<h3>From the fits' own fit.json metrics</h3>")
+        rmse = {m: ((run.fits[m][0].get("metrics") or {}).get("rmse") or {}) for m in models}
+        for role in _ROLES:
+            parts.append(
+                _channel_table(
+                    {m: rmse[m].get(role) or {} for m in models},
+                    "model",
+                    f"RMSE reported by the fit, {role} recordings",
+                )
+            )
+        metrics = {m: run.fits[m][0].get("metrics") or {} for m in models}
+        parts.append(table(_CRITERIA_HEADER[:6], [r[:6] for r in _criteria_rows(models, metrics)],
+                           caption="Criteria reported by each fit"))  # fmt: skip
+    return "\n".join(parts), status, source
+
+
+def _complex(values: Any) -> str:
+    if not isinstance(values, list):
+        return "-"
+    out = []
+    for v in values:
+        if isinstance(v, list) and len(v) == 2 and all(isinstance(x, int | float) for x in v):
+            re_, im = float(v[0]), float(v[1])
+            out.append(f"{re_:.3g}" + (f" {'+' if im >= 0 else '-'} {abs(im):.3g}j" if im else ""))
+    return ", ".join(out) + " 1/s" if out else "-"
+
+
+def _linear_section(run: _Run) -> tuple[str, str, str]:
+    folder = run.dir / "linear"
+    source = f"<code>{esc(folder)}</code>: linear.json, design_4.json, design_6.json, figures"
+    lin, lin_error = _read_json(folder / "linear.json")
+    designs = {o: _read_json(folder / f"design_{o}.json") for o in (4, 6)}
+    if lin is None and lin_error is None and all(d is None and e is None
+                                                  for d, e in designs.values()):  # fmt: skip
+        return _not_found(folder / "linear.json", folder / "design_4.json"), "not run", source
+    parts = []
+    status = "ok"
+    if lin_error:
+        parts.append(note(esc(lin_error), "error"))
+        status = "partial"
+    elif not isinstance(lin, dict):
+        parts.append(_not_found(folder / "linear.json"))
+        status = "partial"
+    else:
+        positions = [p for p in lin.get("positions") or [] if isinstance(p, Mapping)]
+        bad = [p for p in positions if "error" in p]
+        parts.append(f"<h3>Linear models (eqs. 10-14), lambda_e = "
+                     f"{fmt(lin.get('lambda_e'), 'W/m^2/K')}</h3>")  # fmt: skip
+        if bad:
+            parts.append(note(f"{len(bad)} of {len(positions)} positions have no equilibrium: "
+                              + "; ".join(f"{fmt(p.get('y', 0) * 1e3, 'mm')}: {esc(p['error'])}"
+                                          for p in bad[:5]), "warn"))  # fmt: skip
+        good = [p for p in positions if "error" not in p]
+        pick = good[:: max(1, math.ceil(len(good) / 7))]
+        rows = []
+        for p in pick:
+            eq = p.get("equilibrium") or {}
+            rows.append([
+                fmt(float(p.get("y", math.nan)) * 1e3, "mm"), channel_value("p_P", eq.get("p_P")),
+                channel_value("p_N", eq.get("p_N")), fmt(eq.get("u"), "V"),
+                _complex((p.get("order_4") or {}).get("poles")),
+                _complex((p.get("order_6") or {}).get("poles")),
+            ])  # fmt: skip
+        parts.append(
+            table(
+                [
+                    "position",
+                    "p_P",
+                    "p_N",
+                    "u_e",
+                    "poles, 4th order (polytropic)",
+                    "poles, 6th order (heat)",
+                ],
+                rows,
+                caption=f"Equilibria and open-loop poles ({len(good)} positions; "
+                f"every {max(1, math.ceil(len(good) / 7))}th shown)",
+            )
+        )
+    for order, (doc, error) in designs.items():
+        if error:
+            parts.append(note(esc(error), "error"))
+            status = "partial"
+            continue
+        if not isinstance(doc, dict):
+            parts.append(_not_found(folder / f"design_{order}.json"))
+            status = "partial"
+            continue
+        parts.append(f"<h3>State-feedback design, order {order}</h3>")
+        parts.append(table(
+            ["w0", "lambda_e", "law", "target poles"],
+            [[fmt(doc.get("w0"), "rad/s"), fmt(doc.get("lambda_e"), "W/m^2/K"),
+              esc(doc.get("law", "")), _complex(doc.get("target_poles"))]],
+        ))  # fmt: skip
+        states = [str(s) for s in doc.get("states") or []]
+        units = [str(u) for u in doc.get("gain_units") or []]
+        sched = [s for s in doc.get("schedule") or [] if isinstance(s, Mapping)]
+        pick = sched[:: max(1, math.ceil(len(sched) / 7))]
+        rows = []
+        for s in pick:
+            k = s.get("K")
+            cells = [fmt(float(s.get("y", math.nan)) * 1e3, "mm")]
+            for i in range(len(states)):
+                ok = isinstance(k, list) and i < len(k)
+                cells.append(fmt(k[i], units[i] if i < len(units) else "") if ok else "-")
+            rows.append(cells)
+        parts.append(
+            table(
+                ["position", *(f"K[{s}]" for s in states)],
+                rows,
+                caption=f"Gain schedule ({len(sched)} positions; a selection)",
+            )
+        )
+    figs = _pngs(folder, ["open_loop_poles.png", "closed_loop_poles_4.png",
+                          "closed_loop_poles_6.png", "gain_schedule_4.png",
+                          "gain_schedule_6.png"])  # fmt: skip
+    parts.append(_figures(figs))
+    if (folder / "controller.json").is_file():
+        parts.append(note(f"controller export: <code>{esc(folder / 'controller.json')}</code> "
+                          "(docs/export.md)."))  # fmt: skip
+    return "\n".join(parts), status, source
+
+
+def _evidence(value: Any) -> str:
+    if isinstance(value, Mapping):
+        items = []
+        for k, v in list(value.items())[:8]:
+            items.append(f"{esc(k)}: {fmt(v) if isinstance(v, int | float) else _by_key(k, v)}")
+        return "<br>".join(items)
+    return _by_key("", value)
+
+
+def _discovery_section(run: _Run) -> tuple[str, str, str]:
+    folder = run.dir / "discovery"
+    path = folder / "discovery.json"
+    source = f"<code>{esc(path)}</code>, discovery.md and figures"
+    doc, error = _read_json(path)
+    if error:
+        return note(esc(error), "error"), "error", source
+    if doc is None:
+        return _not_found(path), "not run", source
+    if not isinstance(doc, dict):
+        return note(f"{esc(path)}: expected a JSON object, found {esc(type(doc).__name__)}",
+                    "error"), "error", source  # fmt: skip
+    parts = []
+    selected = doc.get("selected")
+    sel = selected if isinstance(selected, list) else [selected] if selected else []
+    parts.append(f"<p>Selected effect(s): <strong>{esc(', '.join(map(str, sel)) or 'none')}"
+                 "</strong></p>")  # fmt: skip
+    candidates = [c for c in doc.get("candidates") or [] if isinstance(c, Mapping)]
+    if candidates:
+        parts.append(table(
+            ["effect", "score", "selected", "evidence"],
+            [[esc(c.get("effect")), fmt(c.get("score"), "", 3), fmt(c.get("effect") in sel),
+              _evidence(c.get("evidence"))] for c in candidates],
+            caption="Candidate effects, from the residuals of the base model",
+        ))  # fmt: skip
+    before, after = doc.get("rmse_before"), doc.get("rmse_after")
+    if isinstance(before, Mapping) and isinstance(after, Mapping):
+        rows = []
+        for role in [r for r in _ROLES if r in before or r in after] + [
+            r for r in before if r not in _ROLES
+        ]:
+            b, a = before.get(role) or {}, after.get(role) or {}
+            for ch in list(b) + [c for c in a if c not in b]:
+                vb, va = b.get(ch), a.get(ch)
+                change = (fmt(100.0 * (va - vb) / vb, "%", 3)
+                          if isinstance(va, int | float) and isinstance(vb, int | float) and vb
+                          else "-")  # fmt: skip
+                rows.append([esc(role), esc(ch), channel_value(ch, vb), channel_value(ch, va),
+                             change])  # fmt: skip
+        parts.append(
+            table(
+                ["role", "channel", "RMSE before", "RMSE after", "change"],
+                rows,
+                caption="Before and after adding the selected effect(s)",
+            )
+        )
+    elif before is not None or after is not None:
+        parts.append(note("rmse_before/rmse_after: only one of them, or not objects.", "warn"))
+    aic = [("AIC", doc.get("aic_before"), doc.get("aic_after")),
+           ("BIC", doc.get("bic_before"), doc.get("bic_after"))]  # fmt: skip
+    aic_rows = [[k, fmt(b), fmt(a), fmt(a - b) if isinstance(a, int | float)
+                 and isinstance(b, int | float) else "-"]
+                for k, b, a in aic if b is not None or a is not None]  # fmt: skip
+    if aic_rows:
+        parts.append(table(["criterion", "before", "after", "change"], aic_rows))
+    eff = doc.get("effect_parameters")
+    if isinstance(eff, Mapping) and eff:
+        rows = []
+        for name, v in eff.items():
+            if isinstance(v, Mapping):
+                unit = str(v.get("unit") or "")
+                rows.append([esc(name), fmt(v.get("value"), unit), fmt(v.get("std"), unit, 3),
+                             _interval(v, "interval_90", unit)])  # fmt: skip
+            else:
+                rows.append([esc(name), _by_key(str(name), v), "-", "-"])
+        parts.append(
+            table(
+                ["parameter", "value", "std", "90 % interval"],
+                rows,
+                caption="Parameters of the selected effect(s)",
+            )
+        )
+    skip = ("format", "version", "candidates", "selected", "rmse_before", "rmse_after",
+            "aic_before", "aic_after", "bic_before", "bic_after", "effect_parameters",
+            "figures")  # fmt: skip
+    rest = {k: v for k, v in doc.items() if k not in skip}
+    if rest:
+        parts.append("<details><summary>Other keys of discovery.json</summary>"
+                     + _kv_table(rest) + "</details>")  # fmt: skip
+    parts.append(_figures(_pngs(folder, doc.get("figures"))))
+    md = folder / "discovery.md"
+    if md.is_file():
+        try:
+            parts.append("<h3>discovery.md</h3><pre>" + esc(md.read_text(encoding="utf-8"))
+                         + "</pre>")  # fmt: skip
+        except (OSError, UnicodeDecodeError) as exc:
+            parts.append(note(f"{esc(md)}: not readable ({esc(exc)})", "error"))
+    return "\n".join(parts), "ok", source
+
+
+def _air_section(run: _Run) -> tuple[str, str, str]:
+    folder = run.dir / "closed_loop"
+    path = folder / "closed_loop.json"
+    source = (f"<code>{esc(path)}</code> and figures; the fits (simulated here); "
+              "summary.json")  # fmt: skip
+    doc, error = _read_json(path)
+    parts = []
+    have = False
+    status_cl = "ok"
+    parts.append("<h3>Controllers on the nonlinear model</h3>")
+    if error:
+        parts.append(note(esc(error), "error"))
+        status_cl = "error"
+    elif doc is None:
+        parts.append(_not_found(path))
+        status_cl = "not run"
+    elif not isinstance(doc, dict):
+        parts.append(note(f"{esc(path)}: expected a JSON object", "error"))
+        status_cl = "error"
+    else:
+        have = True
+        if doc.get("units"):
+            parts.append(note(f"units in the file: {esc(doc['units'])}"))
+        inputs = doc.get("inputs")
+        if isinstance(inputs, Mapping) and inputs:
+            parts.append(_kv_table(inputs, caption="What was run"))
+        controllers = [c for c in doc.get("controllers") or [] if isinstance(c, Mapping)]
+        if controllers:
+            parts.append(table(
+                ["controller", "order", "ok", "air mass", "exergy", "max |u|",
+                 "saturated", "stiction band", "message"],
+                [[esc(c.get("name")), fmt(c.get("order")), fmt(c.get("ok")),
+                  _by_key("air_mass_kg", c.get("air_mass_kg")),
+                  _by_key("exergy_J", c.get("exergy_J")),
+                  _by_key("max_abs_u_V", c.get("max_abs_u_V")),
+                  _by_key("saturation_fraction", c.get("saturation_fraction")),
+                  _by_key("stiction_band_m", c.get("stiction_band_m")),
+                  esc(c.get("message") or "")] for c in controllers],
+                caption="Per controller: totals over the test",
+            ))  # fmt: skip
+            for c in controllers:
+                steps = [s for s in c.get("steps") or [] if isinstance(s, Mapping)]
+                if not steps:
+                    continue
+                keys = list(dict.fromkeys(k for s in steps for k in s))
+                parts.append(
+                    table(
+                        keys,
+                        [[_by_key(k, s.get(k)) for k in keys] for s in steps],
+                        caption=f"{c.get('name')}: per step (air mass and exergy of each step)",
+                    )
+                )
+        else:
+            parts.append(note("closed_loop.json lists no controllers.", "warn"))
+            status_cl = "partial"
+        parts.append(_figures(_pngs(folder, doc.get("figures"))))
+    from pneumafit.outputs.report_models import render_air
+
+    air_html = render_air(run.campaign, run.replays) if run.replays else ""
+    if air_html:
+        have = True
+        parts.append(air_html)
+    summary = run.summary
+    if isinstance(summary, dict) and isinstance(summary.get("models"), Mapping):
+        rows = [[esc(m), _by_key("air_supplied_kg", (r or {}).get("air_supplied_kg"))]
+                for m, r in summary["models"].items()]  # fmt: skip
+        if any(r[1] != "-" for r in rows):
+            have = True
+            parts.append(table(["model", "air supplied"], rows,
+                               caption="Nominal replay of the whole campaign (summary.json, "
+                                       "untuned models)"))  # fmt: skip
+    if not have:
+        return "\n".join(parts), "not run", source
+    return "\n".join(parts), "ok" if status_cl == "ok" else "partial", source
+
+
+_BUILDERS: dict[str, Callable[[_Run], tuple[str, str, str]]] = {
+    "campaign": _campaign_section,
+    "measurement": _measurement_section,
+    "residuals": _residual_section,
+    "parameters": _parameter_section,
+    "mcmc": _mcmc_section,
+    "comparison": _comparison_section,
+    "linear": _linear_section,
+    "discovery": _discovery_section,
+    "air": _air_section,
+}
+
+
+def _version() -> str:
+    try:
+        return metadata.version("pneumafit")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def write_report(
+    run_dir: str | os.PathLike[str],
+    out_html: str | os.PathLike[str],
+    *,
+    campaign: str | os.PathLike[str] | None = None,
+    console: Console | None = None,
+) -> Path:
+    """Write the validation report of a run folder as one HTML file.
+
+    Parameters
+    ----------
+    run_dir : path
+        Run folder (layout in the module docstring). Every input is optional:
+        a section whose files are missing says "not run", one whose file
+        cannot be read says why.
+    out_html : path
+        The HTML file, written atomically (folders created).
+    campaign : path, optional
+        Campaign folder; default the one recorded in a fit.json
+        (``campaign.path``), comparison.json or summary.json.
+    console : rich Console, optional
+        Progress messages.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out_html``.
+
+    Raises
+    ------
+    PneumafitInputError
+        ``run_dir`` is not an existing folder, ``campaign`` was given and does
+        not exist, or ``out_html`` is an existing folder.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    started = time.perf_counter()
+    folder = Path(run_dir)
+    target = Path(out_html)
+    if not folder.exists():
+        raise PneumafitInputError(
+            f"report: run folder {folder}: expected a folder written by pneumafit run/fit, "
+            "found nothing at that path"
+        )
+    if not folder.is_dir():
+        raise PneumafitInputError(f"report: run folder {folder}: expected a folder, found a file")
+    if campaign is not None and not Path(campaign).exists():
+        raise PneumafitInputError(
+            f"report: option --campaign {campaign}: expected a campaign folder, found nothing "
+            "at that path"
+        )
+    if target.is_dir():
+        raise PneumafitInputError(
+            f"report: option --out {target}: expected an HTML file name, found a folder"
+        )
+    run = _Run(folder, Path(campaign) if campaign is not None else None)
+    run.load_campaign()
+    run.replay(console)
+    sections = []
+    for anchor, title in SECTIONS:
+        t0 = time.perf_counter()
+        try:
+            body, status, source = _BUILDERS[anchor](run)
+        except Exception as exc:  # one broken input never takes the report down
+            body = note(f"this section could not be rendered: {esc(type(exc).__name__)}: "
+                        f"{esc(exc)}", "error")  # fmt: skip
+            status, source = "error", ""
+        sections.append(Section(anchor, title, status, body, source))
+        if console is not None:
+            console.print(f"report: {title}: {status} ({time.perf_counter() - t0:.1f} s)")
+    name = run.campaign.name if run.campaign is not None else folder.name
+    created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    subtitle = (f"run folder <code>{esc(folder.resolve())}</code>; written {esc(created)} by "
+                f"pneumafit {esc(_version())}")  # fmt: skip
+    footer = (f"pneumafit {esc(_version())}, {esc(created)}; built in "
+              f"{time.perf_counter() - started:.1f} s from the files of the run folder. "
+              "Self-contained: no network resource is used.")  # fmt: skip
+    html_text = page(f"pneumafit validation report: {name}", subtitle, sections, footer)
+    write_text_atomic(target, html_text)
+    if console is not None:
+        console.print(f"wrote {target} ({len(html_text) / 1e6:.1f} MB, "
+                      f"{time.perf_counter() - started:.1f} s)")  # fmt: skip
+    return target

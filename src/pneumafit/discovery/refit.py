@@ -14,7 +14,8 @@
    that refit fails or does not raise the likelihood);
 3. keep the effect only if the held-out (``validate``) pressure RMSE *and*
    the Bayesian information criterion of the joint profile likelihood
-   (k ln n - 2 ln L, the effect's parameters counted) both improve, and its
+   (k ln n - 2 ln L, the effect's parameters counted) both improve (the
+   held-out one by at least :data:`MIN_HELD_OUT_GAIN`), and its
    parameter does not end at the bound where the effect vanishes. The
    candidates scoring at least :data:`CONTENDER_FRACTION` of the best are
    all refitted and the kept one with the lowest BIC wins the round (the
@@ -85,8 +86,17 @@ CONTENDER_FRACTION = 0.5
 #: held-out error decides between them.
 BIC_TIE = 2.0
 #: An effect whose principal parameter ends within this log-distance
-#: (ln, ~2 %) of the bound where it vanishes is not kept.
-VANISHING = 0.02
+#: (ln, ~10 %) of the bound where it vanishes is not kept (the catalog's
+#: bounds are negligible sizes: 1e-13 kg/s/Pa of leak, 0.1 ms of spool lag,
+#: 100 W/m^2/K/(kg/s) of jet gain, 1e4 Pa/(kg/s) of line resistance).
+VANISHING = 0.1
+#: The held-out pressure RMSE must fall by at least this fraction. On the
+#: campaign with seal friction (outside the catalog) a refit with forced
+#: convection gained BIC 22.6 and moved the held-out RMSE from 1539.3 to
+#: 1538.9 Pa, its gain sliding to its lower bound: re-converging the base
+#: parameters alone moves the held-out error by that much. A hidden catalog
+#: effect lowered it by 50 to 97 % on the test campaigns.
+MIN_HELD_OUT_GAIN = 0.05
 #: Largest least-squares iterations of a refit round (scipy nfev).
 REFIT_NFEV = 40
 #: The pressure residual of the fit recordings counts as explained when its
@@ -553,7 +563,7 @@ def _accept(candidate: Model, current: Model) -> tuple[bool, str]:
     else:
         held = "validate"
     better_ic = d_bic < 0.0 and d_aic < 0.0
-    better_val = v_new < v_old
+    better_val = v_new < (1.0 - MIN_HELD_OUT_GAIN) * v_old
     text = f"BIC {d_bic:+.1f}, AIC {d_aic:+.1f}; {held} pressure RMSE {v_old:.0f} -> {v_new:.0f} Pa"
     if better_ic and better_val:
         return True, "kept: " + text
@@ -561,7 +571,7 @@ def _accept(candidate: Model, current: Model) -> tuple[bool, str]:
     if not better_ic:
         why.append("the information criterion does not improve")
     if not better_val:
-        why.append("the held-out error does not improve")
+        why.append(f"the held-out error does not fall by {MIN_HELD_OUT_GAIN:.0%}")
     return False, "rejected (" + " and ".join(why) + "): " + text
 
 
@@ -764,9 +774,10 @@ def _statement(
         )
     if selected:
         return True, (
-            f"With {', '.join(selected)} the pressure residual falls from {fit_before:.0f} to "
-            f"{fit_after:.0f} Pa RMS but stays above the sensor noise ({noise:.0f} Pa): partly "
-            "explained; the rest is not described by any catalog effect the data support."
+            f"With {', '.join(selected)} the pressure residual of the fit recordings goes from "
+            f"{fit_before:.0f} to {fit_after:.0f} Pa RMS but stays above the sensor noise "
+            f"({noise:.0f} Pa): partly explained; the rest is not described by any catalog "
+            "effect the data support."
         )
     return True, (
         f"The pressure residual ({fit_after:.0f} Pa RMS against {noise:.0f} Pa of sensor noise) "

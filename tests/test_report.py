@@ -1,0 +1,313 @@
+"""The validation report: one self-contained HTML file from a run folder.
+
+The run folder is built from real outputs: a tiny virtual-rig campaign, a
+convection fit with a short MCMC (``identify``: fit.json and chains.h5 as
+``pneumafit fit`` writes them), a polytropic fit without MCMC, and the
+linear analysis and designs of the main job. Comparison, discovery and
+closed-loop files come from engineers' stages not run here: their sections
+are checked as "not run", and separately on documents of their documented
+formats and on malformed files.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rich.console import Console
+
+from pneumafit.campaign import read_campaign
+from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
+from pneumafit.outputs.report import SECTIONS, write_report
+from pneumafit.rig import BlockedTest, Protocol, StepTest, VirtualRig
+
+#: Short chains: these tests check the report, not the posteriors.
+WALKERS, STEPS = 8, 20
+
+
+def _tiny_protocol() -> Protocol:
+    """A charge test with a temperature sensor, a held-out discharge, one
+    closed-loop step test (no flow test: the valve stays at its defaults)."""
+    tests = (
+        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.1, amplitude=10.0,
+                    opening_time=0.2, duration=1.2, temperature=True),
+        BlockedTest(file="discharge_N.h5", kind="discharge", chamber="N", position=0.2,
+                    amplitude=10.0, opening_time=0.2, duration=1.0, role="validate"),
+        StepTest(file="step_1.h5", start=0.25, steps=((0.2, 0.32), (0.9, 0.22)), duration=1.6,
+                 preroll=1.0),
+    )  # fmt: skip
+    return Protocol(name="report-tiny", description="tiny campaign for the report", tests=tests)
+
+
+def _sections(html: str) -> dict[str, str]:
+    """Section anchor -> its status (data-status attribute)."""
+    return dict(re.findall(r'<section id="([^"]+)" data-status="([^"]+)"', html))
+
+
+def _section_html(html: str, anchor: str) -> str:
+    start = html.index(f'<section id="{anchor}"')
+    return html[start : html.index("</section>", start)]
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A run folder from real outputs (see the module docstring): (run, campaign)."""
+    from pneumafit.outputs.linear_report import write_design, write_linear
+    from pneumafit.pipeline import nominal_parameters
+
+    root = tmp_path_factory.mktemp("report")
+    folder = root / "campaign"
+    VirtualRig(seed=3).write(folder, _tiny_protocol())
+    campaign = read_campaign(folder)
+    run = root / "run"
+    for model, mcmc in (("convection", True), ("polytropic", False)):
+        out = run / "fits" / model
+        out.mkdir(parents=True)
+        options = FitOptions(mcmc=mcmc, walkers=WALKERS, steps=STEPS, correct_solver=False)
+        chains = out / "chains.h5" if mcmc else None
+        result = identify(campaign, model, options=options, seed=1, chains=chains)
+        doc = fit_document(result, campaign, seed=1, options=options,
+                           chains="chains.h5" if mcmc else None)  # fmt: skip
+        write_fit_json(out / "fit.json", doc)
+    params = nominal_parameters(campaign)
+    ys = np.linspace(0.1, 0.9, 5) * campaign.rig.stroke
+    write_linear(params, ys, run / "linear", lambda_e=15.0)
+    write_design(params, ys, run / "linear", order=4, w0=12.0, lambda_e=15.0)
+    return run, folder
+
+
+@pytest.fixture(scope="module")
+def report(run_folder: tuple[Path, Path]) -> tuple[Path, str]:
+    run, _ = run_folder
+    console = Console(file=io.StringIO(), width=160)
+    path = write_report(run, run / "report.html", console=console)
+    return path, path.read_text(encoding="utf-8")
+
+
+def test_one_self_contained_file_with_every_section(
+    run_folder: tuple[Path, Path], report: tuple[Path, str]
+) -> None:
+    run, campaign = run_folder
+    path, html = report
+    assert path == run / "report.html" and path.is_file()
+    assert not list(run.glob(".report.html.*"))  # written atomically, nothing left over
+    for anchor, title in SECTIONS:
+        assert f"<h2>{title}" in html, title
+        assert f'href="#{anchor}"' in html  # table of contents
+    # nothing from the network: every src/href is a data URI or an anchor
+    refs = re.findall(r"""(?:src|href)\s*=\s*["']([^"']*)""", html)
+    assert refs and all(r.startswith(("data:", "#")) for r in refs), refs
+    assert not re.search(r"https?://", html)
+    assert "@import" not in html and "url(" not in html
+    images = re.findall(r'<img class="fig"[^>]*src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
+    # 3 overlays + 3 residual figures + (trace + corner) x 2 stages + 3 linear figures
+    assert len(images) == 3 + 3 + 4 + 3, len(images)
+    assert all(len(b) > 1000 for b in images)
+    # the campaign came from fit.json's campaign.path
+    assert str(campaign) in html
+    for file in ("charge_P.h5", "discharge_N.h5", "step_1.h5"):
+        assert file in _section_html(html, "campaign")
+        assert f"<h3>{file}" in _section_html(html, "measurement")
+
+
+def test_sections_render_what_the_run_holds(
+    run_folder: tuple[Path, Path], report: tuple[Path, str]
+) -> None:
+    run, _ = run_folder
+    _, html = report
+    status = _sections(html)
+    assert status == {
+        "campaign": "ok",
+        "measurement": "partial",  # constant-lambda was not fitted
+        "residuals": "ok",
+        "parameters": "partial",
+        "mcmc": "partial",  # the polytropic fit has no MCMC
+        "comparison": "not run",
+        "linear": "partial",  # design_6.json was not written
+        "discovery": "not run",
+        "air": "partial",  # simulated air use, no closed-loop test
+    }
+    fit = json.loads((run / "fits" / "convection" / "fit.json").read_text())
+    params = _section_html(html, "parameters")
+    xi = fit["parameters"]["xi"]
+    assert f"{xi['value']:.4g}" in params and f"{xi['interval_90'][0]:.4g}" in params
+    assert "N s/m" in params  # units next to the numbers
+    mcmc = _section_html(html, "mcmc")
+    assert "corner plot convection heat" in mcmc and "corner plot convection friction" in mcmc
+    assert "MCMC traces convection friction" in mcmc
+    assert f"{fit['mcmc']['stages']['heat']['acceptance']:.3g}" in mcmc
+    assert "a <code>--no-mcmc</code> fit" in mcmc  # polytropic
+    measurement = _section_html(html, "measurement")
+    assert "not run for constant-lambda" in measurement
+    assert "RMSE p_P" in measurement and "kPa" in measurement
+    assert "Ljung-Box" in _section_html(html, "residuals")
+    assert "closed_loop.json</code> not found" in _section_html(html, "air")
+    assert "air supplied" in _section_html(html, "air")
+    linear = _section_html(html, "linear")
+    assert "open_loop_poles.png" in linear and "gain_schedule_4.png" in linear
+
+
+def test_an_empty_run_folder_gives_not_run_sections(tmp_path: Path) -> None:
+    out = write_report(tmp_path, tmp_path / "r" / "report.html")
+    html = out.read_text(encoding="utf-8")
+    assert set(_sections(html).values()) == {"not run"}
+    assert html.count('class="notrun"') >= len(SECTIONS)
+    for anchor, _ in SECTIONS:
+        assert "not run" in _section_html(html, anchor), anchor
+
+
+def test_bad_run_folder_is_an_input_error(tmp_path: Path) -> None:
+    with pytest.raises(PneumafitInputError, match=r"nowhere: expected a folder.*found nothing"):
+        write_report(tmp_path / "nowhere", tmp_path / "r.html")
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(PneumafitInputError, match="file: expected a folder, found a file"):
+        write_report(tmp_path / "file", tmp_path / "r.html")
+    with pytest.raises(PneumafitInputError, match="--campaign"):
+        write_report(tmp_path, tmp_path / "r.html", campaign=tmp_path / "no-campaign")
+    res = subprocess.run(
+        [sys.executable, "-m", "pneumafit.cli", "report", str(tmp_path / "nowhere")],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert res.returncode == 2
+    assert "nowhere" in res.stderr and "found nothing" in res.stderr
+    assert "Traceback" not in res.stderr + res.stdout
+
+
+def test_malformed_inputs_are_reported_not_raised(
+    run_folder: tuple[Path, Path], tmp_path: Path
+) -> None:
+    run, _ = run_folder
+    bad = tmp_path / "run"
+    shutil.copytree(run / "fits" / "convection", bad / "fits" / "convection")
+    (bad / "fits" / "convection" / "chains.h5").write_bytes(b"not an HDF5 file")
+    (bad / "fits" / "polytropic").mkdir(parents=True)
+    (bad / "fits" / "polytropic" / "fit.json").write_text("{broken")
+    (bad / "fits" / "constant-lambda").mkdir(parents=True)
+    (bad / "fits" / "constant-lambda" / "fit.json").write_text('{"format": "other"}')
+    for name, text in (("comparison/comparison.json", "[1, 2]"),
+                       ("discovery/discovery.json", '{"candidates": [3, {"effect": 1}], '
+                                                    '"rmse_before": 7}'),
+                       ("closed_loop/closed_loop.json", '{"controllers": "none"}'),
+                       ("linear/linear.json", "")):  # fmt: skip
+        (bad / name).parent.mkdir(parents=True, exist_ok=True)
+        (bad / name).write_text(text)
+    html = write_report(bad, bad / "report.html").read_text(encoding="utf-8")
+    status = _sections(html)
+    assert status["comparison"] == "error" and "expected a JSON object" in html
+    assert status["mcmc"] == "partial"
+    assert "fit polytropic" in html and "not readable as JSON" in html
+    assert "expected &#x27;pneumafit-fit&#x27;, found &#x27;other&#x27;" in html
+    assert status["linear"] == "partial"
+    assert status["discovery"] == "ok"  # whatever keys exist, read defensively
+    assert status["measurement"] == "partial" and "corner plot convection" not in html
+
+
+def test_documented_formats_of_other_stages_render(tmp_path: Path) -> None:
+    """comparison.json, discovery.json, closed_loop.json in their documented
+    formats (format fixtures, not results) render as tables with units."""
+    docs = {
+        "comparison/comparison.json": {
+            "format": "pneumafit-comparison", "version": 1,
+            "models": ["convection", "polytropic"],
+            "convection": {"rmse": {"fit": {"p_P": 420.0, "y": 1.4e-5}}, "aic": 10.0,
+                           "bic": 12.0, "log_likelihood": -3.0},
+            "polytropic": {"rmse": {"fit": {"p_P": 4.2e4, "y": 7.0e-3}}, "aic": 99.0,
+                           "bic": 101.0},
+            "best": {"aic": "convection"},
+        },
+        "discovery/discovery.json": {
+            "format": "pneumafit-discovery",
+            "candidates": [{"effect": "chamber_leakage", "score": 0.93,
+                            "evidence": {"variance_explained": 0.81}},
+                           {"effect": "valve_dynamics", "score": 0.12, "evidence": {}}],
+            "selected": ["chamber_leakage"],
+            "rmse_before": {"fit": {"p_P": 2000.0}}, "rmse_after": {"fit": {"p_P": 500.0}},
+            "aic_before": 500.0, "aic_after": 100.0,
+            "effect_parameters": {"chamber_leak_conductance": {
+                "value": 2e-11, "unit": "kg/s/Pa", "interval_90": [1.8e-11, 2.2e-11]}},
+        },
+        "closed_loop/closed_loop.json": {
+            "format": "pneumafit-closed-loop",
+            "controllers": [{"name": "order 6", "order": 6, "ok": True, "air_mass_kg": 4.3e-4,
+                             "exergy_J": 69.8, "steps": [{"start_s": 0.5,
+                                                          "air_mass_kg": 2.3e-4}]}],
+        },
+    }  # fmt: skip
+    for name, doc in docs.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(json.dumps(doc))
+    html = write_report(tmp_path, tmp_path / "report.html").read_text(encoding="utf-8")
+    status = _sections(html)
+    assert status["comparison"] == "ok" and status["discovery"] == "ok"
+    comparison = _section_html(html, "comparison")
+    assert "0.42&nbsp;kPa" in comparison and "42&nbsp;kPa" in comparison
+    assert "0.014&nbsp;mm" in comparison
+    discovery = _section_html(html, "discovery")
+    assert "<strong>chamber_leakage</strong>" in discovery
+    assert "-75&nbsp;%" in discovery  # RMSE 2 kPa -> 0.5 kPa
+    assert "2.000e-11&nbsp;kg/s/Pa" in discovery
+    air = _section_html(html, "air")
+    assert "0.43&nbsp;g" in air and "69.8&nbsp;J" in air and "air mass [g]" in air
+
+
+def _chromium() -> str | None:
+    for name in ("/usr/bin/chromium", "chromium", "chromium-browser"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+def test_the_report_renders_in_headless_chromium(report: tuple[Path, str], tmp_path: Path) -> None:
+    browser = _chromium()
+    if browser is None:
+        pytest.skip(
+            "chromium not installed: no /usr/bin/chromium, chromium or chromium-browser on "
+            "PATH (.ci/run installs Debian's chromium where apt-get can)"
+        )
+    path, _ = report
+    common = [
+        browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+        "--no-first-run", "--disable-background-networking", "--disable-component-update",
+        "--disable-sync", "--disable-dev-shm-usage", "--enable-logging=stderr", "--v=0",
+    ]  # fmt: skip
+    shot = tmp_path / "shot.png"
+    res = subprocess.run(
+        [*common, f"--user-data-dir={tmp_path / 'profile-1'}", f"--screenshot={shot}",
+         "--window-size=1280,2000", path.resolve().as_uri()],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr[-2000:]
+    dom = subprocess.run(
+        [*common, f"--user-data-dir={tmp_path / 'profile-2'}", "--dump-dom",
+         path.resolve().as_uri()],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    # console messages of the page are logged as "CONSOLE(line)"; the page logs a
+    # console error for a figure that does not decode
+    for err in (res.stderr, dom.stderr):
+        page_lines = [line for line in err.splitlines() if "CONSOLE" in line]
+        assert not page_lines, page_lines
+        assert "Uncaught" not in err
+    # the DOM is complete and every figure decoded (set by the page's load handler)
+    assert 'id="report-end"' in dom.stdout
+    figures = re.search(r'data-figures="(\d+)"', dom.stdout)
+    assert figures is not None and int(figures.group(1)) == 13
+    assert 'data-figures-bad="0"' in dom.stdout
+    # a real screenshot: a PNG of the window size, not blank
+    from PIL import Image
+
+    assert shot.is_file() and shot.stat().st_size > 20_000
+    with Image.open(shot) as image:
+        assert image.size == (1280, 2000)
+        pixels = np.asarray(image.convert("L"))
+    assert pixels.std() > 10.0

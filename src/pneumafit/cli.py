@@ -58,11 +58,22 @@ def run(
         Path | None, typer.Argument(help="Campaign folder (default: the bundled demo).")
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="Folder for the results.")] = Path("out/run"),
+    seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,
+    no_mcmc: Annotated[
+        bool, typer.Option("--no-mcmc", help="Point estimates with Laplace intervals only.")
+    ] = False,
+    walkers: Annotated[int | None, typer.Option(help="MCMC walkers of every fit.")] = None,
+    steps: Annotated[int | None, typer.Option(help="MCMC steps of every fit.")] = None,
 ) -> None:
-    """The main job: check a campaign and replay it through the three models."""
+    """The main job: check, fit the three models, compare, discover, design, report, export.
+
+    Finished stages in OUT are reused on a re-run (see OUT/stages.json).
+    """
     from pneumafit.pipeline import run as run_pipeline
 
-    raise typer.Exit(run_pipeline(campaign, out, console))
+    code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
+                        steps=steps)  # fmt: skip
+    raise typer.Exit(code)
 
 
 @app.command()
@@ -366,75 +377,16 @@ def closed_loop(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Both state-feedback designs run on the nonlinear model: steps and air (Figs. 9-11)."""
-    from pneumafit.analysis.closed_loop import (
-        PLACEMENTS,
-        compare_controllers,
-        largest_w0,
-        read_plant_file,
-    )
-    from pneumafit.models import parameter_vector
-    from pneumafit.models.layout import P
-    from pneumafit.models.structure import get_structure
-    from pneumafit.outputs.closed_loop_report import write_closed_loop
+    from pneumafit.outputs.closed_loop_report import run_closed_loop
 
-    if placement not in PLACEMENTS:
-        raise PneumafitInputError(
-            f"option --placement: expected one of {', '.join(PLACEMENTS)}, found {placement!r}"
-        )
-    if w0 is not None and not w0 > 0:
-        raise PneumafitInputError(f"option --w0: expected a positive frequency, found {w0}")
-    structure, values = read_plant_file(params)
-    design_params = parameter_vector(values)
-    nominal = values.get("lambda", 15.0) if structure.heat == "constant-lambda" else 15.0
-    if plant is not None:
-        plant_structure, plant_values = read_plant_file(plant)
-        plant_params = parameter_vector(plant_values)
-    else:
-        plant_structure, plant_params = structure, design_params
-    if plant_structure.heat != "convection":  # the nonlinear model has variable lambda
-        console.print(f"plant: the convection model with the {plant_structure.heat} file's values")
-        plant_structure = get_structure("convection")
-    stroke = float(design_params[P["stroke"]])
-    y_mid = 0.5 * stroke if position is None else _quantity(position, "m", "--position")
     numbers, _, unit = steps.strip().partition(" ")
-    offsets = [_quantity(f"{v} {unit}".strip(), "m", "--steps") for v in numbers.split(",")]
-    limit = _quantity(umax, "V", "--umax")
-    hold_s = _quantity(hold, "s", "--hold")
-    kwargs = dict(lambda_e=lambda_e or nominal, compensate=not no_compensation,
-                  placement=placement)  # fmt: skip
-    if w0 is None:
-        biggest = max(abs(v) for v in offsets) or 0.01
-        w0 = largest_w0(design_params, y_mid, biggest, umax=limit, **kwargs)
-        console.print(f"w0 = {w0:.3g} rad/s: the largest keeping a {biggest * 1e3:g} mm step "
-                      f"within 90 % of {limit:g} V")  # fmt: skip
-    results = compare_controllers(
-        design_params, w0=w0, y_mid=y_mid, steps=offsets, hold=hold_s, umax=limit,
-        plant=plant_structure, plant_parameters=plant_params, **kwargs,
+    results = run_closed_loop(
+        params, out, plant=plant, w0=w0,
+        position=None if position is None else _quantity(position, "m", "--position"),
+        steps=[_quantity(f"{v} {unit}".strip(), "m", "--steps") for v in numbers.split(",")],
+        hold=_quantity(hold, "s", "--hold"), umax=_quantity(umax, "V", "--umax"),
+        placement=placement, compensate=not no_compensation, lambda_e=lambda_e, console=console,
     )  # fmt: skip
-    inputs = {"parameters": str(params), "plant": str(plant or params),
-              "plant_structure": plant_structure.name or plant_structure.heat, "w0_rad_s": w0,
-              "position_m": y_mid, "steps_m": offsets, "hold_s": hold_s, "umax_V": limit,
-              **kwargs}  # fmt: skip
-    write_closed_loop(results, out, inputs=inputs)
-    table = Table(title=f"closed loop on the nonlinear model, w0 = {w0:.3g} rad/s")
-    for column in ("controller", "step", "overshoot", "settling", "final error", "max |u|",
-                   "air", "exergy"):  # fmt: skip
-        table.add_column(column, justify="right")
-    for r in results:
-        if not r.ok:
-            table.add_row(r.name, "failed", r.message, "", "", "", "", "")
-            continue
-        for s in r.steps:
-            table.add_row(r.name, f"{s.size * 1e3:+.1f} mm", f"{s.overshoot * 1e3:.2f} mm",
-                          f"{s.settling_time:.3f} s", f"{s.final_error * 1e3:+.2f} mm",
-                          f"{s.max_abs_u:.2f} V", f"{s.air_mass * 1e6:.1f} mg",
-                          f"{s.exergy:.1f} J")  # fmt: skip
-    console.print(table)
-    for r in results:
-        if r.ok:
-            console.print(f"{r.name}: {r.air_mass * 1e3:.4f} g of air ({r.exergy:.1f} J), "
-                          f"max |u| {r.max_abs_u:.2f} V ({r.saturation:.1%} of samples at the "
-                          f"limit), stiction band {r.stiction_band * 1e3:.1f} mm")  # fmt: skip
     console.print(f"wrote {out / 'closed_loop.json'} and figures")
     if not all(r.ok for r in results):
         raise typer.Exit(1)

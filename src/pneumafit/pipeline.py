@@ -1,144 +1,377 @@
-"""The main job, ``pneumafit run``: from a campaign to a summary.
+"""The main job, ``pneumafit run``: from a campaign to a report.
 
-Today it validates the campaign, replays every recording through the three
-model structures at *nominal* parameters (the campaign's rig, default valve,
-heat and friction values), reporting the error of each model on each channel
-and the air each test consumed, then writes the linear analysis (eqs. 10-14),
-both state-feedback designs and a controller export at those parameters.
-Identification (fitted parameters with uncertainty) plugs in here when it
-lands; until then the numbers describe untuned models, and the summary says so.
+Stages, in order, each writing into ``OUT``:
+
+1. ``check``: the campaign is validated; nothing runs on an invalid one.
+2. ``fits/<model>``: the staged fit with MCMC of the convection,
+   constant-lambda and polytropic models (``pneumafit fit``).
+3. ``comparison``: the three fitted models on every recording
+   (``pneumafit compare`` with those fits).
+4. ``discovery``: residual analysis of the convection fit, attribution to
+   catalog effects, refits (``pneumafit discover``).
+5. ``linear``: equilibria, linear models, open-loop poles and both
+   state-feedback gain schedules at the convection fit (``pneumafit linear``
+   and ``design``).
+6. ``closed_loop``: both controllers on the nonlinear model, air and exergy
+   per step (``pneumafit closed-loop``); the plant is the campaign's
+   ``truth.json`` where it has one, else the convection fit.
+7. ``export``: the convection fit for controllers, as JSON, YAML, a C
+   header and a MATLAB file (``pneumafit export``).
+8. ``report.html``: the self-contained validation report.
+
+Re-running reuses what is finished. A fit is reused when its fit.json
+belongs to the same campaign (file hashes) and model; an interrupted MCMC
+resumes from its ``chains.partial.h5``. Every other stage is reused when
+``OUT/stages.json`` records it as done with the same fingerprint (hashes of
+the campaign, of the fit files it read, and the pneumafit version) and its
+outputs are still there. Each stage writes its files atomically, so an
+interrupted run never leaves a half-written file that a re-run would trust.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
-import numpy as np
 from rich.console import Console
-from rich.table import Table
 
+from pneumafit import __version__
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
 from pneumafit.fileio import write_text_atomic
-from pneumafit.models import MODELS, parameter_vector
-from pneumafit.simulation import Experiment, Simulator
 
 #: The bundled demo campaign (a virtual-rig recording of a rig like the paper's).
 DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 
-#: Measured channels compared with the simulation, per kind.
-COMPARED = ("p_P", "p_N", "y", "qm_P", "qm_N")
+#: Models fitted and compared, in the order of the paper.
+RUN_MODELS = ("polytropic", "constant-lambda", "convection")
+
+#: Formats of the controller export.
+EXPORT_FORMATS = {"json": "controller.json", "yaml": "controller.yaml", "c": "controller.h",
+                  "mat": "controller.mat"}  # fmt: skip
+
+STAGES_FILE = "stages.json"
 
 
-def nominal_parameters(campaign: Campaign) -> np.ndarray:
-    """Parameter vector: the campaign's rig, defaults for everything else."""
-    return parameter_vector(campaign.rig.as_parameters())
+class StageFailed(RuntimeError):
+    """A stage ended with a non-zero status; the run stops there."""
+
+    def __init__(self, stage: str, status: int) -> None:
+        super().__init__(f"stage {stage!r} failed (status {status})")
+        self.stage = stage
+        self.status = status
 
 
-def replay(campaign: Campaign, model: str, params: np.ndarray) -> dict:
-    """Simulate every recording with one structure; RMSE per role and channel (SI)."""
-    sim = Simulator(model, channels=["y", "p_P", "p_N", "qm_P", "qm_N", "m_supply"])
-    exps = [Experiment.from_recording(r) for r in campaign.recordings]
-    packed = sim.pack(exps)
-    out, status = sim.simulate_batch(params, packed)
-    sq: dict[str, dict[str, list[float]]] = {"fit": {}, "validate": {}}
-    failed = []
-    air = 0.0
-    for r, (rec, sl) in enumerate(zip(campaign.recordings, packed.slices(), strict=True)):
-        if status[0, r] != 0:
-            failed.append(rec.file)
-            continue
-        rows = out[0, sl]
-        air += float(rows[-1, sim.channels.index("m_supply")])
-        for name in COMPARED:
-            if name not in rec.channels or name not in sim.channels:
-                continue
-            if rec.kind in ("charge", "discharge") and name != "p_" + rec.chamber:
-                continue
-            mask = rec.mask.get(name, np.ones(rec.n_samples, bool))
-            err = rows[mask, sim.channels.index(name)] - rec.channels[name][mask]
-            sq[rec.role].setdefault(name, []).extend((err**2).tolist())
-    rmse = {
-        role: {name: float(np.sqrt(np.mean(v))) for name, v in chans.items()}
-        for role, chans in sq.items()
-    }
-    return {"rmse": rmse, "failed": failed, "air_supplied_kg": air}
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
-def linear_outputs(params: np.ndarray, out: Path, console: Console) -> dict:
-    """Linear analysis, both designs and a JSON export at ``params``.
+def fit_is_reusable(folder: Path, campaign: Campaign, model: str) -> bool:
+    """True when ``folder/fit.json`` is a finished fit of ``model`` on this campaign."""
+    path = folder / "fit.json"
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return (
+        doc.get("format") == "pneumafit-fit"
+        and doc.get("model") == model
+        and (doc.get("campaign") or {}).get("sha256") == campaign.sha256
+    )
 
-    w0 is the open-loop natural frequency at half stroke (the paper's
-    choice); lambda_e the paper's 15 W/m^2/K.
+
+class StageBook:
+    """Which stages of a run folder are done, with the fingerprint of their inputs.
+
+    Parameters
+    ----------
+    out : Path
+        The run folder; the book is ``out/stages.json``.
     """
-    from pneumafit.analysis import linearize
-    from pneumafit.models.layout import P
-    from pneumafit.models.parameters import parameter_dict
-    from pneumafit.outputs.export import build_export, write_export
-    from pneumafit.outputs.linear_report import write_design, write_linear
 
-    stroke = params[P["stroke"]]
-    ys = np.linspace(0.02, 0.98, 25) * stroke
-    mid = linearize(params, 0.5 * stroke, order=4).poles
-    w0 = float(np.abs(mid[np.abs(mid.imag) > 0]).max())
-    write_linear(params, ys, out, lambda_e=15.0)
-    for order in (4, 6):
-        write_design(params, ys, out, order=order, w0=w0, lambda_e=15.0)
-    details = {name: {"value": value} for name, value in parameter_dict(params).items()}
-    doc = build_export(details, model="convection", source="nominal parameters", positions=ys,
-                       order=6, w0=w0, lambda_e=15.0)  # fmt: skip
-    write_export(doc, out / "controller.json", "json")
-    console.print(f"linear analysis, designs (w0 = {w0:.1f} rad/s) and export in {out}")
-    return {"w0": w0, "folder": str(out)}
+    def __init__(self, out: Path) -> None:
+        self.path = out / STAGES_FILE
+        try:
+            self.done: dict[str, Any] = json.loads(self.path.read_text()).get("stages", {})
+        except (OSError, ValueError, AttributeError):
+            self.done = {}
+
+    def fingerprint(self, campaign: Campaign, files: Sequence[Path]) -> str:
+        """Hash of the campaign's file hashes, the given files and the version."""
+        h = hashlib.sha256(json.dumps(campaign.sha256, sort_keys=True).encode())
+        for f in files:
+            h.update(_sha256(f).encode())
+        h.update(__version__.encode())
+        return h.hexdigest()
+
+    def is_done(self, stage: str, fingerprint: str, outputs: Sequence[Path]) -> bool:
+        entry = self.done.get(stage) or {}
+        return entry.get("fingerprint") == fingerprint and all(p.exists() for p in outputs)
+
+    def mark(self, stage: str, fingerprint: str, seconds: float) -> None:
+        self.done[stage] = {"fingerprint": fingerprint, "seconds": round(seconds, 2)}
+        doc = {"format": "pneumafit-stages", "version": 1, "stages": self.done}
+        write_text_atomic(self.path, json.dumps(doc, indent=2) + "\n")
 
 
-def run(campaign_path: Path | None, out: Path, console: Console) -> int:
-    """Run the main job; returns the exit status."""
+def run(
+    campaign_path: Path | None,
+    out: Path,
+    console: Console,
+    *,
+    seed: int = 0,
+    mcmc: bool = True,
+    walkers: int | None = None,
+    steps: int | None = None,
+) -> int:
+    """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input).
+
+    Parameters
+    ----------
+    campaign_path : Path or None
+        Campaign folder; None runs the bundled demo (:data:`DEMO`).
+    out : Path
+        Run folder (created).
+    console : rich.console.Console
+    seed : int
+        Seed of every fit, sampler and bootstrap.
+    mcmc : bool
+        Sample the posteriors (False: Laplace intervals only, faster).
+    walkers, steps : int, optional
+        MCMC settings of the fits (default: those of ``pneumafit fit``).
+    """
     started = time.perf_counter()
     path = Path(campaign_path) if campaign_path is not None else DEMO
     console.rule(f"[bold]pneumafit run[/bold]: {path}")
     status = check_campaign(path, console=console)
     if status != 0:
-        console.print("[red]the campaign is not valid; nothing was simulated[/red]")
+        console.print("[red]the campaign is not valid; nothing was run[/red]")
         return status
     campaign = read_campaign(path)
-    params = nominal_parameters(campaign)
-    results = {}
-    with console.status("replaying every recording through the three models ..."):
-        for model in MODELS:
-            results[model] = replay(campaign, model, params)
-    table = Table(
-        title="RMSE of each model at nominal (unfitted) parameters\n"
-        "pressures in kPa, position in mm, flow in g/s"
-    )
-    table.add_column("model")
-    table.add_column("role")
-    for name in ("p_P", "p_N", "y", "qm_P"):
-        table.add_column(name, justify="right")
-    scale = {"p_P": 1e-3, "p_N": 1e-3, "y": 1e3, "qm_P": 1e3}
-    for model, res in results.items():
-        for role in ("fit", "validate"):
-            row = res["rmse"][role]
-            table.add_row(
-                model, role,
-                *(f"{row[c] * scale[c]:.3g}" if c in row else "-" for c in scale),
-            )  # fmt: skip
-    console.print(table)
-    summary = {
-        "format": "pneumafit-run",
-        "version": 1,
-        "campaign": {"name": campaign.name, "path": str(path), "sha256": campaign.sha256},
-        "parameters": "nominal (campaign rig + defaults); identification is not yet available",
-        "models": results,
-    }
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        console.print(f"[red]option --out {str(out)!r}: expected a folder, found a file[/red]")
+        return 2
     out.mkdir(parents=True, exist_ok=True)
-    with console.status("linear analysis, state-feedback design and export ..."):
-        summary["linear"] = linear_outputs(params, out / "linear", console)
-    write_text_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    console.print(
-        "[yellow]note:[/yellow] these are untuned models: the identification stage "
-        "(fitted xi, beta, friction with uncertainty) is not part of this version yet."
-    )
-    console.print(f"wrote {out / 'summary.json'}; total time {time.perf_counter() - started:.1f} s")
+    book = StageBook(out)
+    timings: dict[str, float] = {}
+
+    def stage(name: str, inputs: Sequence[Path], outputs: Sequence[Path],
+              body: Callable[[], int]) -> None:  # fmt: skip
+        fp = book.fingerprint(campaign, inputs)
+        if book.is_done(name, fp, outputs):
+            console.print(f"[dim]{name}: reused (inputs unchanged)[/dim]")
+            timings[name] = 0.0
+            return
+        console.rule(name)
+        t0 = time.perf_counter()
+        code = body()
+        if code != 0:
+            raise StageFailed(name, code)
+        timings[name] = time.perf_counter() - t0
+        book.mark(name, fp, timings[name])
+
+    try:
+        fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings)
+        conv = fit_files["convection"]
+        _analyses(campaign, path, out, console, seed, fit_files, stage)
+    except StageFailed as exc:
+        console.print(f"[red]{exc}; the finished stages are kept and reused next time[/red]")
+        _summary(out, campaign, path, timings, started, failed=exc.stage)
+        return 1 if exc.status not in (2, 130) else exc.status
+    except KeyboardInterrupt:
+        console.print("[yellow]interrupted: the finished stages are kept and reused next "
+                      "time[/yellow]")  # fmt: skip
+        return 130
+    total = _summary(out, campaign, path, timings, started, conv_fit=conv)
+    console.rule("done")
+    console.print(f"report: {out / 'report.html'}")
+    console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
     return 0
+
+
+def _fits(
+    campaign: Campaign, path: Path, out: Path, console: Console, seed: int, mcmc: bool,
+    walkers: int | None, steps: int | None, timings: dict[str, float],
+) -> dict[str, Path]:  # fmt: skip
+    """Fit the three models (or reuse finished fits); fit.json path per model."""
+    from pneumafit.identification import fit_command
+
+    files = {}
+    for model in RUN_MODELS:
+        folder = out / "fits" / model
+        name = f"fit {model}"
+        if fit_is_reusable(folder, campaign, model):
+            console.print(f"[dim]{name}: reused {folder / 'fit.json'}[/dim]")
+            timings[name] = 0.0
+        else:
+            console.rule(name)
+            t0 = time.perf_counter()
+            code = fit_command(path, model, folder, walkers, steps, seed, mcmc, console)
+            if code != 0:
+                raise StageFailed(name, code)
+            timings[name] = time.perf_counter() - t0
+        files[model] = folder / "fit.json"
+    return files
+
+
+def _analyses(
+    campaign: Campaign, path: Path, out: Path, console: Console, seed: int,
+    fits: dict[str, Path], stage: Callable[..., None],
+) -> None:  # fmt: skip
+    """Comparison, discovery, linear analysis, closed loop, export and report."""
+    conv = fits["convection"]
+    all_fits = [fits[m] for m in RUN_MODELS]
+
+    def compare() -> int:
+        from pneumafit.comparison import compare_command
+
+        return compare_command(path, out / "comparison", [f.parent for f in all_fits],
+                               seed=seed, console=console)  # fmt: skip
+
+    stage("comparison", all_fits, [out / "comparison" / "comparison.json"], compare)
+
+    def discover() -> int:
+        from pneumafit.discovery.command import discover_command
+
+        return discover_command(path, conv, out / "discovery", seed=seed, console=console)
+
+    stage("discovery", [conv], [out / "discovery" / "discovery.json"], discover)
+
+    lambda_file = fits["constant-lambda"]
+
+    def linear() -> int:
+        _linear(conv, lambda_file, out / "linear", console)
+        return 0
+
+    stage("linear", [conv, lambda_file], [out / "linear" / "linear.json"], linear)
+
+    truth = path / "truth.json"
+    plant = truth if truth.exists() else None
+
+    def closed_loop() -> int:
+        from pneumafit.outputs.closed_loop_report import run_closed_loop
+
+        results = run_closed_loop(conv, out / "closed_loop", plant=plant,
+                                  lambda_e=_lambda_e(lambda_file), console=console)  # fmt: skip
+        return 0 if all(r.ok for r in results) else 1
+
+    inputs = [conv, lambda_file] + ([truth] if plant else [])
+    stage("closed_loop", inputs, [out / "closed_loop" / "closed_loop.json"], closed_loop)
+
+    def export() -> int:
+        _export(conv, lambda_file, out / "export", console)
+        return 0
+
+    stage("export", [conv, lambda_file],
+          [out / "export" / f for f in EXPORT_FORMATS.values()], export)  # fmt: skip
+
+    def report() -> int:
+        from pneumafit.outputs.report import write_report
+
+        write_report(out, out / "report.html", campaign=path, console=console)
+        return 0
+
+    stage("report", all_fits, [out / "report.html"], report)
+
+
+def _lambda_e(constant_lambda_fit: Path) -> float:
+    """Nominal lambda of the linear models: the constant-lambda fit's value (W/m^2/K)."""
+    from pneumafit.parameters_io import read_parameter_file
+
+    _, values = read_parameter_file(constant_lambda_fit)
+    return float(values.get("lambda", 15.0))
+
+
+def _design_frequency(params: Any) -> float:
+    """w0 of the gain schedule: the open-loop natural frequency at half stroke (rad/s)."""
+    import numpy as np
+
+    from pneumafit.analysis import linearize
+    from pneumafit.models.layout import P
+
+    mid = linearize(params, 0.5 * params[P["stroke"]], order=4).poles
+    return float(np.abs(mid[np.abs(mid.imag) > 0]).max())
+
+
+def _grid(params: Any) -> Any:
+    import numpy as np
+
+    from pneumafit.models.layout import P
+
+    return np.linspace(0.02, 0.98, 25) * params[P["stroke"]]
+
+
+def _linear(fit: Path, lambda_fit: Path, out: Path, console: Console) -> None:
+    """Linear analysis and both designs at the fitted parameters."""
+    from pneumafit.models import parameter_vector
+    from pneumafit.outputs.linear_report import write_design, write_linear
+    from pneumafit.parameters_io import read_parameter_file
+
+    _, values = read_parameter_file(fit)
+    params = parameter_vector(values)
+    lam = _lambda_e(lambda_fit)
+    ys = _grid(params)
+    w0 = _design_frequency(params)
+    write_linear(params, ys, out, lambda_e=lam)
+    for order in (4, 6):
+        write_design(params, ys, out, order=order, w0=w0, lambda_e=lam)
+    console.print(f"linear analysis and designs (w0 = {w0:.1f} rad/s, lambda_e = {lam:.1f} "
+                  f"W/m^2/K) in {out}")  # fmt: skip
+
+
+def _export(fit: Path, lambda_fit: Path, out: Path, console: Console) -> None:
+    """The convection fit for controllers, in every export format."""
+    from pneumafit.models import parameter_vector
+    from pneumafit.outputs.export import build_export, write_export
+    from pneumafit.parameters_io import read_parameter_details
+
+    model, details = read_parameter_details(fit)
+    params = parameter_vector({k: v["value"] for k, v in details.items()})
+    doc = build_export(details, model=model, source=str(fit), positions=_grid(params), order=6,
+                       w0=_design_frequency(params), lambda_e=_lambda_e(lambda_fit))  # fmt: skip
+    for fmt, name in EXPORT_FORMATS.items():
+        write_export(doc, out / name, fmt)
+    console.print(f"controller export ({', '.join(EXPORT_FORMATS)}) in {out}")
+
+
+def _summary(
+    out: Path, campaign: Campaign, path: Path, timings: dict[str, float], started: float,
+    *, conv_fit: Path | None = None, failed: str | None = None,
+) -> float:  # fmt: skip
+    """Write ``OUT/summary.json`` (stages, their times, the headline results)."""
+    total = time.perf_counter() - started
+    doc: dict[str, Any] = {
+        "format": "pneumafit-run",
+        "version": 2,
+        "pneumafit_version": __version__,
+        "campaign": {"name": campaign.name, "path": str(path), "sha256": campaign.sha256},
+        "seconds": {k: round(v, 2) for k, v in timings.items()},
+        "total_seconds": round(total, 2),
+        "failed_stage": failed,
+        "outputs": {
+            "fits": "fits/<model>/fit.json",
+            "comparison": "comparison/comparison.json",
+            "discovery": "discovery/discovery.json",
+            "linear": "linear/",
+            "closed_loop": "closed_loop/closed_loop.json",
+            "export": "export/",
+            "report": "report.html",
+        },
+    }
+    if conv_fit is not None and conv_fit.exists():
+        fit = json.loads(conv_fit.read_text())
+        doc["convection"] = {
+            name: {k: p.get(k) for k in ("value", "unit", "interval_90")}
+            for name, p in fit.get("parameters", {}).items()
+            if not p.get("fixed")
+        }
+    write_text_atomic(out / "summary.json", json.dumps(doc, indent=2) + "\n")
+    return total

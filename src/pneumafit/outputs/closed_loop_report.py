@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
 
 from pneumafit.analysis.closed_loop import ClosedLoopResult, result_document
 from pneumafit.fileio import atomic_path, write_text_atomic
@@ -113,3 +114,123 @@ def write_closed_loop(
     }
     write_text_atomic(out / "closed_loop.json", json.dumps(doc, indent=2, allow_nan=False) + "\n")
     return doc
+
+
+def run_closed_loop(
+    params: Path,
+    out: Path,
+    *,
+    plant: Path | None = None,
+    w0: float | None = None,
+    position: float | None = None,
+    steps: Sequence[float] = (0.03, 0.0, -0.03, 0.0),
+    hold: float = 2.5,
+    umax: float = 10.0,
+    placement: str = "dominant",
+    compensate: bool = True,
+    lambda_e: float | None = None,
+    console: Console | None = None,
+) -> list[ClosedLoopResult]:
+    """Design both controllers from a parameter file, run them on the nonlinear
+    plant, write ``closed_loop.json`` and the figures, print the table.
+
+    The body of ``pneumafit closed-loop``, and the closed-loop stage of
+    ``pneumafit run``.
+
+    Parameters
+    ----------
+    params : Path
+        fit.json, a parameter file or a truth.json: the design parameters.
+    out : Path
+        Output folder.
+    plant : Path, optional
+        Parameters of the nonlinear plant (default ``params``); a structure
+        other than convection is run as the convection model with its values.
+    w0 : float, optional
+        ITAE frequency scale (rad/s); default :func:`largest_w0` for the
+        largest step.
+    position : float, optional
+        Operating position (m); default half stroke.
+    steps : sequence of float
+        Reference offsets from the position (m), one per hold.
+    hold : float
+        Time at each reference (s).
+    umax : float
+        Valve command limit (V).
+    placement : str
+        ``dominant`` or ``itae`` (see :data:`PLACEMENTS`).
+    compensate : bool
+        Dead-band compensation.
+    lambda_e : float, optional
+        Nominal heat-transfer coefficient of the linear models (W/m^2/K);
+        default the file's lambda for constant-lambda, else 15.
+    console : rich.console.Console, optional
+
+    Returns
+    -------
+    list of ClosedLoopResult
+    """
+    from rich.table import Table
+
+    from pneumafit.analysis.closed_loop import (
+        PLACEMENTS,
+        compare_controllers,
+        largest_w0,
+        read_plant_file,
+    )
+    from pneumafit.campaign.errors import PneumafitInputError
+    from pneumafit.models import parameter_vector
+    from pneumafit.models.layout import P
+    from pneumafit.models.structure import get_structure
+
+    console = console or Console()
+    if placement not in PLACEMENTS:
+        raise PneumafitInputError(
+            f"option --placement: expected one of {', '.join(PLACEMENTS)}, found {placement!r}"
+        )
+    if w0 is not None and not w0 > 0:
+        raise PneumafitInputError(f"option --w0: expected a positive frequency, found {w0}")
+    structure, values = read_plant_file(params)
+    design_params = parameter_vector(values)
+    nominal = values.get("lambda", 15.0) if structure.heat == "constant-lambda" else 15.0
+    if plant is not None:
+        plant_structure, plant_values = read_plant_file(plant)
+        plant_params = parameter_vector(plant_values)
+    else:
+        plant_structure, plant_params = structure, design_params
+    if plant_structure.heat != "convection":  # the nonlinear model has variable lambda
+        console.print(f"plant: the convection model with the {plant_structure.heat} file's values")
+        plant_structure = get_structure("convection")
+    stroke = float(design_params[P["stroke"]])
+    y_mid = 0.5 * stroke if position is None else float(position)
+    offsets = [float(v) for v in steps]
+    kwargs = dict(lambda_e=lambda_e or nominal, compensate=compensate, placement=placement)
+    if w0 is None:
+        biggest = max(abs(v) for v in offsets) or 0.01
+        w0 = largest_w0(design_params, y_mid, biggest, umax=umax, **kwargs)
+        console.print(f"w0 = {w0:.3g} rad/s: the largest keeping a {biggest * 1e3:g} mm step "
+                      f"within 90 % of {umax:g} V")  # fmt: skip
+    results = compare_controllers(
+        design_params, w0=w0, y_mid=y_mid, steps=offsets, hold=hold, umax=umax,
+        plant=plant_structure, plant_parameters=plant_params, **kwargs,
+    )  # fmt: skip
+    inputs = {"parameters": str(params), "plant": str(plant or params),
+              "plant_structure": plant_structure.name or plant_structure.heat, "w0_rad_s": w0,
+              "position_m": y_mid, "steps_m": offsets, "hold_s": hold, "umax_V": umax,
+              **kwargs}  # fmt: skip
+    write_closed_loop(results, out, inputs=inputs)
+    table = Table(title=f"closed loop on the nonlinear model, w0 = {w0:.3g} rad/s")
+    for column in ("controller", "step", "overshoot", "settling", "final error", "max |u|",
+                   "air", "exergy"):  # fmt: skip
+        table.add_column(column, justify="right")
+    for r in results:
+        if not r.ok:
+            table.add_row(r.name, "failed", r.message, "", "", "", "", "")
+            continue
+        for s in r.steps:
+            table.add_row(r.name, f"{s.size * 1e3:+.1f} mm", f"{s.overshoot * 1e3:.2f} mm",
+                          f"{s.settling_time:.3f} s", f"{s.final_error * 1e3:+.2f} mm",
+                          f"{s.max_abs_u:.2f} V", f"{s.air_mass * 1e6:.1f} mg",
+                          f"{s.exergy:.1f} J")  # fmt: skip
+    console.print(table)
+    return list(results)

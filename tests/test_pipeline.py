@@ -1,0 +1,106 @@
+"""The main job end to end (``pneumafit run``) on a small virtual-rig campaign.
+
+Without MCMC (the fits' samplers are tested in tests/identification), the
+whole chain runs in about a minute: three fits, comparison, discovery,
+linear analysis, closed loop, export and report. The second run must reuse
+every stage.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import time
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from pneumafit.pipeline import RUN_MODELS, StageBook, fit_is_reusable
+from pneumafit.pipeline import run as run_pipeline
+from pneumafit.rig import VirtualRig
+from pneumafit.rig.protocol import quick_protocol
+
+
+def _console() -> Console:
+    return Console(file=io.StringIO(), width=140, color_system=None)
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str, float]:
+    root = tmp_path_factory.mktemp("pipeline")
+    campaign = root / "campaign"
+    VirtualRig(seed=4).write(campaign, quick_protocol())
+    out = root / "run"
+    console = _console()
+    t0 = time.perf_counter()
+    code = run_pipeline(campaign, out, console, mcmc=False)
+    seconds = time.perf_counter() - t0
+    assert code == 0, console.file.getvalue()[-3000:]
+    return campaign, out, console.file.getvalue(), seconds
+
+
+def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
+    campaign, out, log, _ = finished_run
+    for model in RUN_MODELS:
+        fit = json.loads((out / "fits" / model / "fit.json").read_text())
+        assert fit["model"] == model
+    comparison = json.loads((out / "comparison" / "comparison.json").read_text())
+    assert set(comparison["models"]) == set(RUN_MODELS)
+    discovery = json.loads((out / "discovery" / "discovery.json").read_text())
+    assert discovery["format"] == "pneumafit-discovery"
+    assert (out / "linear" / "linear.json").exists()
+    assert (out / "linear" / "design_6.json").exists()
+    closed = json.loads((out / "closed_loop" / "closed_loop.json").read_text())
+    assert len(closed["controllers"]) == 2
+    for name in ("controller.json", "controller.yaml", "controller.h", "controller.mat"):
+        assert (out / "export" / name).stat().st_size > 0
+    html = (out / "report.html").read_text()
+    assert html.lstrip().lower().startswith("<!doctype html")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["failed_stage"] is None
+    assert summary["campaign"]["path"] == str(campaign)
+    assert "xi" in summary["convection"] and "total time" in log
+
+
+def test_a_second_run_reuses_every_stage(finished_run: tuple) -> None:
+    campaign, out, _, first = finished_run
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*.json")}
+    console = _console()
+    t0 = time.perf_counter()
+    assert run_pipeline(campaign, out, console, mcmc=False) == 0
+    second = time.perf_counter() - t0
+    log = console.file.getvalue()
+    for model in RUN_MODELS:
+        assert f"fit {model}: reused" in log
+    for stage in ("comparison", "discovery", "linear", "closed_loop", "export", "report"):
+        assert f"{stage}: reused" in log
+    # nothing but the run's own bookkeeping was rewritten
+    changed = [p.name for p, t in before.items() if p.stat().st_mtime_ns != t]
+    assert set(changed) <= {"summary.json"}, changed
+    assert second < 0.5 * first
+
+
+def test_a_changed_fit_reruns_the_stages_that_read_it(finished_run: tuple, tmp_path: Path) -> None:
+    campaign, out, _, _ = finished_run
+    book = StageBook(out)
+    from pneumafit.campaign import read_campaign
+
+    camp = read_campaign(campaign)
+    conv = out / "fits" / "convection" / "fit.json"
+    fp = book.fingerprint(camp, [conv])
+    assert book.is_done("discovery", fp, [out / "discovery" / "discovery.json"])
+    copy = tmp_path / "fit.json"
+    copy.write_text(conv.read_text().replace('"pneumafit-fit"', '"pneumafit-fit" ', 1))
+    assert book.fingerprint(camp, [copy]) != fp
+    assert fit_is_reusable(conv.parent, camp, "convection")
+    assert not fit_is_reusable(conv.parent, camp, "polytropic")
+
+
+def test_an_invalid_campaign_runs_nothing(tmp_path: Path) -> None:
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "campaign.toml").write_text("this is not toml = = =\n")
+    console = _console()
+    assert run_pipeline(bad, tmp_path / "out", console, mcmc=False) != 0
+    assert not (tmp_path / "out" / "fits").exists()

@@ -60,8 +60,8 @@ def _section_html(html: str, anchor: str) -> str:
 @pytest.fixture(scope="module")
 def run_folder(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """A run folder from real outputs (see the module docstring): (run, campaign)."""
+    from pneumafit.models import parameter_vector
     from pneumafit.outputs.linear_report import write_design, write_linear
-    from pneumafit.pipeline import nominal_parameters
 
     root = tmp_path_factory.mktemp("report")
     folder = root / "campaign"
@@ -77,7 +77,7 @@ def run_folder(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         doc = fit_document(result, campaign, seed=1, options=options,
                            chains="chains.h5" if mcmc else None)  # fmt: skip
         write_fit_json(out / "fit.json", doc)
-    params = nominal_parameters(campaign)
+    params = parameter_vector(campaign.rig.as_parameters())  # nominal: the rig + defaults
     ys = np.linspace(0.1, 0.9, 5) * campaign.rig.stroke
     write_linear(params, ys, run / "linear", lambda_e=15.0)
     write_design(params, ys, run / "linear", order=4, w0=12.0, lambda_e=15.0)

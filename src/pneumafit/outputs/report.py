@@ -112,6 +112,14 @@ _KEY_UNITS = (
 )  # fmt: skip
 
 
+def _key_label(key: str) -> str:
+    """A column heading for an SI key: ``air_mass_kg`` -> ``air mass [g]``."""
+    for suffix, _, unit in _KEY_UNITS:
+        if key.endswith(suffix) and len(key) > len(suffix):
+            return f"{key[: -len(suffix)].replace('_', ' ')} [{unit}]"
+    return key.replace("_", " ")
+
+
 def _by_key(key: str, value: Any) -> str:
     """A value whose unit its key names (``air_mass_kg``), in a display unit."""
     if isinstance(value, int | float) and not isinstance(value, bool):
@@ -127,6 +135,14 @@ def _by_key(key: str, value: Any) -> str:
         and all(isinstance(v, int | float | str | None) for v in value)
     ):
         return ", ".join(_by_key(key, v) for v in value)
+    if value is None:
+        return "-"
+    if (
+        isinstance(value, Mapping)
+        and 0 < len(value) <= 8
+        and all(isinstance(v, int | float | None) for v in value.values())
+    ):
+        return ", ".join(f"{esc(k)} {fmt(v, '', 3)}" for k, v in value.items())
     if isinstance(value, Mapping | list):
         text = json.dumps(value, default=str)
         return f"<code>{esc(text if len(text) < 300 else text[:300] + ' ...')}</code>"
@@ -134,7 +150,7 @@ def _by_key(key: str, value: Any) -> str:
 
 
 def _kv_table(doc: Mapping[str, Any], caption: str = "", skip: tuple[str, ...] = ()) -> str:
-    rows = [[esc(k), _by_key(str(k), v)] for k, v in doc.items() if k not in skip]
+    rows = [[esc(_key_label(str(k))), _by_key(str(k), v)] for k, v in doc.items() if k not in skip]
     return table(["key", "value"], rows, caption=caption)
 
 
@@ -231,6 +247,29 @@ class _Run:
 
 
 # ------------------------------------------------------------------- sections
+def _stages_table(run: _Run) -> str:
+    """Times of the main job's stages (stages.json, summary.json ``seconds``)."""
+    seconds: dict[str, Any] = {}
+    stages, _ = _read_json(run.dir / "stages.json")
+    if isinstance(stages, Mapping) and isinstance(stages.get("stages"), Mapping):
+        for name, entry in stages["stages"].items():
+            if isinstance(entry, Mapping):
+                seconds[str(name)] = entry.get("seconds")
+    summary = run.summary if isinstance(run.summary, Mapping) else {}
+    if isinstance(summary.get("seconds"), Mapping):
+        for name, value in summary["seconds"].items():
+            seconds.setdefault(str(name), value)
+    if not seconds:
+        return ""
+    rows = [[esc(k), fmt(v, "s", 3)] for k, v in seconds.items()]
+    if summary.get("total_seconds") is not None:
+        rows.append(["<strong>total</strong>", fmt(summary.get("total_seconds"), "s", 3)])
+    html_text = table(["stage", "wall time"], rows, caption="Stages of pneumafit run")
+    if summary.get("failed_stage"):
+        html_text += note(f"failed stage: {esc(summary['failed_stage'])}", "error")
+    return html_text
+
+
 def _campaign_section(run: _Run) -> tuple[str, str, str]:
     parts = []
     inventory = [
@@ -242,6 +281,8 @@ def _campaign_section(run: _Run) -> tuple[str, str, str]:
         ("designs", "linear/design_4.json, linear/design_6.json"),
         ("closed loop", "closed_loop/closed_loop.json"),
         ("discovery", "discovery/discovery.json"),
+        ("export", "export/controller.json"),
+        ("stages of pneumafit run", "stages.json"),
     ]
     rows = []
     for stage, files in inventory:
@@ -251,6 +292,7 @@ def _campaign_section(run: _Run) -> tuple[str, str, str]:
     parts.append("<h3>Run folder</h3>")
     parts.append(table(["stage", "file", "status"], rows,
                        caption=f"What {run.dir} holds"))  # fmt: skip
+    parts.append(_stages_table(run))
     for model, error in run.fit_errors.items():
         parts.append(note(f"fit {esc(model)}: {esc(error)}", "error"))
     if run.summary_error:
@@ -468,24 +510,61 @@ def _mcmc_section(run: _Run) -> tuple[str, str, str]:
     return "\n".join(parts), status, source
 
 
+def _deviance(entry: Any) -> str:
+    """WAIC or PSIS-LOO on the deviance scale (-2 elpd) with its standard error."""
+    if isinstance(entry, int | float) and not isinstance(entry, bool):
+        return fmt(entry)
+    if not isinstance(entry, Mapping):
+        return "-"
+    value = entry.get("deviance")
+    if value is None and isinstance(entry.get("elpd"), int | float):
+        value = -2.0 * entry["elpd"]
+    se = entry.get("se")
+    text = fmt(value)
+    if isinstance(se, int | float) and value is not None:
+        text += f" &plusmn; {fmt(2.0 * se, '', 2)}"
+    return text
+
+
 def _criteria_rows(models: list[str], entries: Mapping[str, Any]) -> list[list[str]]:
     rows = []
     for m in models:
         e = entries.get(m) or {}
         post = e.get("posterior") if isinstance(e.get("posterior"), Mapping) else {}
-        waic = post.get("waic") if isinstance(post, Mapping) else None
-        loo = post.get("loo") if isinstance(post, Mapping) else None
         rows.append([
             esc(m), fmt(e.get("log_likelihood")), fmt(e.get("aic")), fmt(e.get("bic")),
             fmt(e.get("n_data")), fmt(e.get("n_parameters")),
-            fmt(waic if not isinstance(waic, Mapping) else waic.get("value", waic.get("waic"))),
-            fmt(loo if not isinstance(loo, Mapping) else loo.get("value", loo.get("loo"))),
+            _deviance(post.get("waic")), _deviance(post.get("loo")),
         ])  # fmt: skip
     return rows
 
 
 _CRITERIA_HEADER = ["model", "log-likelihood", "AIC", "BIC", "data points", "parameters",
-                    "WAIC", "PSIS-LOO"]  # fmt: skip
+                    "WAIC (deviance)", "PSIS-LOO (deviance)"]  # fmt: skip
+
+
+def _recording_table(rows: Any, models: list[str]) -> str:
+    """comparison.json ``table`` (long form) as recording x channel rows, models as columns."""
+    if not isinstance(rows, list) or not models:
+        return ""
+    cells: dict[tuple[str, str, str], dict[str, Mapping[str, Any]]] = {}
+    for r in rows:
+        if isinstance(r, Mapping) and r.get("model") in models:
+            key = (str(r.get("recording")), str(r.get("role", "")), str(r.get("channel")))
+            cells.setdefault(key, {})[str(r["model"])] = r
+    if not cells:
+        return ""
+    header = ["recording", "role", "channel"]
+    for m in models:
+        header += [f"{m}: RMSE", f"{m}: fit %"]
+    body = []
+    for (rec, role, ch), by_model in cells.items():
+        line = [esc(rec), esc(role), esc(ch)]
+        for m in models:
+            e = by_model.get(m) or {}
+            line += [channel_value(ch, e.get("rmse")), fmt(e.get("fit_percent"), "%", 3)]
+        body.append(line)
+    return table(header, body, caption="Per recording and channel (comparison.json table)")
 
 
 def _comparison_section(run: _Run) -> tuple[str, str, str]:
@@ -531,6 +610,11 @@ def _comparison_section(run: _Run) -> tuple[str, str, str]:
         if models:
             parts.append(table(_CRITERIA_HEADER, _criteria_rows(models, doc),
                                caption="Information criteria (lower is better)"))  # fmt: skip
+        parts.append(_recording_table(doc.get("table"), models))
+        for m in models:
+            post = doc[m].get("posterior")
+            if isinstance(post, Mapping) and post.get("available") is False:
+                parts.append(note(f"{esc(m)}: no WAIC/PSIS-LOO: {esc(post.get('reason', ''))}"))
         best = doc.get("best")
         if isinstance(best, Mapping) and best:
             parts.append(_kv_table(best, caption="Best model per channel and criterion"))
@@ -684,6 +768,8 @@ def _discovery_section(run: _Run) -> tuple[str, str, str]:
         return note(f"{esc(path)}: expected a JSON object, found {esc(type(doc).__name__)}",
                     "error"), "error", source  # fmt: skip
     parts = []
+    if doc.get("statement"):
+        parts.append(note(f"<strong>{esc(doc['statement'])}</strong>"))
     selected = doc.get("selected")
     sel = selected if isinstance(selected, list) else [selected] if selected else []
     parts.append(f"<p>Selected effect(s): <strong>{esc(', '.join(map(str, sel)) or 'none')}"
@@ -719,6 +805,24 @@ def _discovery_section(run: _Run) -> tuple[str, str, str]:
         )
     elif before is not None or after is not None:
         parts.append(note("rmse_before/rmse_after: only one of them, or not objects.", "warn"))
+    p_before, p_after = doc.get("pressure_rmse_before"), doc.get("pressure_rmse_after")
+    if isinstance(p_before, Mapping) and isinstance(p_after, Mapping):
+        parts.append(table(
+            ["role", "pressure RMSE before", "pressure RMSE after"],
+            [[esc(r), channel_value("pressure", p_before.get(r)),
+              channel_value("pressure", p_after.get(r))]
+             for r in dict.fromkeys([*p_before, *p_after])],
+            caption="Pressure RMSE (both chambers pooled)",
+        ))  # fmt: skip
+    refits = [r for r in doc.get("refits") or [] if isinstance(r, Mapping)]
+    if refits:
+        keys = [k for k in dict.fromkeys(k for r in refits for k in r)
+                if all(not isinstance(r.get(k), Mapping | list) for r in refits)]  # fmt: skip
+        parts.append(
+            table([_key_label(k) for k in keys], [[_by_key(k, r.get(k)) for k in keys]
+                                                  for r in refits],
+                  caption="Refits tried (scalar fields)")
+        )  # fmt: skip
     aic = [("AIC", doc.get("aic_before"), doc.get("aic_after")),
            ("BIC", doc.get("bic_before"), doc.get("bic_after"))]  # fmt: skip
     aic_rows = [[k, fmt(b), fmt(a), fmt(a - b) if isinstance(a, int | float)
@@ -745,7 +849,8 @@ def _discovery_section(run: _Run) -> tuple[str, str, str]:
         )
     skip = ("format", "version", "candidates", "selected", "rmse_before", "rmse_after",
             "aic_before", "aic_after", "bic_before", "bic_after", "effect_parameters",
-            "figures")  # fmt: skip
+            "figures", "statement", "pressure_rmse_before", "pressure_rmse_after", "rounds",
+            "refits")  # fmt: skip
     rest = {k: v for k, v in doc.items() if k not in skip}
     if rest:
         parts.append("<details><summary>Other keys of discovery.json</summary>"
@@ -808,7 +913,7 @@ def _air_section(run: _Run) -> tuple[str, str, str]:
                 keys = list(dict.fromkeys(k for s in steps for k in s))
                 parts.append(
                     table(
-                        keys,
+                        [_key_label(k) for k in keys],
                         [[_by_key(k, s.get(k)) for k in keys] for s in steps],
                         caption=f"{c.get('name')}: per step (air mass and exergy of each step)",
                     )

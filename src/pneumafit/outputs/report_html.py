@@ -122,7 +122,7 @@ def table(
     raw: bool = True,
 ) -> str:
     """An HTML table. Cells are HTML already when ``raw`` (use :func:`fmt`)."""
-    out = ["<table>"]
+    out = ['<div class="tw"><table>']
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
     out.append("<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>")
@@ -134,7 +134,7 @@ def table(
         n += 1
     if n == 0:
         out.append(f'<tr><td colspan="{len(header)}"><em>(no rows)</em></td></tr>')
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "\n".join(out)
 
 
@@ -189,7 +189,8 @@ h2{border-bottom:2px solid #1f3b57;padding-bottom:.2em;margin-top:2.2em}
 h3{margin-top:1.6em;color:#1f3b57}
 h4{margin-bottom:.3em}
 table{border-collapse:collapse;margin:.6em 0 1em;font-size:.88em}
-caption{text-align:left;font-weight:600;padding:.2em 0}
+caption{text-align:left;font-weight:600;padding:.2em 0;white-space:nowrap}
+div.tw{overflow-x:auto;max-width:100%}
 th,td{border:1px solid #ccd3da;padding:.25em .55em;text-align:left;vertical-align:top}
 td.n{text-align:right;white-space:nowrap}
 th{background:#eef2f6}

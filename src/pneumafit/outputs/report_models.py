@@ -6,10 +6,10 @@ Every recording of the campaign is simulated with each fit's parameters
 and structure (``fit.json`` ``structure``: heat law, air properties,
 effects), from the recording's own initial state
 (:meth:`Experiment.from_recording`), all recordings of one model in one
-batched call. The channels compared are those of the main job
-(:data:`pneumafit.pipeline.COMPARED`, a charge/discharge test on its own
-chamber's pressure), plus a measured temperature, which is compared with the
-simulated gas temperature seen through the fitted first-order sensor lag
+batched call. The channels compared are :data:`COMPARED` (a
+charge/discharge test on its own chamber's pressure, a flow test on its flow
+only), plus a measured temperature, which is compared with the simulated gas
+temperature seen through the fitted first-order sensor lag
 (``metrics.temperature_sensor_lag``).
 
 The numbers differ slightly from fit.json's RMSE: the fit uses its fitted
@@ -48,6 +48,9 @@ __all__ = [
     "replay_fit",
 ]
 
+#: Measured channels compared with a simulation (those of the main job's first
+#: version; a charge/discharge test is compared on its own chamber only).
+COMPARED = ("p_P", "p_N", "y", "qm_P", "qm_N")
 #: Simulated channels the report asks for.
 SIMULATED = ("y", "p_P", "p_N", "qm_P", "qm_N", "T_P", "T_N", "m_supply", "m_exhaust")
 #: Points drawn per line at most (strided beyond).
@@ -61,12 +64,10 @@ MODEL_COLOURS = {"convection": "tab:red", "constant-lambda": "tab:blue", "polytr
 def compared_channels(recording: Any) -> list[str]:
     """Channels of a recording compared with the simulation.
 
-    The main job's rule (:data:`pneumafit.pipeline.COMPARED`; a
-    charge/discharge test only on its chamber's pressure) plus a measured
-    gas temperature, less the imposed chamber pressure of a flow test.
+    :data:`COMPARED` (a charge/discharge test only on its chamber's
+    pressure) plus a measured gas temperature, less the imposed chamber
+    pressure of a flow test.
     """
-    from pneumafit.pipeline import COMPARED
-
     names = []
     for name in (*COMPARED, "T_P", "T_N"):
         if name not in recording.channels:
@@ -132,7 +133,6 @@ def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str
     PneumafitInputError, ValueError
         A fit.json whose parameters or structure cannot be used.
     """
-    from pneumafit.identification import first_order_lag
     from pneumafit.models import parameter_vector
     from pneumafit.models.structure import MODELS, ModelStructure
     from pneumafit.parameters_io import read_parameter_file
@@ -171,6 +171,8 @@ def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str
         rows = out[0, sl]
         chans = {c: rows[:, j].copy() for j, c in enumerate(sim.channels)}
         if lag > 0:
+            from pneumafit.identification import first_order_lag
+
             for t_name in ("T_P", "T_N"):
                 if t_name in rec.channels and np.all(np.isfinite(chans[t_name])):
                     chans[t_name] = first_order_lag(chans[t_name], rec.time, lag)

@@ -172,7 +172,7 @@ def rig(
         typer.Option("--effect", help="Undeclared extra effect NAME[=VALUE]; repeatable."),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of every random draw (sensor noise).")] = 2026,
-    protocol: Annotated[str, typer.Option(help="Test protocol: demo or quick.")] = "demo",
+    protocol: Annotated[str, typer.Option(help="Test protocol: demo, quick or tutorial.")] = "demo",
 ) -> None:
     """Record a campaign on the virtual rig (deterministic for a seed)."""
     from pneumafit.rig import run_rig

@@ -23,6 +23,7 @@ from pneumafit.rig.protocol import (
     demo_protocol,
     get_protocol,
     quick_protocol,
+    tutorial_protocol,
 )
 from pneumafit.rig.sensors import SensorModel, first_order_lag
 from pneumafit.rig.virtual import (
@@ -76,4 +77,5 @@ __all__ = [
     "resolve_effects",
     "run_rig",
     "truth_readme",
+    "tutorial_protocol",
 ]

@@ -402,8 +402,68 @@ def quick_protocol() -> Protocol:
     return Protocol(name="quick", description="Virtual rig quick campaign (tests)", tests=tests)
 
 
+#: Column names of the tutorial's "new rig" (its acquisition software's own).
+_TUTORIAL_COLUMNS = {
+    "y": "pos_mm", "y_ref": "pos_set_mm", "p_P": "PT1_bar", "p_N": "PT2_bar",
+    "u_P": "servo_A_V", "u_N": "servo_B_V", "T_P": "TC1_degC", "T_N": "TC2_degC",
+    "qm_P": "FM1_gps", "qm_N": "FM2_gps",
+}  # fmt: skip
+_TUTORIAL_UNITS = {**_CSV_UNITS, "qm_P": "g/s", "qm_N": "g/s"}
+
+
+def tutorial_protocol() -> Protocol:
+    """A new rig's campaign as CSV files with its own column names (docs/tutorial.md).
+
+    Every stage of the identification has its tests, all short: flow tests
+    of both valves, charge and discharge tests of both chambers (one with the
+    temperature sensor, one held out), two closed-loop step tests to fit the
+    friction and one held out. Every file is CSV with the acquisition
+    software's column names (``PT1_bar``, ``pos_mm``, ...) in bar, mm, degC
+    and g/s.
+    """
+    kw = {"units": _TUTORIAL_UNITS}
+    cmds = (-10.0, -3.0, -0.4, -0.2, 0.0, 0.2, 0.4, 3.0, 10.0)
+
+    def cols(*names: str) -> dict[str, str]:
+        return {n: _TUTORIAL_COLUMNS[n] for n in names}
+
+    tests: tuple[Test, ...] = (
+        FlowTest(file="valve_A_flow.csv", chamber="P", commands=cmds,
+                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.4,
+                 columns=cols("u_P", "p_P", "qm_P"), **kw),
+        FlowTest(file="valve_B_flow.csv", chamber="N", commands=cmds,
+                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.4,
+                 columns=cols("u_N", "p_N", "qm_N"), **kw),
+        BlockedTest(file="fill_A_100mm.csv", kind="charge", chamber="P", position=0.1,
+                    amplitude=10.0, opening_time=0.3, duration=2.5, temperature=True,
+                    columns=cols("u_P", "p_P", "T_P"), **kw),
+        BlockedTest(file="empty_A_300mm.csv", kind="discharge", chamber="P", position=0.3,
+                    amplitude=8.0, opening_time=0.5, duration=2.5,
+                    columns=cols("u_P", "p_P"), **kw),
+        BlockedTest(file="fill_B_300mm.csv", kind="charge", chamber="N", position=0.3,
+                    amplitude=10.0, opening_time=0.25, duration=2.5,
+                    columns=cols("u_N", "p_N"), **kw),
+        BlockedTest(file="empty_B_200mm.csv", kind="discharge", chamber="N", position=0.2,
+                    amplitude=10.0, opening_time=0.4, duration=2.0, role="validate",
+                    columns=cols("u_N", "p_N"), **kw),
+        StepTest(file="steps_1.csv", start=0.25, steps=((0.3, 0.35), (1.4, 0.18)), duration=2.5,
+                 preroll=2.0, columns=cols("y", "y_ref", "p_P", "p_N", "u_P", "u_N"), **kw),
+        StepTest(file="steps_2.csv", start=0.3, steps=((0.3, 0.32), (1.1, 0.29), (1.8, 0.31)),
+                 duration=2.5, preroll=2.0,
+                 columns=cols("y", "y_ref", "p_P", "p_N", "u_P", "u_N"), **kw),
+        StepTest(file="steps_check.csv", start=0.25, steps=((0.3, 0.33), (1.5, 0.20)),
+                 duration=2.5, preroll=2.0, temperature=True, role="validate",
+                 columns=cols("y", "y_ref", "p_P", "p_N", "u_P", "u_N", "T_P", "T_N"), **kw),
+    )  # fmt: skip
+    return Protocol(
+        name="tutorial",
+        description="A new rig's first campaign, as its acquisition software wrote it (CSV)",
+        tests=tests,
+    )
+
+
 #: Protocols by name.
-PROTOCOLS = {"demo": demo_protocol, "quick": quick_protocol}
+PROTOCOLS = {"demo": demo_protocol, "quick": quick_protocol, "tutorial": tutorial_protocol}
 
 
 def get_protocol(protocol: str | Protocol) -> Protocol:

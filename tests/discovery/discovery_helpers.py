@@ -174,7 +174,56 @@ def run_case(root: Any, effect: str | None, value: float | None = None) -> Disco
 
     base = BaseFit.from_document(json.loads(fit_path.read_text()))
     result = discover(campaign, base, seed=0)
+    _record(effect, result, dict(run.truth), time.perf_counter() - t0)
     return DiscoveryCase(
         effect=effect, folder=folder, campaign=campaign, truth=dict(run.truth),
         fit_path=fit_path, result=result, seconds=time.perf_counter() - t0,
     )  # fmt: skip
+
+
+def _record(effect: str | None, result: Any, truth: dict[str, Any], seconds: float) -> None:
+    """Append the case's numbers to $DISCOVERY_SUMMARY (JSON lines), if set:
+    the measured table of docs/effects.md comes from there."""
+    import json
+    import os
+
+    target = os.environ.get("DISCOVERY_SUMMARY")
+    if not target:
+        return
+    final = result.final
+    line = {
+        "effect": effect,
+        "selected": result.selected,
+        "unexplained": result.unexplained,
+        "statement": result.statement,
+        "seconds": seconds,
+        "discover_seconds": result.seconds,
+        "validate_before": result.base.rmse.get("validate"),
+        "validate_after": final.rmse.get("validate"),
+        "fit_before": result.base.rmse.get("fit"),
+        "fit_after": final.rmse.get("fit"),
+        "noise": result.noise,
+        "ranking": [
+            [c.effect, c.score, c.inclusion_probability, c.variance_explained, c.phase_match]
+            for c in result.attributions[0].candidates
+        ] if result.attributions else [],
+        "steps": [[s.round, s.effect, s.start, s.reason] for s in result.steps],
+        "values": {k: final.values[k] for e in final.effects
+                   for k in EFFECT_PARAMETERS.get(e, ())},
+        "truth": {k: truth["parameters"].get(k) for k in truth["parameters"]
+                  if k in {p for v in EFFECT_PARAMETERS.values() for p in v}
+                  or k == "seal_friction_coefficient"},
+    }  # fmt: skip
+    with open(target, "a", encoding="utf-8") as f:
+        f.write(json.dumps(line, default=float) + "\n")
+
+
+#: Principal parameters reported per effect.
+EFFECT_PARAMETERS = {
+    "chamber_leakage": ("chamber_leak_conductance",),
+    "external_leakage": ("external_leak_conductance",),
+    "valve_dynamics": ("valve_time_constant",),
+    "wall_thermal_mass": ("wall_heat_capacity", "wall_outer_coefficient"),
+    "forced_convection": ("forced_convection_gain",),
+    "supply_pressure_drop": ("supply_line_resistance",),
+}

@@ -213,8 +213,10 @@ class _Run:
         for entry, origin in sources:
             if isinstance(entry, Mapping) and isinstance(entry.get("path"), str):
                 path = Path(entry["path"])
-                if not path.is_absolute() and not path.exists():
-                    path = self.dir / path
+                if not path.is_absolute():
+                    # relative to where the stage ran: here, or above the run folder
+                    bases = [Path.cwd(), self.dir, *self.dir.resolve().parents]
+                    path = next((b / path for b in bases if (b / path).exists()), path)
                 return path, origin
         return None, ""
 
@@ -308,7 +310,8 @@ def _campaign_section(run: _Run) -> tuple[str, str, str]:
         )
         return "\n".join(parts), "not run", source
     if run.campaign is None:
-        parts.append(note(f"campaign not readable: {esc(run.campaign_error)}", "error"))
+        parts.append(note(f"campaign not readable: {esc(run.campaign_error)} (give the "
+                          "folder with <code>--campaign</code>)", "error"))  # fmt: skip
         return "\n".join(parts), "error", source
     c = run.campaign
     parts.append("<h3>Campaign</h3>")

@@ -10,6 +10,7 @@ values with each parameter's ``scale`` from fit.json.
 
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 from typing import Any
@@ -88,6 +89,22 @@ def read_stage_chain(
     return values, iterations
 
 
+def _bulk(samples: NDArray[np.float64], width: float) -> tuple[float, float]:
+    """Median +- ``width`` robust standard deviations (1.4826 MAD), within the
+    samples' extent: axes that show the bulk of a posterior, not its stragglers."""
+    x = samples[np.isfinite(samples)]
+    if x.size == 0:
+        return -1.0, 1.0
+    med = float(np.median(x))
+    sigma = 1.4826 * float(np.median(np.abs(x - med)))
+    if not sigma > 0:
+        sigma = float(np.std(x)) or 1e-6 * max(abs(med), 1e-12)
+    lo, hi = max(float(x.min()), med - width * sigma), min(float(x.max()), med + width * sigma)
+    if not hi > lo:
+        lo, hi = med - sigma, med + sigma
+    return lo, hi
+
+
 def _trace_figure(values: NDArray[np.float64], names: list[str], units: list[str],
                   discard: int, title: str) -> Any:  # fmt: skip
     import matplotlib.pyplot as plt
@@ -100,6 +117,8 @@ def _trace_figure(values: NDArray[np.float64], names: list[str], units: list[str
     for j, ax in enumerate(axes[:, 0]):
         ax.plot(steps, values[::stride, :, j], lw=0.5, alpha=0.6)
         ax.axvline(discard, color="k", ls="--", lw=0.8)
+        lo, hi = _bulk(values[discard:, :, j], 8.0)
+        ax.set_ylim(lo, hi)  # the bulk of the kept chain; the burn-in may leave the axes
         ax.set_ylabel(f"{names[j]}\n[{units[j] or '-'}]", fontsize=8)
         ax.tick_params(labelsize=7)
     axes[-1, 0].set_xlabel("step (dashed: end of the discarded burn-in)")
@@ -114,13 +133,23 @@ def _corner_figure(samples: NDArray[np.float64], names: list[str], units: list[s
     import matplotlib.pyplot as plt
 
     labels = [f"{n} [{u}]" if u else n for n, u in zip(names, units, strict=True)]
+    quiet = logging.getLogger()  # corner warns on the root logger about sparse contours
     size = max(5.5, 2.2 * len(names))
     fig = plt.figure(figsize=(size, size))
-    corner.corner(
-        samples, labels=labels, quantiles=[0.05, 0.5, 0.95], show_titles=True,
-        title_fmt=".4g", title_kwargs={"fontsize": 7}, label_kwargs={"fontsize": 8},
-        fig=fig, plot_datapoints=samples.shape[0] <= 2000, max_n_ticks=3,
-    )  # fmt: skip
+    level = quiet.level
+    quiet.setLevel(logging.ERROR)
+    try:
+        corner.corner(
+            samples, labels=labels, quantiles=[0.05, 0.5, 0.95], show_titles=True,
+            title_fmt=".4g", title_kwargs={"fontsize": 7}, label_kwargs={"fontsize": 8},
+            fig=fig, plot_datapoints=samples.shape[0] <= 2000, max_n_ticks=3,
+            range=[_bulk(samples[:, j], 6.0) for j in range(len(names))],
+        )  # fmt: skip
+    except Exception:
+        plt.close(fig)
+        raise
+    finally:
+        quiet.setLevel(level)
     for ax in fig.get_axes():
         ax.tick_params(labelsize=6)
     fig.suptitle(title, fontsize=10, y=1.02)
@@ -210,7 +239,9 @@ def render_chains(fit: dict[str, Any], folder: Path) -> tuple[str, str]:
             _trace_figure(values, names, units, discard,
                           f"{fit.get('model', '?')}: {stage} stage, {values.shape[1]} walkers"),
             f"MCMC traces {fit.get('model')} {stage}",
-            "Every walker's trace; the steps left of the dashed line are discarded as burn-in.",
+            "Every walker's trace; the steps left of the dashed line are discarded as burn-in "
+            "(vertical axes: the bulk of the kept steps, median +- 8 robust standard "
+            "deviations).",
         ))  # fmt: skip
         kept = values[discard:].reshape(-1, len(names))
         thin = max(1, math.ceil(kept.shape[0] / MAX_CORNER_SAMPLES))
@@ -223,6 +254,11 @@ def render_chains(fit: dict[str, Any], folder: Path) -> tuple[str, str]:
                 "some parameter never moved.", "warn"))  # fmt: skip
             status = "partial"
             continue
+        out_of_axes = np.zeros(samples.shape[0], bool)
+        for j in range(len(names)):
+            lo, hi = _bulk(samples[:, j], 6.0)
+            out_of_axes |= (samples[:, j] < lo) | (samples[:, j] > hi)
+        outside = int(out_of_axes.sum())
         try:
             fig = _corner_figure(samples, names, units,
                                  f"{fit.get('model', '?')}: {stage} stage posterior")  # fmt: skip
@@ -233,7 +269,8 @@ def render_chains(fit: dict[str, Any], folder: Path) -> tuple[str, str]:
         parts.append(embed_figure(
             fig, f"corner plot {fit.get('model')} {stage}",
             f"Posterior of the {stage} stage, conditional on the other groups at the joint "
-            f"estimate ({samples.shape[0]} samples after burn-in, thinned by {thin}); lines at "
+            f"estimate ({samples.shape[0]} samples after burn-in, thinned by {thin}; axes span "
+            f"the median +- 6 robust standard deviations, {outside} samples outside); lines at "
             "the 5, 50 and 95 % quantiles. The reported intervals add the other groups' "
             "uncertainty to first order (docs/identification.md).",
         ))  # fmt: skip

@@ -118,6 +118,35 @@ def compare(
     raise typer.Exit(code)
 
 
+@app.command(name="fit-many")
+def fit_many(
+    campaigns: Annotated[list[Path], typer.Argument(help="Campaign folders (with campaign.toml).")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for one fit folder per campaign.")],
+    model: Annotated[str, typer.Option(help="convection, constant-lambda or polytropic.")] = (
+        "convection"
+    ),
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Address of a running Dask scheduler (default: a local cluster)."),
+    ] = None,
+    workers: Annotated[int | None, typer.Option(help="Workers of the local cluster.")] = None,
+    walkers: Annotated[int | None, typer.Option(help="MCMC walkers.")] = None,
+    steps: Annotated[int | None, typer.Option(help="MCMC steps.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of every campaign's fit.")] = 0,
+    no_mcmc: Annotated[
+        bool, typer.Option("--no-mcmc", help="Point estimates with Laplace intervals only.")
+    ] = False,
+) -> None:
+    """Fit one model to many campaigns on Dask distributed: OUT/<campaign name>/fit.json."""
+    from pneumafit.distributed import fit_many_command
+
+    code = fit_many_command(
+        campaigns, model, out, scheduler=scheduler, workers=workers, seed=seed,
+        mcmc=not no_mcmc, walkers=walkers, steps=steps, console=console,
+    )  # fmt: skip
+    raise typer.Exit(code)
+
+
 @app.command()
 def discover(
     campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],

@@ -303,6 +303,16 @@ def test_the_report_renders_in_headless_chromium(report: tuple[Path, str], tmp_p
     figures = re.search(r'data-figures="(\d+)"', dom.stdout)
     assert figures is not None and int(figures.group(1)) == 13
     assert 'data-figures-bad="0"' in dom.stdout
+    # the check can fail: a figure that does not decode is reported by the page
+    broken = tmp_path / "broken.html"
+    html = path.read_text(encoding="utf-8")
+    broken.write_text(re.sub(r"base64,[A-Za-z0-9+/=]+", "base64,AAAA", html, count=1))
+    bad = subprocess.run(
+        [*common, f"--user-data-dir={tmp_path / 'profile-3'}", "--dump-dom",
+         broken.resolve().as_uri()],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert "figure did not decode" in bad.stderr and 'data-figures-bad="1"' in bad.stdout
     # a real screenshot: a PNG of the window size, not blank
     from PIL import Image
 

@@ -24,6 +24,7 @@ __all__ = [
     "channel_value",
     "embed_figure",
     "embed_png",
+    "embed_png_file",
     "esc",
     "fmt",
     "note",

@@ -1,0 +1,36 @@
+"""The tutorial's campaign file (docs/tutorial.md) describes real files correctly."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from pneumafit.campaign import read_campaign
+from pneumafit.rig import Protocol, VirtualRig, tutorial_protocol
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "tutorial.md"
+
+
+def test_the_tutorial_campaign_file_reads_the_tutorial_rig_files(tmp_path: Path) -> None:
+    rig = tmp_path / "my_rig"
+    full = tutorial_protocol()
+    steps = tuple(t for t in full.tests if t.file == "steps_1.csv")
+    VirtualRig(seed=7).write(
+        rig, Protocol(name=full.name, description=full.description, tests=steps)
+    )
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "steps_1.csv").write_bytes((rig / "steps_1.csv").read_bytes())
+    toml = re.search(r"```toml\n(.*?)```", DOC.read_text(), re.S)
+    assert toml is not None
+    (folder / "campaign.toml").write_text(toml.group(1))
+    mine = read_campaign(folder)
+    ref = read_campaign(rig)
+    rec = mine.recordings[0]
+    same = next(r for r in ref.recordings if r.file == "steps_1.csv")
+    for name in ("y", "y_ref", "p_P", "p_N", "u_P", "u_N"):
+        assert (rec.channels[name] == same.channels[name]).all(), name
+    # the same rig, written in other units (cm^3, bar, degC): equal up to rounding
+    assert mine.rig.as_parameters() == pytest.approx(ref.rig.as_parameters(), rel=1e-12)

@@ -239,9 +239,9 @@ def print_table(document: Mapping[str, Any], console: Console) -> None:
     best = document["best"]
     table = Table(title=Text(f"{document['campaign']['name']}: RMSE by role and channel "
                              "(* best; temperatures after the sensor lag)"))  # fmt: skip
-    table.add_column("role")
-    table.add_column("channel")
-    table.add_column("unit")
+    table.add_column("role", no_wrap=True)
+    table.add_column("channel", no_wrap=True)
+    table.add_column("unit", no_wrap=True)
     for m in models:
         table.add_column(m, justify="right")
     for role in ROLES:

@@ -136,6 +136,21 @@ def test_unreachable_scheduler_is_named_in_the_error() -> None:
             pass
 
 
+def test_bad_input_is_reported_before_any_cluster_starts(
+    campaigns: list[Path], tmp_path: Path
+) -> None:
+    console = Console(file=io.StringIO(), width=200)
+    twice = [campaigns[0], campaigns[0]]
+    code = fit_many_command(
+        twice, "adiabatic", tmp_path / "fits", scheduler=NOWHERE, workers=None, seed=0,
+        mcmc=False, walkers=None, steps=None, console=console,
+    )  # fmt: skip
+    log = console.file.getvalue()
+    assert code == 2
+    assert "same folder name 'rig1'" in log and "option --model: expected one of" in log
+    assert "scheduler" not in log and not (tmp_path / "fits").exists()
+
+
 def test_cli_unreachable_scheduler_exits_2_without_traceback(
     campaigns: list[Path], tmp_path: Path
 ) -> None:

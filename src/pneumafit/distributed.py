@@ -162,6 +162,24 @@ def _campaign_name(campaign: Path) -> str:
     return path.parent.name if path.suffix == ".toml" else path.name
 
 
+def _check_campaigns(campaigns: Sequence[Path], out: Path) -> list[Path]:
+    """The campaigns as paths; raises when none, or when two share a folder name."""
+    paths = [Path(c) for c in campaigns]
+    if not paths:
+        raise PneumafitInputError("fit-many: expected at least one campaign, found none")
+    names: dict[str, Path] = {}
+    for c in paths:
+        name = _campaign_name(c)
+        if name in names:
+            raise PneumafitInputError(
+                f"fit-many: campaigns {os.fspath(names[name])!r} and {os.fspath(c)!r} have the "
+                f"same folder name {name!r}: expected distinct names (each names its folder "
+                f"in {os.fspath(out)!r})"
+            )
+        names[name] = c
+    return paths
+
+
 def _fit_one(
     campaign: str,
     model: str,
@@ -239,19 +257,7 @@ def fit_many(
     PneumafitInputError
         No campaign, or two campaigns with the same folder name.
     """
-    campaigns = [Path(c) for c in campaigns]
-    if not campaigns:
-        raise PneumafitInputError("fit-many: expected at least one campaign, found none")
-    names: dict[str, Path] = {}
-    for c in campaigns:
-        name = _campaign_name(c)
-        if name in names:
-            raise PneumafitInputError(
-                f"fit-many: campaigns {os.fspath(names[name])!r} and {os.fspath(c)!r} have the "
-                f"same folder name {name!r}: expected distinct names (each names its folder "
-                f"in {os.fspath(out)!r})"
-            )
-        names[name] = c
+    campaigns = _check_campaigns(campaigns, out)
     jobs = {
         c: (os.fspath(c), model, os.fspath(Path(out) / _campaign_name(c)), walkers, steps,
             seed, mcmc)
@@ -315,13 +321,25 @@ def fit_many_command(
         unreachable scheduler, bad options, duplicate campaign names; and a
         campaign with bad input when no fit failed otherwise).
     """
-    if not campaigns:
-        console.print(Text("fit-many: expected at least one campaign, found none", "bold red"))
-        return EXIT_BAD_INPUT
+    from pneumafit.models.structure import MODELS
+
+    # what is wrong for every campaign is said once, before starting a cluster
+    problems = []
+    try:
+        _check_campaigns(campaigns, out)
+    except PneumafitInputError as exc:
+        problems.append(str(exc))
+    if model not in MODELS:
+        problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
+    for option, value, least in (("--walkers", walkers, 1), ("--steps", steps, 1),
+                                 ("--seed", seed, 0)):  # fmt: skip
+        if value is not None and value < least:
+            problems.append(f"option {option}: expected an integer >= {least}, found {value!r}")
     if Path(out).exists() and not Path(out).is_dir():
-        console.print(
-            Text(f"option --out {os.fspath(out)!r}: expected a folder, found a file", "bold red")
-        )
+        problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")
+    if problems:
+        for p in problems:
+            console.print(Text(p, style="bold red"))
         return EXIT_BAD_INPUT
     if workers is None and scheduler is None:
         workers = max(1, min(len(campaigns), os.cpu_count() or 1))

@@ -17,8 +17,10 @@ Diagnostics (:class:`MCMCResult`):
   a check of mixing between walkers, not as a proof of convergence);
 - the posterior correlation matrix of the parameter values.
 
-Burn-in: the first ``discard`` steps, 3 tau (estimated on the second half of
-the chain) but at most half the chain, are dropped before any summary.
+Burn-in: the first ``discard`` steps, the larger of the transient (until the
+walkers' mean log-probability first reaches its second-half median) and
+3 tau (estimated on the second half of the chain), but at most half the
+chain, are dropped before any summary.
 """
 
 from __future__ import annotations
@@ -304,6 +306,20 @@ def run_mcmc(
     return result
 
 
+def _settled(log_prob: NDArray[np.float64]) -> int:
+    """First step at which the walkers' mean log-probability reaches its
+    median over the second half of the chain: the end of the transient from
+    a wide start, which 3 tau (estimated in equilibrium) can undercount."""
+    lp = np.asarray(log_prob, dtype=float)
+    if lp.ndim != 2 or lp.shape[0] < 4:
+        return 0
+    with np.errstate(invalid="ignore"):
+        mean = np.nanmean(np.where(np.isfinite(lp), lp, np.nan), axis=1)
+    level = np.nanmedian(mean[lp.shape[0] // 2 :])
+    reached = np.flatnonzero(mean >= level)
+    return int(reached[0]) if reached.size else lp.shape[0] // 2
+
+
 def summarize_chain(
     chain: NDArray[np.float64],
     log_prob: NDArray[np.float64],
@@ -322,7 +338,8 @@ def summarize_chain(
     half = chain[n_steps // 2 :]
     tau_half = _tau(half)
     finite = tau_half[np.isfinite(tau_half)]
-    discard = int(min(n_steps // 2, math.ceil(3.0 * finite.max()))) if finite.size else 0
+    burn = math.ceil(3.0 * finite.max()) if finite.size else 0
+    discard = int(min(n_steps // 2, max(burn, _settled(log_prob))))
     kept = chain[discard:]
     tau = _tau(kept)
     tau_max = float(np.max(tau)) if n_free and np.all(np.isfinite(tau)) else math.nan

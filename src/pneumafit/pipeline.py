@@ -279,7 +279,16 @@ def _analyses(
         write_report(out, out / "report.html", campaign=path, console=console)
         return 0
 
-    stage("report", all_fits, [out / "report.html"], report)
+    # the report reads every stage's outputs: any change rebuilds it
+    report_inputs = [
+        *all_fits,
+        out / "comparison" / "comparison.json",
+        out / "discovery" / "discovery.json",
+        out / "linear" / "linear.json",
+        out / "closed_loop" / "closed_loop.json",
+        out / "export" / EXPORT_FORMATS["json"],
+    ]
+    stage("report", report_inputs, [out / "report.html"], report)
 
 
 def _lambda_e(constant_lambda_fit: Path) -> float:

@@ -31,7 +31,7 @@ from rich.text import Text
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.comparison.evaluate import ModelEvaluation, evaluate_fit, fit_values
 from pneumafit.comparison.figures import plot_recording
-from pneumafit.comparison.information import DEFAULT_DRAWS, posterior_criteria
+from pneumafit.comparison.information import DEFAULT_DRAWS, differences, posterior_criteria
 from pneumafit.comparison.report import comparison_document, print_table
 from pneumafit.fileio import write_text_atomic
 from pneumafit.identification.command import (
@@ -253,6 +253,8 @@ def compare_command(
         if posteriors[model].get("available"):
             console.print(f"{model}: WAIC/LOO from {posteriors[model]['n_draws']} posterior "
                           f"draws ({time.perf_counter() - t0:.1f} s)")  # fmt: skip
+
+    differences(posteriors)
 
     # -------------------------------------------------------------- figures
     written: list[str] = []

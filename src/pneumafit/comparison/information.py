@@ -12,9 +12,11 @@ each conditional on the other groups at the joint estimate
    (friction) against discards of 24 and 55), and pairs the k-th draws of
    the groups into one parameter set (the groups taken as independent a
    posteriori; the unsampled groups, e.g. the valve, at the joint estimate);
-2. evaluates them on the fit's likelihood problem (every ``fit`` recording,
-   the fit's channels, sensor offsets and initial-state errors profiled, the
-   solver's defect correction), in one batched call;
+2. evaluates them on the likelihood of the fit's MCMC stages (every ``fit``
+   recording, the fit's channels, sensor offsets and initial-state errors
+   profiled, the solver's defect correction), in one batched call, with the
+   integration steps (hence the compared samples) chosen at the parameter
+   defaults, the same for every model;
 3. splits each block's profile log-likelihood into pointwise terms (Gaussian:
    one term per sample; AR(1): the innovations, the first sample from the
    stationary distribution; the sqrt(n) weights of averaged samples as
@@ -44,8 +46,9 @@ from pneumafit.comparison.evaluate import fit_values
 from pneumafit.identification.noise import AR1, Gaussian
 from pneumafit.identification.problem import MAX_STEP, Problem
 from pneumafit.identification.staged import DEFAULT_CHANNELS
+from pneumafit.models.layout import SPECS
 
-__all__ = ["DEFAULT_DRAWS", "pointwise_log_likelihood", "posterior_criteria"]
+__all__ = ["DEFAULT_DRAWS", "differences", "pointwise_log_likelihood", "posterior_criteria"]
 
 #: Posterior draws per fit: enough for WAIC/LOO to settle to a few tenths of
 #: a unit of elpd on the demo, cheap (one batched simulation).
@@ -86,6 +89,13 @@ def _draws(
             z = flat[pick, j]
             out[name] = np.exp(z) if scales.get(name) == "log" else z
     return out, list(flats), n
+
+
+def _common_nominal(campaign: Campaign) -> dict[str, float]:
+    """Parameter defaults with the campaign's rig: steps, hence the compared
+    samples, chosen alike for every model (the fitted values would give each
+    model its own grid, and WAIC/LOO must score the same points)."""
+    return {**{name: spec.default for name, spec in SPECS.items()}, **campaign.rig.as_parameters()}
 
 
 def pointwise_log_likelihood(
@@ -171,7 +181,9 @@ def posterior_criteria(
     dict
         ``available``; then ``waic`` and ``loo`` (``elpd``, ``se``, ``p``,
         ``deviance`` = -2 elpd; LOO also ``pareto_k_above_0.7``), ``n_draws``,
-        ``n_points``, ``groups``, ``note``; or ``reason`` when not available.
+        ``n_points``, ``groups``, ``note``, and ``_pointwise`` (the pointwise
+        elpd arrays, which :func:`differences` uses and removes); or
+        ``reason`` when not available.
     """
     import warnings
 
@@ -198,6 +210,7 @@ def posterior_criteria(
             fit_recs, structure, values, channels=channels, noise=noise,
             sensor_lags=lags, max_step=options.get("max_step", MAX_STEP),
             offsets=tuple(options.get("offsets") or ("pressure",)), initial_nuisance=True,
+            nominal=_common_nominal(campaign),
         )  # fmt: skip
     except ValueError as exc:
         return _unavailable(f"cannot set up the likelihood of the fit recordings: {exc}")
@@ -220,7 +233,7 @@ def posterior_criteria(
     data = az.from_dict(posterior=posterior, log_likelihood={"y": ll[None, :, :]})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        waic = az.waic(data)
+        waic = az.waic(data, pointwise=True)
         loo = az.loo(data, pointwise=True, reff=1.0)  # thinned draws: nearly independent
     k_high = int(np.sum(np.asarray(loo.pareto_k) > 0.7))
     notes = sorted({str(w.message).splitlines()[0] for w in caught})
@@ -236,6 +249,11 @@ def posterior_criteria(
             "deviance": -2.0 * float(loo.elpd_loo), "pareto_k_above_0.7": k_high,
         },
         "n_draws": int(good.sum()),
+        # pointwise elpd (not written to JSON): for the standard error of differences
+        "_pointwise": {
+            "waic": np.asarray(waic.waic_i).ravel(),
+            "loo": np.asarray(loo.loo_i).ravel(),
+        },
         "n_points": int(ll.shape[1]),
         "groups": groups,
         "seed": int(seed),
@@ -245,3 +263,32 @@ def posterior_criteria(
             "groups paired across groups, other groups at the joint estimate"
         ),
     }  # fmt: skip
+
+
+def differences(posteriors: Mapping[str, dict[str, Any]]) -> None:
+    """Add each model's elpd difference to the best, with its standard error.
+
+    For ``waic`` and ``loo`` of every available result, in place:
+    ``elpd_diff`` (best minus this model, >= 0) and ``se_diff``
+    (sqrt(n) times the standard deviation of the pointwise differences, as
+    ``arviz.compare``), when every model scored the same data points. Removes
+    the pointwise arrays (``_pointwise``), which are not written to JSON.
+
+    Parameters
+    ----------
+    posteriors : mapping of str to dict
+        Model -> :func:`posterior_criteria` result.
+    """
+    ready = {m: p for m, p in posteriors.items() if p.get("available") and "_pointwise" in p}
+    sizes = {p["n_points"] for p in ready.values()}
+    if len(ready) >= 2 and len(sizes) == 1:
+        for crit in ("waic", "loo"):
+            best = max(ready, key=lambda m: ready[m][crit]["elpd"])
+            ref = ready[best]["_pointwise"][crit]
+            for p in ready.values():
+                diff = ref - p["_pointwise"][crit]
+                p[crit]["best"] = best
+                p[crit]["elpd_diff"] = float(np.sum(diff))
+                p[crit]["se_diff"] = float(math.sqrt(diff.size) * np.std(diff))
+    for p in posteriors.values():
+        p.pop("_pointwise", None)

@@ -16,7 +16,9 @@ Keys (version 1; keys are only ever added):
     criteria (from fit.json ``metrics``);
   - ``posterior``: WAIC and PSIS-LOO from the chains
     (:func:`~pneumafit.comparison.information.posterior_criteria`) or
-    ``{"available": false, "reason": ...}``;
+    ``{"available": false, "reason": ...}``; with every model scored on the
+    same points, ``waic``/``loo`` also hold ``best``, ``elpd_diff`` (best
+    minus this model) and ``se_diff`` (its standard error);
   - ``temperature``: ``sensor_lag`` (s) and ``lag_source``, ``rmse`` /
     ``max_abs_error`` (``{role: K}``) where a temperature is measured, and
     ``predicted`` (``{recording: {T_P|T_N: {initial, min, max, final}}}``,
@@ -267,16 +269,22 @@ def print_table(document: Mapping[str, Any], console: Console) -> None:
                 cells.append(text)
         table.add_row("fit", crit.replace("_", "-"), "", *cells)
     for crit in ("waic", "loo"):
-        cells = []
+        cells, diffs = [], []
         for m in models:
             post = document[m]["posterior"]
             if not post.get("available"):
                 cells.append("n/a")
+                diffs.append("")
                 continue
             c = post[crit]
-            text = f"{c['deviance']:.8g} ± {2 * c['se']:.3g}"
+            text = f"{c['deviance']:.8g}"
             cells.append(Text(text + " *", style="bold") if best.get(crit) == m else text)
+            diffs.append(
+                f"{0.0 - c['elpd_diff'] + 0.0:.6g} ± {c['se_diff']:.3g}" if "elpd_diff" in c else ""
+            )
         table.add_row("fit", f"{crit} (deviance)", "", *cells)
+        if any(diffs):
+            table.add_row("fit", f"{crit} elpd - best", "", *diffs)
     console.print(table)
     if not best.get("comparable_criteria", True):
         console.print(Text("warning: the fits compared different numbers of data points: "

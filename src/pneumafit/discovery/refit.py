@@ -582,7 +582,7 @@ def discover(
     seed: int = 0,
     rounds: int = 2,
     per_round: int = 3,
-    n_bootstrap: int = 100,
+    n_bootstrap: int = 60,
     max_nfev: int = REFIT_NFEV,
     log: Logger | None = None,
 ) -> Discovery:
@@ -686,9 +686,14 @@ def discover(
                 ok, reason = _accept(model, current)
                 say(f"  {cand.effect}: {reason} ({model.seconds:.1f} s)")
                 steps.append(Step(r, cand.effect, dict(start), model, ok, reason))
-                if ok or model.log_likelihood > current.log_likelihood:
-                    # kept, or converged somewhere better than the current
-                    # model: another start is not needed
+                if (
+                    ok
+                    or model.log_likelihood > current.log_likelihood
+                    or _vanishing(model, cand.effect)
+                ):
+                    # kept, converged somewhere better than the current model,
+                    # or the data drove the effect to nothing: another start
+                    # is not needed
                     break
             if ok:
                 passed.append((cand, model))

@@ -1,17 +1,23 @@
 """Attribution: which catalog effect the residual of a fit asks for.
 
 After a fit, the measured pressure of each chamber changes at a rate the
-fitted model does not give. For every ``fit`` recording with a moving or
-relaxing chamber (charge, discharge, step tests) this module forms the
+fitted model does not give. For every recording with a moving or relaxing
+chamber (charge, discharge, step tests; fit and validate: attribution only
+ranks, the refit uses the fit recordings) this module forms the
 *derivative-level residual*
 
-    r_X(t) = d/dt [P_X,measured - P_X,model](t)            (Pa/s)
+    r_X(t) = SG slope of P_X,measured - (dP_X/dt of the model at the measured state)  (Pa/s)
 
-(Savitzky-Golay slope over ``window``, :func:`~.phases.smoothed_rate`) along
-the fitted simulation, and regresses it on the *signature* of each catalog
-effect (:data:`~.catalog.EFFECTS`, docs/effects.md): the term the effect adds
-to dP_X/dt (paper eq. 9, docs/physics.md), evaluated along the fitted
-simulation and written so that its coefficient is the effect's own
+(:func:`model_rates`: the kernel's right-hand side at the measured
+pressures, position and velocity, the simulated gas temperatures, smoothed
+with the weights the Savitzky-Golay slope puts on a derivative), weights
+each row by the inverse of its expected spread (sensor noise, and the
+rate's sensitivity to the measured pressure), projects out what the base
+model's own valve and heat parameters could change (their rate
+sensitivities, Frisch-Waugh), and regresses the rest on the *signature* of
+each catalog effect (:data:`~.catalog.EFFECTS`, docs/effects.md): the term
+the effect adds to dP_X/dt (paper eq. 9, docs/physics.md), evaluated at the
+same state and written so that its coefficient is the effect's own
 parameter, in its SI unit:
 
 =====================  ==============================================  ===========================
@@ -49,8 +55,8 @@ probability* and a spread of its coefficient. Each effect's evidence:
 ``score = inclusion_probability * variance_explained * phase_match``; the
 candidates are ranked by it. A candidate is *supported* when its inclusion
 probability is at least :data:`MIN_INCLUSION` and it explains at least
-:data:`MIN_VARIANCE` of the residual rate; only supported candidates are
-refitted (:mod:`.refit`).
+:data:`MIN_VARIANCE` of the residual rate; supported candidates are
+refitted first (:mod:`.refit`).
 """
 
 from __future__ import annotations
@@ -154,10 +160,6 @@ class Rows:
     @property
     def n(self) -> int:
         return int(self.rate.size)
-
-
-def _smooth(values: NDArray[np.float64], width: int) -> NDArray[np.float64]:
-    return savgol_filter(values, width, 1, mode="interp") if width >= 3 else values
 
 
 def _rate(values: NDArray[np.float64], width: int, dt: float) -> NDArray[np.float64]:

@@ -33,16 +33,20 @@ def leak_run() -> RigRun:
 
 @pytest.fixture(scope="session")
 def discovery_cases(tmp_path_factory: pytest.TempPathFactory) -> object:
-    """``case(effect)``: the :class:`DiscoveryCase` of a hidden effect (None: none),
-    made on first use and kept for the session."""
-    from discovery_helpers import run_case
+    """``case(effect)``: the :class:`DiscoveryCase` of a hidden effect (None: none).
+
+    The first request makes every campaign of :data:`LOOP_CASES` at once, in
+    two processes (:func:`run_cases`); they are kept for the session.
+    """
+    from discovery_helpers import LOOP_CASES, run_cases
 
     root = tmp_path_factory.mktemp("discover")
     cache: dict[str | None, object] = {}
 
     def case(effect: str | None) -> object:
         if effect not in cache:
-            cache[effect] = run_case(root, effect)
+            wanted = [e for e in LOOP_CASES if e not in cache] if effect in LOOP_CASES else [effect]
+            cache.update(run_cases(root, wanted))
         return cache[effect]
 
     return case

@@ -16,7 +16,8 @@ SHA-256 of every file, as fit.json records them) with a known model, runs
   ``effect_parameters`` (name -> ``value``, ``unit``, ``std``,
   ``interval_90`` (Laplace), ``effect``), ``parameters_after`` (every
   model parameter, SI), ``unexplained`` and ``statement``,
-  ``noise_pressure``, ``campaign``, ``fit``, ``seed``, ``provenance``;
+  ``noise_pressure``, ``campaign``, ``fit``, ``seed``, ``provenance``,
+  ``figures`` (file names of the figures beside it);
 - ``OUT/discovery.md``: the report section (tables and figures);
 - ``OUT/residuals_before.png``, ``OUT/residuals_after.png``: pressure
   residuals of every charge, discharge and step recording against the base
@@ -442,6 +443,7 @@ def write_report(
         if path is not None:
             written.append(path)
             figs.append(path.name)
+    doc = {**doc, "figures": figs}
     md = out / "discovery.md"
     write_text_atomic(md, _markdown(doc, figs))
     js = out / "discovery.json"

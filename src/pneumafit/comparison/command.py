@@ -166,7 +166,7 @@ def compare_command(
         _check_int("--walkers", walkers, 2 * MAX_SAMPLED),
         _check_int("--steps", steps, 1),
         _check_int("--seed", seed, 0),
-        _check_int("--draws", draws, 4),
+        _check_int("draws", draws, 4),
     ]
     if out.exists() and not out.is_dir():
         problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")

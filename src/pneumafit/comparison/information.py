@@ -6,10 +6,12 @@ each conditional on the other groups at the joint estimate
 (docs/identification.md). :func:`posterior_criteria`:
 
 1. takes ``n_draws`` draws of each group from the second half of its chain
-   (seeded, without replacement; the fit's own burn-in of 3 tau is too short
-   after the wide initial ensemble: on the demo, walkers were still hundreds
-   to thousands of log-units below the mode at steps 55 (heat) and 232
-   (friction) against discards of 24 and 55), and pairs the k-th draws of
+   and never before the fit's own burn-in (seeded, without replacement; a
+   burn-in of 3 tau alone was too short after the wide initial ensemble: in
+   demo fits made with it, walkers were still hundreds to thousands of
+   log-units below the mode at steps 55 (heat) and 232 (friction) against
+   discards of 24 and 55; the second half is safe whatever the fit's rule),
+   and pairs the k-th draws of
    the groups into one parameter set (the groups taken as independent a
    posteriori; the unsampled groups, e.g. the valve, at the joint estimate);
 2. evaluates them on the likelihood of the fit's MCMC stages (every ``fit``

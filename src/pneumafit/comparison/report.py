@@ -53,7 +53,7 @@ from rich.text import Text
 
 from pneumafit.campaign.model import Campaign
 from pneumafit.comparison.evaluate import ModelEvaluation
-from pneumafit.identification.fitfile import _clean, _version
+from pneumafit.identification.fitfile import _version, json_safe
 
 __all__ = ["COMPARISON_FORMAT", "COMPARISON_VERSION", "comparison_document", "print_table"]
 
@@ -220,7 +220,7 @@ def comparison_document(
         "command": command,
         "seconds": seconds,
     }
-    return _clean(doc)
+    return json_safe(doc)
 
 
 def _ordered(

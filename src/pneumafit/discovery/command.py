@@ -49,6 +49,7 @@ from pneumafit.discovery.attribution import simulate_recording
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, discover
 from pneumafit.fileio import atomic_path, write_text_atomic
+from pneumafit.identification.fitfile import json_safe
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
 
@@ -65,24 +66,6 @@ DISCOVERY_FORMAT = "pneumafit-discovery"
 DISCOVERY_VERSION = 1
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FIT_FILE = "fit.json"
-
-
-def _clean(obj: Any) -> Any:
-    """JSON-safe copy: numpy scalars to Python, non-finite floats to None."""
-    if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, np.bool_ | bool):
-        return bool(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        x = float(obj)
-        return x if math.isfinite(x) else None
-    return obj
 
 
 # ----------------------------------------------------------------- input
@@ -246,7 +229,7 @@ def discovery_document(
             "seconds": result.seconds,
         },
     }
-    return _clean(doc)
+    return json_safe(doc)
 
 
 # ----------------------------------------------------------------- report

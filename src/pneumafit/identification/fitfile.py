@@ -62,14 +62,20 @@ def _version() -> str:
         return "unknown"
 
 
-def _clean(obj: Any) -> Any:
-    """JSON-safe copy: numpy scalars to Python, non-finite floats to None."""
+def json_safe(obj: Any) -> Any:
+    """JSON-safe copy: numpy scalars and arrays to Python, non-finite floats to None.
+
+    Mappings get string keys; tuples become lists. Used for every JSON
+    document pneumafit writes (fit.json, discovery.json).
+    """
     if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
+        return {str(k): json_safe(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
+        return [json_safe(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
+        return json_safe(obj.tolist())
+    if isinstance(obj, np.bool_ | bool):
+        return bool(obj)
     if isinstance(obj, np.integer):
         return int(obj)
     if isinstance(obj, float | np.floating):
@@ -187,7 +193,7 @@ def fit_document(
             "evaluations": result.evaluations,
         },
     }
-    return _clean(doc)
+    return json_safe(doc)
 
 
 def _options(options: FitOptions | None) -> dict[str, Any] | None:

@@ -570,6 +570,90 @@ def _brief(est: PointEstimate, names: Sequence[str]) -> str:
     return ", ".join(f"{n} {est.parameters[n].value:.4g}" for n in names if n in est.parameters)
 
 
+#: Channels of the RMSE metrics (every sample of every recording).
+RMSE_CHANNELS = ("p_P", "p_N", "y", "T_P", "T_N", "qm_P", "qm_N")
+
+
+def replay_rmse(
+    campaign: Campaign,
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    *,
+    max_step: float | None = MAX_STEP,
+    lag: float | None = None,
+    estimate_lag: bool = True,
+    remove_offsets: bool = False,
+) -> tuple[dict[str, dict[str, float]], float | None]:
+    """RMSE per role and channel on every sample (SI), as fit.json's ``metrics.rmse``.
+
+    Fit recordings start from their fitted initial states (``initial:...``
+    entries of ``values``), the others from the data; no sensor offset is
+    removed; the fixed-step solver is corrected at ``values``; temperatures
+    are compared after the first-order sensor lag.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    structure : ModelStructure
+    values : mapping of str to float
+        Model parameters and initial states by name (SI).
+    max_step : float or None
+        Largest integration step (s).
+    lag : float, optional
+        Temperature sensor lag (s); default ``values["temperature_sensor_lag"]``.
+    estimate_lag : bool
+        Without a lag, fit one to the first role's temperatures (else compare
+        temperatures without lag).
+    remove_offsets : bool
+        Remove the mean of each recording's pressure residual first (the
+        sensor offset the fit profiles per recording): what is left is the
+        model's misfit plus the sensor noise.
+
+    Returns
+    -------
+    rmse : dict
+        ``{role: {channel: RMSE}}``.
+    lag : float or None
+        The temperature sensor lag used (s).
+    """
+    lag = values.get("temperature_sensor_lag", lag)
+    rmse: dict[str, dict[str, float]] = {}
+    for role in ("fit", "validate"):
+        recs = campaign.by_role(role)
+        rmse[role] = {}
+        if not recs:
+            continue
+        try:
+            # every sample: no rest averaging, no flow-level means
+            prob = Problem(
+                recs, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
+                initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
+            )  # fmt: skip
+        except ValueError:
+            continue
+        # fitted initial states (fit recordings), estimated from the data otherwise
+        initial = {n: np.array([values[n]]) for n in prob.initial_parameters if n in values}
+        prob.correct_solver({**values})
+        pred = prob.predict(initial, 1)
+        raws = prob.raw_residuals(pred)
+        if lag is None and estimate_lag:
+            lag = _sensor_lag(prob, pred)
+        sums: dict[str, list[float]] = {}
+        for o, r, b in zip(prob.observations, raws, pred.blocks, strict=True):
+            res = r[0]
+            if o.quantity == "temperature" and lag:
+                res = o.data - first_order_lag(b[0], o.time, lag)
+            if not np.all(np.isfinite(res)):
+                continue
+            if remove_offsets and o.quantity == "pressure":
+                res = res - np.mean(res)
+            acc = sums.setdefault(o.channel, [0.0, 0.0])
+            acc[0] += float(np.sum(res * res))
+            acc[1] += res.size
+        rmse[role] = {c: math.sqrt(s / n) for c, (s, n) in sums.items() if n > 0}
+    return rmse, lag
+
+
 def _metrics(
     campaign: Campaign,
     structure: ModelStructure,
@@ -582,40 +666,7 @@ def _metrics(
     n_data = joint_problem.n_data
     k = est.parameters.n_free + joint_problem.n_noise_parameters
     ll = est.log_likelihood
-    channels = ("p_P", "p_N", "y", "T_P", "T_N", "qm_P", "qm_N")
-    lag = values.get("temperature_sensor_lag")
-    rmse: dict[str, dict[str, float]] = {}
-    for role in ("fit", "validate"):
-        recs = campaign.by_role(role)
-        rmse[role] = {}
-        if not recs:
-            continue
-        try:
-            # every sample: no rest averaging, no flow-level means
-            prob = Problem(
-                recs, structure, values, channels=channels, max_step=options.max_step,
-                initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
-            )  # fmt: skip
-        except ValueError:
-            continue
-        # fitted initial states (fit recordings), estimated from the data otherwise
-        initial = {n: np.array([values[n]]) for n in prob.initial_parameters if n in values}
-        prob.correct_solver({**values})
-        pred = prob.predict(initial, 1)
-        raws = prob.raw_residuals(pred)
-        if lag is None:
-            lag = _sensor_lag(prob, pred)
-        sums: dict[str, list[float]] = {}
-        for o, r, b in zip(prob.observations, raws, pred.blocks, strict=True):
-            res = r[0]
-            if o.quantity == "temperature" and lag:
-                res = o.data - first_order_lag(b[0], o.time, lag)
-            if not np.all(np.isfinite(res)):
-                continue
-            acc = sums.setdefault(o.channel, [0.0, 0.0])
-            acc[0] += float(np.sum(res * res))
-            acc[1] += res.size
-        rmse[role] = {c: math.sqrt(s / n) for c, (s, n) in sums.items() if n > 0}
+    rmse, lag = replay_rmse(campaign, structure, values, max_step=options.max_step)
     return {
         "rmse": rmse,
         "log_likelihood": _finite(ll),

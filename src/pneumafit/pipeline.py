@@ -180,8 +180,15 @@ def run(
 
     try:
         fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings)
+        for model, file in fit_files.items():  # fit times, for the report
+            seconds = timings.get(f"fit {model}")
+            if seconds:
+                book.mark(f"fit {model}", book.fingerprint(campaign, [file]), seconds)
         conv = fit_files["convection"]
         _analyses(campaign, path, out, console, seed, fit_files, stage)
+        # the summary first: the report shows the stages and their times
+        _summary(out, campaign, path, timings, started, conv_fit=conv)
+        _report(out, path, fit_files, console, stage)
     except StageFailed as exc:
         console.print(f"[red]{exc}; the finished stages are kept and reused next time[/red]")
         _summary(out, campaign, path, timings, started, failed=exc.stage)
@@ -273,6 +280,11 @@ def _analyses(
     stage("export", [conv, lambda_file],
           [out / "export" / f for f in EXPORT_FORMATS.values()], export)  # fmt: skip
 
+
+def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,
+            stage: Callable[..., None]) -> None:  # fmt: skip
+    """The validation report, from every stage's outputs (and summary.json)."""
+
     def report() -> int:
         from pneumafit.outputs.report import write_report
 
@@ -281,7 +293,7 @@ def _analyses(
 
     # the report reads every stage's outputs: any change rebuilds it
     report_inputs = [
-        *all_fits,
+        *(fits[m] for m in RUN_MODELS),
         out / "comparison" / "comparison.json",
         out / "discovery" / "discovery.json",
         out / "linear" / "linear.json",

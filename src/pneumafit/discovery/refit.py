@@ -59,9 +59,13 @@ from pneumafit.discovery.attribution import (
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares
-from pneumafit.identification.parameters import Parameter, ParameterSet
+from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import MAX_STEP, Problem
-from pneumafit.identification.staged import DEFAULT_CHANNELS, replay_rmse
+from pneumafit.identification.staged import (
+    DEFAULT_CHANNELS,
+    replay_rmse,
+    with_initial_states,
+)
 from pneumafit.models.structure import ModelStructure
 
 __all__ = [
@@ -343,19 +347,7 @@ def _parameter_set(
             effect_free.append(pname)
     known = {k: v for k, v in values.items() if k in ps}
     ps = ps.with_values(known).only_free([*free, *effect_free])
-    for name, (_i, state, default, unit) in problem.initial_parameters.items():
-        v = float(values.get(name, default))
-        if state.startswith("T"):
-            lo, hi = v - 40.0, v + 80.0
-        elif state == "y":
-            lo, hi = v - 2e-3, v + 2e-3
-        else:
-            lo, hi = 0.5 * v, 1.5 * v
-        ps = ps.add(
-            Parameter(name, v, unit, lo, hi, fixed=False, group="initial",
-                      description=f"initial {state}")
-        )  # fmt: skip
-    return ps
+    return with_initial_states(ps, problem, values, free=True)
 
 
 def rmse(

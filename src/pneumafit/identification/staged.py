@@ -316,10 +316,15 @@ def _problem(
     )  # fmt: skip
 
 
-def _with_initial(
+def with_initial_states(
     parameters: ParameterSet, problem: Problem, values: Mapping[str, float], free: bool
 ) -> ParameterSet:
-    """Add the problem's initial states as parameters (group ``initial``)."""
+    """Add the problem's initial states as parameters (group ``initial``).
+
+    Bounds: gas temperatures -40/+80 K, position +-2 mm, pressures x0.5..1.5
+    around the value in ``values`` (else the problem's data-based default).
+    ``free`` makes them free parameters (else fixed at that value).
+    """
     out = parameters
     for name, (_i, state, default, unit) in problem.initial_parameters.items():
         v = float(values.get(name, default))
@@ -426,8 +431,8 @@ def identify(
         nonlocal params, evaluations
         t0 = time.perf_counter()
         prob = _problem(recs, structure, values, opts, initial_nuisance=not explicit_initial)
-        params = _with_initial(params, prob, values, free=False)
-        ps = _with_initial(
+        params = with_initial_states(params, prob, values, free=False)
+        ps = with_initial_states(
             params.with_values(values).only_free(free), prob, values, free=explicit_initial
         )
         if not explicit_initial:
@@ -492,7 +497,7 @@ def identify(
         # defect correction of the fixed-step solver, then refit from the estimate
         t0 = time.perf_counter()
         worst = joint_problem.correct_solver(values)
-        ps = _with_initial(
+        ps = with_initial_states(
             params.with_values(values).only_free(joint_free), joint_problem, values, True
         )
         est2 = _least_squares(joint_problem, ps, [dict(values)], seeds[3], 0, JOINT_NFEV)
@@ -529,7 +534,8 @@ def identify(
             prob.linearize(values)
             if opts.correct_solver:
                 prob.correct_solver(values)
-            ps = _with_initial(laplace.with_values(values).only_free(free), prob, values, False)
+            held = laplace.with_values(values).only_free(free)
+            ps = with_initial_states(held, prob, values, False)
             post = LogPosterior(LogLikelihood(prob, ps))
             # a wide initial ensemble, not the Laplace ellipse (see run_mcmc)
             cov = None

@@ -64,12 +64,10 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
 
 
 def test_a_second_run_reuses_every_stage(finished_run: tuple) -> None:
-    campaign, out, _, first = finished_run
+    campaign, out, _, _ = finished_run
     before = {p: p.stat().st_mtime_ns for p in out.rglob("*.json")}
     console = _console()
-    t0 = time.perf_counter()
     assert run_pipeline(campaign, out, console, mcmc=False) == 0
-    second = time.perf_counter() - t0
     log = console.file.getvalue()
     for model in RUN_MODELS:
         assert f"fit {model}: reused" in log
@@ -78,7 +76,6 @@ def test_a_second_run_reuses_every_stage(finished_run: tuple) -> None:
     # nothing but the run's own bookkeeping was rewritten
     changed = [p.name for p, t in before.items() if p.stat().st_mtime_ns != t]
     assert set(changed) <= {"summary.json"}, changed
-    assert second < 0.5 * first
 
 
 def test_a_changed_fit_reruns_the_stages_that_read_it(finished_run: tuple, tmp_path: Path) -> None:

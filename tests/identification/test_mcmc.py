@@ -103,3 +103,23 @@ def test_bad_settings_are_refused() -> None:
         run_mcmc(gaussian, params(), MEAN, COV, n_walkers=3, n_steps=10)
     with pytest.raises(ValueError, match="steps"):
         run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=0)
+
+
+def test_laplace_covariance_survives_mixed_units() -> None:
+    """The internal coordinates mix pascals and logarithms: J^T J's diagonal
+    spans many decades. The covariance is the equilibrated pseudo-inverse,
+    equal to the exact inverse; a plain pinv with a relative cut-off drops the
+    small-diagonal direction as if it were known (too narrow intervals)."""
+    from pneumafit.identification.optimise import _laplace
+
+    rng = np.random.default_rng(0)
+    base = rng.standard_normal((400, 3))
+    base[:, 2] = base[:, 0] + 0.05 * base[:, 2]  # correlated, well-posed once scaled
+    scale = np.array([1.0e4, 1.0, 2.0e-3])  # e.g. a log friction, a K, a Pa coordinate
+    jac = base * scale
+    exact = np.linalg.inv(jac.T @ jac)
+    cov = _laplace(jac)
+    assert cov is not None
+    np.testing.assert_allclose(cov, exact, rtol=1e-6)
+    naive = np.linalg.pinv(jac.T @ jac, rcond=1e-12, hermitian=True)
+    assert np.sqrt(naive[0, 0] / exact[0, 0]) < 0.2  # what the old code reported

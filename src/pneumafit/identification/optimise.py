@@ -262,11 +262,29 @@ def fit_least_squares(
     )  # fmt: skip
 
 
+def equilibrated_pinv(matrix: NDArray[np.float64], rcond: float = 1e-12) -> NDArray[np.float64]:
+    """Pseudo-inverse of a symmetric positive semi-definite matrix, equilibrated.
+
+    ``D pinv(D M D) D`` with ``D = diag(M)^-1/2`` (zero where the diagonal
+    is zero). The internal coordinates mix pascals, kelvins and logarithms,
+    so the diagonal of J^T J spans ~14 decades: a plain ``pinv`` with a
+    relative cut-off then discards the directions of the small-diagonal
+    coordinates (the initial pressures) as if they were exactly known, and
+    every parameter correlated with them gets too narrow an interval
+    (friction on the test campaigns: 1.3-1.8 times too narrow). Scaled to a
+    unit diagonal the same matrix has a condition number ~1e3.
+    """
+    m = 0.5 * (matrix + matrix.T)
+    diag = np.diag(m)
+    d = np.where(diag > 0.0, 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0)), 0.0)
+    inner = np.linalg.pinv(d[:, None] * m * d[None, :], rcond=rcond, hermitian=True)
+    return d[:, None] * inner * d[None, :]
+
+
 def _laplace(jac: NDArray[np.float64]) -> NDArray[np.float64] | None:
     if not np.all(np.isfinite(jac)):
         return None
-    h = jac.T @ jac
-    return np.linalg.pinv(h, rcond=1e-12, hermitian=True)
+    return equilibrated_pinv(jac.T @ jac)
 
 
 def laplace_summary(

@@ -38,6 +38,7 @@ import emcee
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.identification.optimise import equilibrated_pinv
 from pneumafit.identification.parameters import ParameterSet
 
 __all__ = [
@@ -463,7 +464,7 @@ def propagate(
         return result.parameters, kept
     s_hv = covariance[np.ix_(h, v)]
     s_vv = covariance[np.ix_(v, v)]
-    a = s_hv @ np.linalg.pinv(s_vv, hermitian=True)
+    a = s_hv @ equilibrated_pinv(s_vv)
     extra = a @ s_vv @ a.T
     w, vecs = np.linalg.eigh(0.5 * (extra + extra.T))
     root = vecs * np.sqrt(np.clip(w, 0.0, None))

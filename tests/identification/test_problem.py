@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pneumafit.campaign import Campaign
+from pneumafit.campaign import Campaign, Recording
 from pneumafit.identification import (
     LogLikelihood,
     LogPosterior,
@@ -105,6 +105,28 @@ def test_rest_blocks_and_flow_levels_are_averaged(small: tuple) -> None:
         np.zeros((1, 0))
     )
     assert np.all(np.isfinite(ev.blocks))
+
+
+def test_rest_blocks_are_centred_on_their_compared_sample(small: tuple) -> None:
+    """Each rest block's data mean is compared with the model at the block's
+    centre sample, so a block holds an odd number of samples around it (an
+    even block is centred half a sample off: ~100 Pa on the slope after a
+    charge, which biased xi by 1.5 sd). A linear ramp's block means then equal
+    the ramp at the compared times."""
+    _, campaign, truth = small
+    rec = next(r for r in campaign.by_role("fit") if r.kind == "charge")
+    prob = Problem([rec], STRUCTURE, truth, channels=(f"p_{rec.chamber}",))
+    obs = prob.observations[0]
+    assert obs.weight is not None
+    counts = np.round(obs.weight**2).astype(int)
+    assert np.all(counts % 2 == 1) and counts.max() > 1
+    ramp = 1.0e5 + 3.0e5 * rec.time
+    ramped = Recording.from_arrays(
+        rec.time, {**rec.channels, f"p_{rec.chamber}": ramp}, kind=rec.kind, role=rec.role,
+        file=rec.file, chamber=rec.chamber, piston_position=rec.piston_position,
+    )  # fmt: skip
+    obs2 = Problem([ramped], STRUCTURE, truth, channels=(f"p_{rec.chamber}",)).observations[0]
+    np.testing.assert_allclose(obs2.data, 1.0e5 + 3.0e5 * obs2.time, rtol=0, atol=1e-6)
 
 
 def test_initial_states_are_parameters(small: tuple) -> None:

@@ -6,18 +6,24 @@ noise, per-sensor pressure offsets, a 10-um position encoder, slow
 temperature sensors, gas warmer than the wall at the start of step tests).
 The campaigns are the small protocol of conftest.py (2.5-s tests).
 
-Not tested here, because it does not hold yet: that the 90 % intervals
-contain the truth for each seed. Measured over seeds 1, 2, 4-7 (MCMC):
-friction_static 6/6, friction_viscous 5/6, friction_coulomb 4/6, xi, beta
-and stribeck_velocity 3/6 (docs/identification.md, Limitations).
+Calibration is tested the way it can be honestly tested: over the first six
+seeds, the squared Mahalanobis distances of the heat (xi, beta) and friction
+estimates from the truth under the reported covariance, summed over seeds,
+must stay below the 99th percentile of their chi-square distribution, and no
+seed may exceed the 99.9th. Requiring every 90 % interval to contain the
+truth for every seed is not a criterion a calibrated method meets: with six
+parameters (two strongly correlated pairs) that happens for one seed about
+two times in three, for all of six seeds less than one time in ten.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from pneumafit.identification import FitOptions, identify
+from pneumafit.identification.optimise import equilibrated_pinv
 
 CHECKED = ("xi", "beta", "friction_static", "friction_coulomb", "friction_viscous",
            "stribeck_velocity")  # fmt: skip
@@ -68,3 +74,73 @@ def test_other_structures_converge_on_the_same_data(small: tuple, model: str) ->
     # friction stays near the truth with the simpler heat laws (within 5 %)
     for name in ("friction_static", "friction_coulomb"):
         assert result.parameters[name].value == pytest.approx(truth[name], rel=0.05)
+
+
+#: Seeds of the calibration test: the first six, declared before looking.
+CALIBRATION_SEEDS = (1, 2, 3, 4, 5, 6)
+#: Parameter blocks whose joint calibration is tested.
+BLOCKS = {
+    "heat": ("xi", "beta"),
+    "friction": ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity"),
+}
+
+
+@pytest.mark.slow
+def test_intervals_are_calibrated_across_seeds(
+    campaign_factory: object, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    """Joint fits (Laplace covariance, no MCMC: ~20 s each) of six campaigns.
+
+    Measured (2026-11-21): heat 16.3 against a 99th percentile of 26.2,
+    friction 32.5 against 43.0. Before the covariance was equilibrated and
+    the rest blocks centred, friction was ~2x overconfident and xi/beta
+    biased by 1.5 sd, and this test failed. The Stribeck velocity still
+    comes out about one sd low on 7 seeds in 8 (docs/identification.md,
+    Limitations): small enough to pass here, and not hidden.
+    """
+    total = dict.fromkeys(BLOCKS, 0.0)
+    per_seed: list[dict[str, float]] = []
+    for seed in CALIBRATION_SEEDS:
+        folder = tmp_path_factory.mktemp(f"calibration{seed}")
+        campaign, truth = campaign_factory(folder, seed)  # type: ignore[operator]
+        result = identify(campaign, "convection", options=FitOptions(mcmc=False), seed=0)
+        est = result.stage("joint").estimate
+        assert est is not None and est.covariance is not None
+        names = est.parameters.free_names
+        row = {}
+        for block, members in BLOCKS.items():
+            idx = [names.index(n) for n in members]
+            dz = np.array(
+                [
+                    est.z[i] - est.parameters[n].to_internal(truth[n])
+                    for i, n in zip(idx, members, strict=True)
+                ]
+            )
+            d2 = float(dz @ equilibrated_pinv(est.covariance[np.ix_(idx, idx)]) @ dz)
+            row[block] = d2
+            total[block] += d2
+        per_seed.append(row)
+    for block, members in BLOCKS.items():
+        k = len(members)
+        worst = max(r[block] for r in per_seed)
+        assert worst < stats.chi2.ppf(0.999, k), (block, per_seed)
+        limit = stats.chi2.ppf(0.99, k * len(CALIBRATION_SEEDS))
+        assert total[block] < limit, (block, total[block], limit, per_seed)
+
+
+def test_mcmc_intervals_agree_with_the_laplace_ones(small: tuple) -> None:
+    """Default MCMC on the shared campaign (seed 3, ~45 s): the sampled 90 %
+    intervals of heat and friction have the width of the calibrated Laplace
+    ones (within a factor 1.5: they include the other groups' uncertainty to
+    first order and the burn-in), and every estimate is within 3.3 of its
+    standard deviations of the truth. An ensemble stuck on one facet of the
+    stick-slip likelihood gave intervals 5-70 times too narrow."""
+    _, campaign, truth = small
+    result = identify(campaign, "convection", options=FitOptions(), seed=0)
+    for name in CHECKED:
+        p, lap = result.parameters[name], result.laplace[name]
+        assert p.uncertainty == "mcmc" and p.interval_90 is not None
+        width = p.interval_90[1] - p.interval_90[0]
+        lap_width = lap.interval_90[1] - lap.interval_90[0]
+        assert 1 / 1.5 < width / lap_width < 1.5, (name, width, lap_width)
+        assert abs(p.value - truth[name]) < 3.29 * width / (2 * 1.645), name

@@ -38,6 +38,13 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.commandline import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_OK,
+    folder_problem,
+    report_problems,
+)
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -51,10 +58,6 @@ __all__ = [
     "fit_many",
     "fit_many_command",
 ]
-
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_BAD_INPUT = 2
 
 
 @contextmanager
@@ -335,11 +338,8 @@ def fit_many_command(
                                  ("--seed", seed, 0)):  # fmt: skip
         if value is not None and value < least:
             problems.append(f"option {option}: expected an integer >= {least}, found {value!r}")
-    if Path(out).exists() and not Path(out).is_dir():
-        problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")
-    if problems:
-        for p in problems:
-            console.print(Text(p, style="bold red"))
+    problems.append(folder_problem(out))
+    if report_problems(console, problems):
         return EXIT_BAD_INPUT
     if workers is None and scheduler is None:
         workers = max(1, min(len(campaigns), os.cpu_count() or 1))

@@ -29,6 +29,7 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.commandline import folder_problem, report_problems
 from pneumafit.comparison.evaluate import ModelEvaluation, evaluate_fit, fit_values
 from pneumafit.comparison.figures import plot_recording
 from pneumafit.comparison.information import DEFAULT_DRAWS, differences, posterior_criteria
@@ -169,7 +170,7 @@ def compare_command(
         _check_int("draws", draws, 4),
     ]
     if out.exists() and not out.is_dir():
-        problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")
+        problems.append(folder_problem(out))
     camp = None
     try:
         camp = read_campaign(campaign)
@@ -198,10 +199,7 @@ def compare_command(
                 problems.append(mismatch)
                 continue
         given[model] = (file, document)
-    problems = [p for p in problems if p]
-    if problems or camp is None:
-        for p in problems:
-            console.print(Text(p, style="bold red"))
+    if report_problems(console, problems) or camp is None:
         return EXIT_BAD_INPUT
     try:
         out.mkdir(parents=True, exist_ok=True)

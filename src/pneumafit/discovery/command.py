@@ -45,6 +45,14 @@ from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
+from pneumafit.commandline import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    folder_problem,
+    report_problems,
+)
 from pneumafit.discovery.attribution import simulate_recording
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, discover
@@ -64,7 +72,6 @@ __all__ = [
 
 DISCOVERY_FORMAT = "pneumafit-discovery"
 DISCOVERY_VERSION = 1
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FIT_FILE = "fit.json"
 
 
@@ -474,11 +481,8 @@ def discover_command(
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             problems.append(f"option {name}: expected an integer >= {low}, found {value!r}")
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")
-    if problems:
-        for p in problems:
-            console.print(Text(p, style="bold red"))
+    problems.append(folder_problem(out))
+    if report_problems(console, problems):
         return EXIT_BAD_INPUT
     try:
         camp = read_campaign(campaign)

@@ -32,6 +32,14 @@ from rich.table import Table
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.commandline import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    folder_problem,
+    report_problems,
+)
 from pneumafit.identification.fitfile import _version, fit_document, write_fit_json
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
@@ -43,10 +51,6 @@ from pneumafit.models.structure import MODELS
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
 
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130
 
 FIT_FILE = "fit.json"
 CHAINS_FILE = "chains.h5"
@@ -138,12 +142,8 @@ def fit_command(
     if model not in MODELS:
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        problems.append(f"option --out {os.fspath(out)!r}: expected a folder, found a file")
-    problems = [p for p in problems if p]
-    if problems:
-        for p in problems:
-            console.print(Text(p, style="bold red"))
+    problems.append(folder_problem(out))
+    if report_problems(console, problems):
         return EXIT_BAD_INPUT
     try:
         camp = read_campaign(campaign)

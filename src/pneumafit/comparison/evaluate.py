@@ -45,6 +45,7 @@ from pneumafit.identification.problem import (
     QUANTITIES,
     Problem,
     first_order_lag,
+    fit_sensor_lag,
 )
 from pneumafit.identification.staged import fit_structure
 from pneumafit.models.structure import MODELS, ModelStructure
@@ -347,7 +348,7 @@ def evaluate_fit(
             if QUANTITIES[c] == "temperature" and status[0, i] == 0
         ]
         if temps and structure.heat != "polytropic":
-            lag = _best_lag(temps)
+            lag = fit_sensor_lag(temps)
     traces: list[RecordingTrace] = []
     for i, rec in enumerate(problem.recordings):
         sl = slice(offsets[i], offsets[i + 1])
@@ -371,19 +372,3 @@ def evaluate_fit(
                 trace.errors[c] = channel_error(d, pred)
         traces.append(trace)
     return ModelEvaluation(model, structure, traces, lag, lag_source if lag else "none", warnings)
-
-
-def _best_lag(blocks: list[tuple[Any, Any, Any]]) -> float | None:
-    """Sensor time constant (s) that best fits the temperatures.
-
-    The same bounded 1-D search over log(tau) in [1 ms, 10 s] as the
-    identification's ``_sensor_lag`` (which works on a Problem's blocks).
-    """
-    from scipy.optimize import minimize_scalar
-
-    def cost(log_tau: float) -> float:
-        tau = math.exp(log_tau)
-        return sum(float(np.sum((d - first_order_lag(p, t, tau)) ** 2)) for t, d, p in blocks)
-
-    sol = minimize_scalar(cost, bounds=(math.log(1e-3), math.log(10.0)), method="bounded")
-    return float(math.exp(sol.x))

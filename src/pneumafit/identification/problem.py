@@ -75,6 +75,7 @@ __all__ = [
     "Prediction",
     "Problem",
     "first_order_lag",
+    "fit_sensor_lag",
 ]
 
 #: Channels a problem can compare, and the quantity each measures.
@@ -167,6 +168,37 @@ def first_order_lag(
     y = np.empty_like(x2)
     _lag_kernel(np.ascontiguousarray(x2), np.asarray(time, dtype=float), tau, y)
     return y.reshape(x.shape)
+
+
+def fit_sensor_lag(
+    blocks: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
+) -> float | None:
+    """Time constant (s) of a first-order sensor that best fits its readings.
+
+    Parameters
+    ----------
+    blocks : sequence of (time, measured, simulated)
+        Sample times (s), readings and the simulated true signal, per block.
+
+    Returns
+    -------
+    float or None
+        The least-squares time constant, by a bounded 1-D search over
+        log(tau) in [1 ms, 10 s]; None without blocks.
+    """
+    from scipy.optimize import minimize_scalar
+
+    if not blocks:
+        return None
+
+    def cost(log_tau: float) -> float:
+        tau = math.exp(log_tau)
+        return sum(
+            float(np.sum((np.asarray(d) - first_order_lag(x, t, tau)) ** 2)) for t, d, x in blocks
+        )
+
+    sol = minimize_scalar(cost, bounds=(math.log(1e-3), math.log(10.0)), method="bounded")
+    return float(math.exp(sol.x))
 
 
 @dataclass(frozen=True)

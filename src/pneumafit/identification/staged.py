@@ -33,7 +33,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign, Recording
@@ -41,7 +40,12 @@ from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
 from pneumafit.identification.optimise import PointEstimate, fit_least_squares
 from pneumafit.identification.parameters import Parameter, ParameterSet
-from pneumafit.identification.problem import MAX_STEP, Problem, first_order_lag
+from pneumafit.identification.problem import (
+    MAX_STEP,
+    Problem,
+    first_order_lag,
+    fit_sensor_lag,
+)
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import friction_starts, heat_starts, valve_starts
 from pneumafit.models.structure import HEAT_PARAMETERS, MODELS, ModelStructure
@@ -685,20 +689,11 @@ def _metrics(
 
 
 def _sensor_lag(problem: Problem, pred: Any) -> float | None:
-    """Time constant (s) of the temperature sensors that best fits the data (1-D search)."""
-    blocks = [
-        (o, b[0])
-        for o, b in zip(problem.observations, pred.blocks, strict=True)
-        if o.quantity == "temperature" and np.all(np.isfinite(b[0]))
-    ]
-    if not blocks:
-        return None
-
-    def cost(log_tau: float) -> float:
-        tau = math.exp(log_tau)
-        return sum(
-            float(np.sum((o.data - first_order_lag(b, o.time, tau)) ** 2)) for o, b in blocks
-        )
-
-    sol = minimize_scalar(cost, bounds=(math.log(1e-3), math.log(10.0)), method="bounded")
-    return float(math.exp(sol.x))
+    """Time constant (s) of the temperature sensors that best fits the data."""
+    return fit_sensor_lag(
+        [
+            (o.time, o.data, b[0])
+            for o, b in zip(problem.observations, pred.blocks, strict=True)
+            if o.quantity == "temperature" and np.all(np.isfinite(b[0]))
+        ]
+    )

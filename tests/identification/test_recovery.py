@@ -59,7 +59,7 @@ def test_point_estimates_recover_the_truth(small: tuple) -> None:
 def test_other_structures_converge_on_the_same_data(small: tuple, model: str) -> None:
     """Both simpler structures converge (every stage's least squares ends on a
     termination test, finite likelihood). The polytropic joint fit takes
-    ~1000 iterations (~3 min): it cannot follow the thermal relaxation, and
+    ~2000 iterations (~5 min): it cannot follow the thermal relaxation, and
     k ends on its adiabatic bound 1.4 (the fast phases are adiabatic)."""
     _, campaign, truth = small
     result = identify(campaign, model, options=FitOptions(mcmc=False), seed=0)

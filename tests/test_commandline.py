@@ -7,7 +7,7 @@ from pathlib import Path
 
 from rich.console import Console
 
-from pneumafit.commandline import folder_problem, report_problems
+from pneumafit.commandline import folder_problem, int_problem, report_problems
 
 
 def test_every_problem_is_one_line_and_none_is_skipped(tmp_path: Path) -> None:
@@ -23,3 +23,12 @@ def test_every_problem_is_one_line_and_none_is_skipped(tmp_path: Path) -> None:
     ]
     assert folder_problem(tmp_path) is None and folder_problem(tmp_path / "new") is None
     assert not report_problems(console, [None, None])
+
+
+def test_integer_options_are_checked_and_defaults_pass() -> None:
+    assert int_problem("--steps", None, 1) is None
+    assert int_problem("--steps", 1, 1) is None
+    for bad in (0, True, 2.0, "3"):
+        assert int_problem("--steps", bad, 1) == (
+            f"option --steps: expected an integer >= 1, found {bad!r}"
+        )

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 from rich.text import Text
@@ -21,6 +22,7 @@ __all__ = [
     "EXIT_INTERRUPTED",
     "EXIT_OK",
     "folder_problem",
+    "int_problem",
     "report_problems",
 ]
 
@@ -35,6 +37,18 @@ def folder_problem(path: str | os.PathLike[str], option: str = "--out") -> str |
     p = Path(path)
     if p.exists() and not p.is_dir():
         return f"option {option} {os.fspath(path)!r}: expected a folder, found a file"
+    return None
+
+
+def int_problem(option: str, value: Any, minimum: int) -> str | None:
+    """The problem of an integer option below ``minimum`` (or not an integer), or None.
+
+    None (an option left at its default) is not a problem.
+    """
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        return f"option {option}: expected an integer >= {minimum}, found {value!r}"
     return None
 
 

@@ -43,6 +43,7 @@ from pneumafit.commandline import (
     EXIT_FAILED,
     EXIT_OK,
     folder_problem,
+    int_problem,
     report_problems,
 )
 
@@ -334,10 +335,8 @@ def fit_many_command(
         problems.append(str(exc))
     if model not in MODELS:
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
-    for option, value, least in (("--walkers", walkers, 1), ("--steps", steps, 1),
-                                 ("--seed", seed, 0)):  # fmt: skip
-        if value is not None and value < least:
-            problems.append(f"option {option}: expected an integer >= {least}, found {value!r}")
+    problems += [int_problem("--walkers", walkers, 1), int_problem("--steps", steps, 1),
+                 int_problem("--seed", seed, 0)]  # fmt: skip
     problems.append(folder_problem(out))
     if report_problems(console, problems):
         return EXIT_BAD_INPUT

@@ -41,6 +41,7 @@ from rich.console import Console
 
 from pneumafit import __version__
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
+from pneumafit.commandline import EXIT_BAD_INPUT, folder_problem, report_problems
 from pneumafit.fileio import write_text_atomic
 
 #: The bundled demo campaign (a virtual-rig recording of a rig like the paper's).
@@ -156,9 +157,8 @@ def run(
         return status
     campaign = read_campaign(path)
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        console.print(f"[red]option --out {str(out)!r}: expected a folder, found a file[/red]")
-        return 2
+    if report_problems(console, [folder_problem(out)]):
+        return EXIT_BAD_INPUT
     out.mkdir(parents=True, exist_ok=True)
     book = StageBook(out)
     timings: dict[str, float] = {}

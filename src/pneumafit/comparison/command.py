@@ -29,7 +29,7 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import folder_problem, report_problems
+from pneumafit.commandline import folder_problem, int_problem, report_problems
 from pneumafit.comparison.evaluate import ModelEvaluation, evaluate_fit, fit_values
 from pneumafit.comparison.figures import plot_recording
 from pneumafit.comparison.information import DEFAULT_DRAWS, differences, posterior_criteria
@@ -113,14 +113,6 @@ def _same_campaign(file: Path, document: dict[str, Any], sha256: dict[str, str],
     )
 
 
-def _check_int(name: str, value: Any, minimum: int) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        return f"option {name}: expected an integer >= {minimum}, found {value!r}"
-    return ""
-
-
 def compare_command(
     campaign: Path,
     out: Path,
@@ -164,13 +156,12 @@ def compare_command(
     t_start = time.perf_counter()
     out = Path(out)
     problems = [
-        _check_int("--walkers", walkers, 2 * MAX_SAMPLED),
-        _check_int("--steps", steps, 1),
-        _check_int("--seed", seed, 0),
-        _check_int("draws", draws, 4),
+        int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
+        int_problem("--steps", steps, 1),
+        int_problem("--seed", seed, 0),
+        int_problem("draws", draws, 4),
     ]
-    if out.exists() and not out.is_dir():
-        problems.append(folder_problem(out))
+    problems.append(folder_problem(out))
     camp = None
     try:
         camp = read_campaign(campaign)

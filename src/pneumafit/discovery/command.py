@@ -51,6 +51,7 @@ from pneumafit.commandline import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     folder_problem,
+    int_problem,
     report_problems,
 )
 from pneumafit.discovery.attribution import simulate_recording
@@ -475,11 +476,11 @@ def discover_command(
     """
     from pneumafit.campaign import read_campaign
 
-    problems = []
-    for name, value, low in (("--seed", seed, 0), ("--rounds", rounds, 1),
-                             ("--per-round", per_round, 1)):  # fmt: skip
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            problems.append(f"option {name}: expected an integer >= {low}, found {value!r}")
+    problems = [
+        int_problem("--seed", seed, 0),
+        int_problem("--rounds", rounds, 1),
+        int_problem("--per-round", per_round, 1),
+    ]
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):

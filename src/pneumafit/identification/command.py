@@ -38,6 +38,7 @@ from pneumafit.commandline import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     folder_problem,
+    int_problem,
     report_problems,
 )
 from pneumafit.identification.fitfile import _version, fit_document, write_fit_json
@@ -68,14 +69,6 @@ def _fingerprint(
         sort_keys=True,
     )  # fmt: skip
     return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _check_int(name: str, value: Any, minimum: int) -> str | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        return f"option {name}: expected an integer >= {minimum}, found {value!r}"
-    return None
 
 
 def _prepare_partial(partial: Path, fingerprint: str, console: Console) -> None:
@@ -135,9 +128,9 @@ def fit_command(
     from pneumafit.campaign import read_campaign
 
     problems = [
-        _check_int("--walkers", walkers, 2 * MAX_SAMPLED),
-        _check_int("--steps", steps, 1),
-        _check_int("--seed", seed, 0),
+        int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
+        int_problem("--steps", steps, 1),
+        int_problem("--seed", seed, 0),
     ]
     if model not in MODELS:
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")

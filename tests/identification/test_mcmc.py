@@ -125,3 +125,41 @@ def test_laplace_covariance_survives_mixed_units() -> None:
     naive = np.linalg.pinv(jac.T @ jac, rcond=1e-12, hermitian=True)
     # what the old code reported: sd 0.05 of the true one here
     assert np.sqrt(naive[0, 0] / exact[0, 0]) < 0.2
+
+
+def test_short_chain_is_extended_until_50_tau_and_resumes(tmp_path: Path) -> None:
+    """A 30-step chain (far below 50 tau) is extended in rounds up to its
+    limit; interrupted during the extension, it resumes to the same chain."""
+    full = run_mcmc(
+        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3, max_steps=600,
+        backend=tmp_path / "full.h5", name="stage",
+    )  # fmt: skip
+    assert full.n_steps > 30  # extended
+    assert full.n_steps <= 600
+    # it stops at the first round that reaches 50 tau and R-hat <= 1.01, or at the limit
+    converged = full.tau_multiple >= 50 and max(full.rhat.values()) <= 1.01
+    assert converged or full.n_steps == 600
+    calls = 0
+
+    def flaky(z: np.ndarray) -> np.ndarray:
+        nonlocal calls
+        calls += 1
+        if calls == 100:  # inside the extension rounds
+            raise Interrupt
+        return gaussian(z)
+
+    path = tmp_path / "cut.h5"
+    with pytest.raises(Interrupt):
+        run_mcmc(flaky, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3, max_steps=600,
+                 backend=path, name="stage")  # fmt: skip
+    resumed = run_mcmc(
+        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3, max_steps=600,
+        backend=path, name="stage",
+    )  # fmt: skip
+    assert resumed.n_steps == full.n_steps
+    assert np.array_equal(resumed.chain, full.chain)
+
+
+def test_without_a_limit_the_chain_has_exactly_its_steps() -> None:
+    run = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3)
+    assert run.n_steps == 30

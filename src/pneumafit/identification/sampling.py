@@ -52,6 +52,8 @@ __all__ = [
 
 #: A kept chain shorter than this many autocorrelation times gets a warning.
 MIN_TAU_MULTIPLE = 50.0
+#: Largest R-hat of a converged chain (walkers as chains).
+MAX_RHAT = 1.01
 #: Standard deviation of the initial ensemble without a covariance, as a
 #: fraction of each internal coordinate's range (1.4 % of the value for a
 #: log-scale parameter spanning six decades).
@@ -206,6 +208,8 @@ def run_mcmc(
     name: str = "mcmc",
     progress: bool | str = False,
     moves: Any = None,
+    max_steps: int | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> MCMCResult:
     """Sample a log posterior with emcee; resume a stored run when possible.
 
@@ -237,6 +241,14 @@ def run_mcmc(
         emcee's tqdm progress bar.
     moves : optional
         emcee moves (default :func:`default_moves`).
+    max_steps : int, optional
+        Extend the chain, in rounds of half ``n_steps``, while it is shorter
+        than :data:`MIN_TAU_MULTIPLE` tau or an R-hat exceeds
+        :data:`MAX_RHAT`, up to ``max_steps`` steps in all (None: exactly
+        ``n_steps``). The decisions depend on the stored chain only, so an
+        interrupted extension resumes to the same chain.
+    log : callable, optional
+        Receives one line per extension.
 
     Returns
     -------
@@ -281,26 +293,42 @@ def run_mcmc(
         n_walkers, n_free, counted, vectorize=True, backend=store,
         moves=default_moves() if moves is None else moves,
     )  # fmt: skip
-    remaining = n_steps - done
-    if remaining > 0:
-        if done == 0:
-            lower, upper = parameters.internal_bounds()
-            rng = np.random.default_rng(seed)
-            walkers = _initial_walkers(
-                counted, np.asarray(start, float), covariance, n_walkers, rng, lower, upper
+    target = n_steps
+    limit = max(n_steps, int(max_steps or n_steps))
+    while True:
+        have = int(store.iteration) if store.initialized else 0
+        remaining = target - have
+        if remaining > 0:
+            if have == 0:
+                lower, upper = parameters.internal_bounds()
+                rng = np.random.default_rng(seed)
+                walkers = _initial_walkers(
+                    counted, np.asarray(start, float), covariance, n_walkers, rng, lower, upper
+                )
+                state = emcee.State(
+                    walkers, random_state=np.random.RandomState(seed % 2**32).get_state()
+                )
+                sampler.run_mcmc(state, remaining, progress=progress)
+            else:
+                sampler.run_mcmc(None, remaining, progress=progress)
+        chain = store.get_chain()[:target]
+        lp = store.get_log_prob()[:target]
+        # acceptance over the steps kept (emcee counts every step stored)
+        accepted = np.asarray(store.accepted, dtype=float)
+        iterations = max(int(store.iteration), 1)
+        result = summarize_chain(chain, lp, parameters, accepted / iterations, name=name, seed=seed)
+        converged = result.tau_multiple >= MIN_TAU_MULTIPLE and all(
+            math.isfinite(r) and r <= MAX_RHAT for r in result.rhat.values()
+        )
+        if converged or target >= limit:
+            break
+        target = min(limit, target + max(n_steps // 2, 1))
+        if log is not None:
+            log(
+                f"mcmc {name}: {result.tau_multiple:.0f} tau, R-hat up to "
+                f"{max(result.rhat.values()):.3f}: extending to {target} steps (limit {limit})"
             )
-            state = emcee.State(
-                walkers, random_state=np.random.RandomState(seed % 2**32).get_state()
-            )
-            sampler.run_mcmc(state, remaining, progress=progress)
-        else:
-            sampler.run_mcmc(None, remaining, progress=progress)
     seconds = time.perf_counter() - t0
-    chain = store.get_chain()[:n_steps]
-    lp = store.get_log_prob()[:n_steps]
-    accepted = np.asarray(store.accepted, dtype=float)
-    iterations = max(int(store.iteration), 1)
-    result = summarize_chain(chain, lp, parameters, accepted / iterations, name=name, seed=seed)
     result.seconds = seconds
     result.evaluations = evaluations
     result.resumed_from = done

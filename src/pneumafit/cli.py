@@ -29,7 +29,9 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-console = Console()
+# Not a terminal (a log file, a pipe, CI): no 80-column cut, so that tables
+# of parameter names and values stay readable in logs.
+console = Console() if sys.stdout.isatty() else Console(width=200)
 err_console = Console(stderr=True)
 
 EXIT_INVALID_INPUT = 2
@@ -89,11 +91,26 @@ def fit(
     no_mcmc: Annotated[
         bool, typer.Option("--no-mcmc", help="Point estimates with Laplace intervals only.")
     ] = False,
+    strict: Annotated[
+        bool,
+        typer.Option(
+            "--strict",
+            help="Exit 3 when the result is not trustworthy (residual above 3x the sensor "
+            "noise, an estimate at a bound or outside its interval, chains too short).",
+        ),
+    ] = False,
 ) -> None:
-    """Staged identification (valve, heat transfer, friction, joint) with MCMC."""
+    """Staged identification (valve, heat transfer, friction, joint) with MCMC.
+
+    Exit status: 0 ok (also for an untrustworthy fit, which is said at the top
+    of the summary and in fit.json's quality), 1 the fit failed, 2 bad input,
+    3 untrustworthy result under --strict, 130 interrupted.
+    """
     from pneumafit.identification.command import fit_command
 
-    raise typer.Exit(fit_command(campaign, model, out, walkers, steps, seed, not no_mcmc, console))
+    raise typer.Exit(
+        fit_command(campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict)
+    )
 
 
 @app.command()

@@ -21,6 +21,7 @@ __all__ = [
     "EXIT_FAILED",
     "EXIT_INTERRUPTED",
     "EXIT_OK",
+    "EXIT_UNTRUSTWORTHY",
     "folder_problem",
     "int_problem",
     "report_problems",
@@ -29,6 +30,9 @@ __all__ = [
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
+#: The result is not trustworthy (a fit that does not reach the noise, an
+#: estimate at a bound, short chains) and ``--strict`` was given.
+EXIT_UNTRUSTWORTHY = 3
 EXIT_INTERRUPTED = 130
 
 

@@ -167,3 +167,26 @@ def test_no_mcmc_writes_laplace_uncertainties_only(small: tuple, tmp_path: Path,
     doc = json.loads((tmp_path / "lap" / "fit.json").read_text())
     assert doc["mcmc"] is None and not (tmp_path / "lap" / "chains.h5").exists()
     assert doc["parameters"]["xi"]["uncertainty"] == "laplace"
+
+
+def test_untrustworthy_fit_is_said_first_and_strict_exits_3(
+    fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console
+) -> None:
+    """12-step chains are far below 50 tau: the fit is written, its quality
+    says which parameters are unreliable, the console says it before the
+    parameter table, and --strict turns it into exit status 3."""
+    _, doc = fitted
+    quality = doc["quality"]
+    assert quality["trustworthy"] is False
+    assert any(u.startswith("xi ") for u in quality["unreliable"])
+    assert {r["recording"] for r in quality["recordings"]} >= {"flow_P.h5", "step_1.h5"}
+    for r in quality["recordings"]:
+        assert set(r) >= {"channel", "role", "rms", "noise", "ratio", "phases", "reaches_noise"}
+    folder, _, _ = small
+    code = fit_command(folder, "convection", tmp_path / "strict2", WALKERS, STEPS, 7, True,
+                       console, strict=True)  # fmt: skip
+    assert code == 3
+    text = console.file.getvalue()
+    assert text.index("chains too short") < text.index("estimates (90 % intervals)")
+    assert "NOT TRUSTWORTHY" in text
+    assert (tmp_path / "strict2" / "fit.json").exists()

@@ -37,6 +37,7 @@ from pneumafit.commandline import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    EXIT_UNTRUSTWORTHY,
     folder_problem,
     int_problem,
     report_problems,
@@ -102,6 +103,7 @@ def fit_command(
     seed: int,
     mcmc: bool,
     console: Console,
+    strict: bool = False,
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -119,11 +121,14 @@ def fit_command(
     mcmc : bool
         False for point estimates with Laplace uncertainties only.
     console : rich.console.Console
+    strict : bool
+        Return 3 when the fit is not trustworthy (:class:`FitQuality`).
 
     Returns
     -------
     int
-        0 ok, 1 the fit failed, 2 bad input, 130 interrupted (resumable).
+        0 ok, 1 the fit failed, 2 bad input, 3 untrustworthy under ``strict``,
+        130 interrupted (resumable).
     """
     from pneumafit.campaign import read_campaign
 
@@ -149,6 +154,7 @@ def fit_command(
         + (f" --steps {steps}" if steps is not None else "")
         + f" --seed {seed}"
         + ("" if mcmc else " --no-mcmc")
+        + (" --strict" if strict else "")
     )
     options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
     try:
@@ -196,6 +202,11 @@ def fit_command(
         return EXIT_FAILED
     _summary(result, console)
     console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else ""))
+    quality = result.quality
+    if quality is not None and not quality.trustworthy:
+        console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))
+        if strict:
+            return EXIT_UNTRUSTWORTHY
     return EXIT_OK
 
 
@@ -205,8 +216,57 @@ def _fmt(x: float | None, digits: int = 4) -> str:
     return f"{x:.{digits}g}"
 
 
+#: Display scale and unit of the residual table, by the channel's first letter.
+_DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
+
+
+def _quality_table(result: FitResult, console: Console) -> None:
+    """Residual RMS over sensor noise, per recording and channel (worst first per role)."""
+    quality = result.quality
+    if quality is None or not quality.channels:
+        return
+    table = Table(
+        title=Text(
+            f"residual over sensor noise (noise from the recordings' quiet windows; "
+            f"above {quality.threshold:g}x: does not reach the noise)"
+        )
+    )
+    for col in ("recording", "role", "channel", "RMS", "noise", "RMS/noise", "phases over"):
+        table.add_column(col, justify="left" if col in ("recording", "role", "channel",
+                                                         "phases over") else "right")  # fmt: skip
+    order = {"fit": 0, "validate": 1}
+    rows = sorted(quality.channels, key=lambda c: (order.get(c.role, 2), c.recording, c.channel))
+    for c in rows:
+        scale, unit = _DISPLAY.get(c.channel[0], (1.0, ""))
+        ratio = c.ratio
+        style = "bold red" if c.fails else None
+        table.add_row(
+            c.recording, c.role, c.channel + ("" if c.fitted else " (not fitted)"),
+            f"{_fmt(c.rms * scale, 3)} {unit}",
+            f"{_fmt(c.noise * scale, 3)} {unit}" if c.noise is not None else "-",
+            Text(f"{ratio:.2f}" if ratio is not None else "-", style=style or ""),
+            ", ".join(f"{p} {c.phases[p]['ratio']:.1f}x" for p in c.failing_phases()),
+        )  # fmt: skip
+    console.print(table)
+
+
 def _summary(result: FitResult, console: Console) -> None:
-    """Table of the fitted parameters, their uncertainty and MCMC diagnostics."""
+    """The verdict first, then the fitted parameters with their uncertainty and
+    MCMC diagnostics, and the residual over noise per recording."""
+    quality = result.quality
+    if quality is not None:
+        style = "bold green" if quality.trustworthy else "bold red"
+        console.print(Text(f"{result.model}: {quality.verdict()}", style=style))
+        for line in quality.problems():
+            console.print(Text(f"  - {line}", style="red"))
+    flagged: dict[str, str] = {}
+    if quality is not None:
+        for item in quality.at_bounds:
+            flagged[item.split(" ", 1)[0]] = "at bound"
+        for item in quality.outside_interval:
+            flagged[item.split(" ", 1)[0]] = "outside interval"
+        for item in quality.unreliable:
+            flagged.setdefault(item.split(" ", 1)[0], "chain short")
     diag: dict[str, tuple[float, float, float]] = {}
     for run in result.mcmc:
         for n in run.names:
@@ -222,8 +282,11 @@ def _summary(result: FitResult, console: Console) -> None:
         "tau",
         "R-hat",
         "ESS",
+        "flag",
     ):
-        table.add_column(col, justify="left" if col in ("parameter", "unit", "from") else "right")
+        table.add_column(
+            col, justify="left" if col in ("parameter", "unit", "from", "flag") else "right"
+        )
     for p in result.parameters:
         if p.std is None or p.group in ("initial", "rig"):
             continue
@@ -233,8 +296,10 @@ def _summary(result: FitResult, console: Console) -> None:
             p.name, _fmt(p.value, 7), p.unit or "-", _fmt(p.std, 3),
             f"[{_fmt(lo, 7)}, {_fmt(hi, 7)}]",
             p.uncertainty or "-", _fmt(tau), _fmt(rhat), _fmt(ess),
+            Text(flagged.get(p.name, ""), style="bold red"),
         )  # fmt: skip
     console.print(table)
+    _quality_table(result, console)
     for run in result.mcmc:
         if len(run.names) >= 2 and run.name == "heat":
             names = run.names

@@ -179,6 +179,7 @@ def fit_document(
         "nuisance": {**nuisance, "initial_states": initial},
         "correlation": correlation,
         "metrics": result.metrics,
+        "quality": result.quality.as_dict() if result.quality is not None else None,
         "mcmc": mcmc,
         "noise": noise,
         "stages": {s.name: s.as_dict() for s in result.stages},

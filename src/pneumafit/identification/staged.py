@@ -231,7 +231,7 @@ class FitOptions:
     random_starts: int = 0
     correct_solver: bool = True
     progress: bool = False
-    extend: float = 3.0
+    extend: float = 2.0
 
 
 @dataclass

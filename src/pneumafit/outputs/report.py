@@ -418,15 +418,68 @@ def _interval(entry: Mapping[str, Any], key: str, unit: str) -> str:
     return "-"
 
 
+_QUALITY_DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
+
+
+def _quality_html(doc: Mapping[str, Any]) -> str:
+    """A fit's verdict and its residual-over-noise table (fit.json ``quality``)."""
+    quality = doc.get("quality")
+    if not isinstance(quality, Mapping):
+        return note("fit quality: not in this fit.json (written before pneumafit checked it)",
+                    "notrun")  # fmt: skip
+    kind = "note" if quality.get("trustworthy") else "warn"
+    items = "".join(f"<li>{esc(p)}</li>" for p in quality.get("problems") or [])
+    parts = [note(f"<strong>{esc(quality.get('verdict', ''))}</strong>"
+                  + (f"<ul>{items}</ul>" if items else ""), kind)]  # fmt: skip
+    rows = []
+    for r in quality.get("recordings") or []:
+        scale, unit = _QUALITY_DISPLAY.get(str(r.get("channel", " "))[0], (1.0, ""))
+        ratio = r.get("ratio")
+        over = [
+            f"{p} {v['ratio']:.1f}x"
+            for p, v in (r.get("phases") or {}).items()
+            if isinstance(v, Mapping) and (v.get("ratio") or 0) > quality.get("threshold", 3)
+        ]
+        cell = fmt(ratio, "", 3)
+        if not r.get("reaches_noise", True):
+            cell = f"<strong>{cell}</strong>"
+        rows.append([
+            esc(r.get("recording")), esc(r.get("role")),
+            esc(r.get("channel")) + ("" if r.get("fitted") else " (not fitted)"),
+            fmt(r["rms"] * scale if r.get("rms") is not None else None, unit, 3),
+            fmt(r["noise"] * scale if r.get("noise") is not None else None, unit, 3),
+            cell, esc(", ".join(over)),
+        ])  # fmt: skip
+    if rows:
+        parts.append(table(
+            ["recording", "role", "channel", "RMS residual", "sensor noise", "RMS / noise",
+             "phases above the threshold"], rows,
+            caption="Residual over sensor noise (noise from each recording's quiet windows; "
+            f"above {quality.get('threshold', 3):g}x the fit does not reach the noise)",
+        ))  # fmt: skip
+    return "\n".join(parts)
+
+
+def _quality_headline(run: _Run) -> str:
+    """One line per fit for the top of the report."""
+    lines = []
+    for model in FIT_MODELS:
+        if model in run.fits:
+            q = run.fits[model][0].get("quality")
+            if isinstance(q, Mapping):
+                lines.append(f"{esc(model)}: {esc(q.get('verdict', ''))}")
+    return "<br>".join(lines)
+
+
 def _parameter_section(run: _Run) -> tuple[str, str, str]:
     source = "<code>fits/&lt;model&gt;/fit.json</code> <code>parameters</code>"
     missing = _need_fits(run)
     if missing:
         return missing, "not run", source
     parts = [note(
-        "value: the joint least-squares estimate; 90 % interval: the 5 and 95 % quantiles of "
-        "the posterior (<em>mcmc</em>) or of the joint Laplace approximation "
-        "(<em>laplace</em>). Rig parameters are fixed from the campaign."
+        "value: the posterior median (<em>mcmc</em>) or the joint least-squares estimate "
+        "(<em>laplace</em>); 90 % interval: the 5 and 95 % quantiles of the same posterior. "
+        "Rig parameters are fixed from the campaign."
     )]  # fmt: skip
     fixed_rows: dict[str, list[str]] = {}
     for model in FIT_MODELS:
@@ -439,6 +492,7 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
             f"<h3>{esc(model)} <small>({esc(structure.get('name', ''))}, air "
             f"properties {esc(structure.get('air_properties', '?'))})</small></h3>"
         )
+        parts.append(_quality_html(doc))
         rows = []
         for name, e in doc["parameters"].items():
             if not isinstance(e, Mapping):
@@ -1040,6 +1094,9 @@ def write_report(
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     subtitle = (f"run folder <code>{esc(folder.resolve())}</code>; written {esc(created)} by "
                 f"pneumafit {esc(_version())}")  # fmt: skip
+    headline = _quality_headline(run)
+    if headline:
+        subtitle += f"<br><strong>Fit quality</strong>: {headline}"
     footer = (f"pneumafit {esc(_version())}, {esc(created)}; built in "
               f"{time.perf_counter() - started:.1f} s from the files of the run folder. "
               "Self-contained: no network resource is used.")  # fmt: skip

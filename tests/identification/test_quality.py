@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -129,3 +130,39 @@ def test_bounds_and_intervals_are_flagged() -> None:
     assert bound_problems([at, inside], ["beta", "xi"]) == ["beta (lower bound 0.05)"]
     assert interval_problems([inside]) == []
     assert interval_problems([outside])[0].startswith("friction_static 24.2 not in")
+
+
+def test_commands_no_flow_test_measured_are_named(small: tuple) -> None:
+    """The small campaign's flow tests have levels 0, +-0.2, +-0.4, +-3, +-10 V:
+    the step tests' +-1 V (between 0.4 and 3 V, next to the dead band) and the
+    discharge's -8 V (in a 7-V gap) are extrapolations; the rest at 0 V is not.
+    Without the flow levels near 0 V, the charge/discharge rests are named."""
+    from pneumafit.campaign import Campaign
+    from pneumafit.identification.coverage import uncovered_commands
+
+    _, campaign, _ = small
+    lines = uncovered_commands(campaign, {"valve_u_sat": 10.0})
+    text = "\n".join(lines)
+    assert "discharge_P.h5" in text and "-8.25..-7.75 V" in text
+    assert any("+0.75..+1.25 V" in line and "step_1.h5" in line for line in lines)
+    assert not any("-0.25..+0.25" in line for line in lines)
+    no_zero = []
+    for rec in campaign.recordings:
+        if rec.kind == "flow":
+            ch = rec.chamber
+            keep = np.abs(rec.channels[f"u_{ch}"]) > 1.0
+            chans = {k: np.asarray(v)[keep] for k, v in rec.channels.items()}
+            rec = Recording.from_arrays(
+                rec.time[keep], chans, kind="flow", role=rec.role, file=rec.file, chamber=ch
+            )
+        no_zero.append(rec)
+    sparse = Campaign(
+        path=None, name="no-zero", description="", rig=campaign.rig, recordings=no_zero
+    )
+    lines = uncovered_commands(sparse, {"valve_u_sat": 10.0})
+    spans = [re.search(r"commands ([-+.\d]+)\.\.([-+.\d]+) V", line) for line in lines]
+    rest = [
+        line for line, m in zip(lines, spans, strict=True)
+        if m and float(m[1]) < 0.0 < float(m[2]) and line.startswith("valve P")
+    ]  # fmt: skip
+    assert rest and "charge_P.h5" in rest[0] and "discharge_P.h5" in rest[0]

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign, Recording
+from pneumafit.identification.coverage import uncovered_commands
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
 from pneumafit.identification.optimise import PointEstimate, fit_least_squares
@@ -484,6 +485,9 @@ def identify(
             f"campaign {campaign.name!r}: expected recordings with role 'fit', found none"
         )
     values = params.values()
+    for line in uncovered_commands(campaign, values):
+        warns.append(line)
+        say(f"warning: {line}")
 
     def run_stage(
         stage: StageResult,

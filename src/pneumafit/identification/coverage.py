@@ -1,0 +1,127 @@
+"""Which valve commands did the flow tests measure, and which do the other tests use?
+
+The valve characteristic is measured by the flow tests at a few command
+levels; every other test drives the valves with commands of its own (the
+0-V rest of charge/discharge tests, the controller's output in step tests).
+Where a test spends time at commands that no flow level is close to, its
+valve flows are an extrapolation of the fitted characteristic (on an
+independently written rig: a flow test without a 0-V level, and a discharge
+whose rest-phase drift the fit then blamed on the heat law). This module
+names those commands and the recordings that use them.
+
+A command u used by a recording is *covered* by the flow-test levels of the
+same valve (or, without a flow test of that valve, of the other one, whose
+characteristic the fit shares) when a level lies within :data:`TOLERANCE` x
+u_sat of it, or, away from the centre (|u| > 2 :data:`TOLERANCE` u_sat,
+beyond the dead band and the centre leakage, where the characteristic
+changes fastest), when it lies between two levels at most :data:`MAX_GAP` x
+u_sat apart. Commands are binned at the tolerance; a bin counts when it
+holds at least :data:`MIN_SHARE` of the recording's samples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from pneumafit.campaign.model import Campaign
+
+__all__ = ["MAX_GAP", "MIN_SHARE", "TOLERANCE", "uncovered_commands"]
+
+#: Largest distance (fraction of u_sat) from a flow level for a command to
+#: count as measured: 0.5 V of a 10-V valve, the width of its dead band.
+TOLERANCE = 0.05
+#: Largest gap (fraction of u_sat) between two flow levels that a command
+#: between them may be interpolated over (4 V of a 10-V valve: the demo plan
+#: spaces its top levels 6 and 10 V apart).
+MAX_GAP = 0.4
+#: Smallest share of a recording's samples in a command bin that is reported.
+MIN_SHARE = 0.01
+
+
+def _levels(campaign: Campaign) -> dict[str, np.ndarray]:
+    out: dict[str, list[float]] = {"P": [], "N": []}
+    for rec in campaign.recordings:
+        if rec.kind != "flow" or rec.chamber not in out:
+            continue
+        u = np.asarray(rec.channels.get(f"u_{rec.chamber}", []), float)
+        if u.size:
+            out[rec.chamber].extend(np.unique(np.round(u, 6)).tolist())
+    return {c: np.unique(v) for c, v in out.items()}
+
+
+def _covered(u: float, levels: np.ndarray, width: float, u_sat: float) -> bool:
+    if np.min(np.abs(levels - u)) <= width:
+        return True
+    if abs(u) <= 2.0 * width:
+        return False
+    below, above = levels[levels <= u], levels[levels >= u]
+    return bool(below.size and above.size and above.min() - below.max() <= MAX_GAP * u_sat)
+
+
+def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[str]:
+    """One warning per valve and command range not covered by a flow test.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    values : mapping
+        Model values (``valve_u_sat`` sets the tolerance, V).
+
+    Returns
+    -------
+    list of str
+        E.g. ``"valve P: commands -0.25..0.25 V (rest of discharge_P_1.h5 ...)
+        were not measured by a flow test ..."``; empty when all are covered.
+    """
+    u_sat = float(values.get("valve_u_sat", 10.0))
+    width = TOLERANCE * u_sat
+    levels = _levels(campaign)
+    if not any(v.size for v in levels.values()):
+        return []
+    out = []
+    for valve in ("P", "N"):
+        own = levels[valve]
+        ref = own if own.size else levels["N" if valve == "P" else "P"]
+        source = "" if own.size else f" (no flow test of valve {valve}: valve "
+        if not own.size:
+            source += f"{'N' if valve == 'P' else 'P'}'s levels used)"
+        users: dict[int, list[str]] = {}
+        for rec in campaign.recordings:
+            if rec.kind == "flow":
+                continue
+            u = rec.channels.get(f"u_{valve}")
+            if u is None:
+                continue
+            u = np.asarray(u, float)
+            u = u[np.isfinite(u)]
+            if not u.size:
+                continue
+            bins = np.round(u / width).astype(int)
+            ids, counts = np.unique(bins, return_counts=True)
+            for b, n in zip(ids, counts, strict=True):
+                if n < MIN_SHARE * u.size:
+                    continue
+                if not _covered(b * width, ref, width, u_sat):
+                    users.setdefault(int(b), []).append(rec.file)
+        if not users:
+            continue
+        # merge neighbouring bins into ranges
+        keys = sorted(users)
+        ranges: list[list[int]] = [[keys[0], keys[0]]]
+        for k in keys[1:]:
+            if k == ranges[-1][1] + 1:
+                ranges[-1][1] = k
+            else:
+                ranges.append([k, k])
+        for a, b in ranges:
+            recs = sorted({f for k in range(a, b + 1) for f in users.get(k, [])})
+            lo, hi = (a - 0.5) * width, (b + 0.5) * width
+            shown = ", ".join(recs[:4]) + (f" and {len(recs) - 4} more" if len(recs) > 4 else "")
+            out.append(
+                f"valve {valve}: commands {lo:+.2f}..{hi:+.2f} V, used by {shown}, were not "
+                f"measured by any flow test{source}: the valve flows there are extrapolated "
+                "from the fitted characteristic"
+            )
+    return out

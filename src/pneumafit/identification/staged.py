@@ -55,6 +55,7 @@ from pneumafit.identification.quality import (
     chain_problems,
     interval_problems,
 )
+from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import friction_starts, heat_starts, valve_starts
 from pneumafit.models.structure import HEAT_PARAMETERS, MODELS, ModelStructure
@@ -627,6 +628,7 @@ def identify(
     final.correlation = laplace.correlation
 
     # -------------------------------------------------------------- MCMC
+    heat_draws: dict[str, NDArray[np.float64]] | None = None
     if opts.mcmc:
         groups = {
             "valve": (flows + blocked, VALVE_PARAMETERS),
@@ -659,8 +661,10 @@ def identify(
             stage_obj.mcmc = res
             warns.extend(res.warnings)
             # the groups held fixed: their joint Laplace uncertainty, propagated
-            summary, _draws = propagate(res, laplace, est.covariance, seed=seeds[4 + k])
+            summary, draws = propagate(res, laplace, est.covariance, seed=seeds[4 + k])
             stage_obj.propagated = summary
+            if stage_name == "heat":
+                heat_draws = {n: v for n, v in res.parameters.to_values(draws).items()}
             for p in summary.free:
                 # the reported estimate and its interval come from the same
                 # posterior: the median of the propagated draws (the joint
@@ -679,6 +683,9 @@ def identify(
     # ------------------------------------------------------------ metrics
     say("replaying the fit on every recording")
     metrics, rep = _metrics(campaign, structure, values, joint_problem, est, opts)
+    metrics["lambda_reference"] = _lambda_reference(
+        structure, values, laplace, est, heat_draws, seeds[7]
+    )
     runs = [s.mcmc for s in stages if s.mcmc is not None]
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels)
     say(f"quality: {quality.verdict()}")
@@ -854,6 +861,41 @@ def _metrics(
         "temperature_sensor_lag": rep.lag,
     }
     return metrics, rep
+
+
+def _lambda_reference(
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    laplace: ParameterSet,
+    est: PointEstimate,
+    draws: Mapping[str, NDArray[np.float64]] | None,
+    seed: int,
+) -> dict[str, Any] | None:
+    """lambda at the reference state with its 90 % interval (metrics.lambda_reference).
+
+    From the heat stage's propagated MCMC draws when sampled, else from 4000
+    draws of the joint Laplace approximation; the value is the draws' median,
+    so that it lies inside its own interval.
+    """
+    if structure.heat == "polytropic":
+        return None
+    names = HEAT_PARAMETERS[structure.heat]
+    if draws is None and est.covariance is not None:
+        rng = np.random.default_rng(seed)
+        cov = 0.5 * (est.covariance + est.covariance.T)
+        z = rng.multivariate_normal(est.z, cov, size=4000, method="eigh")
+        lo, hi = laplace.internal_bounds()
+        draws = laplace.to_values(np.clip(z, lo, hi))
+    point = reference_lambda(values, structure.heat, structure.air_properties)
+    out: dict[str, Any] = {"state": dict(REFERENCE_STATE), "value": point, "interval_90": None}
+    if draws is not None and all(n in draws for n in names):
+        sample = {**values, **{n: np.asarray(draws[n]) for n in names}}
+        lam = np.asarray(reference_lambda(sample, structure.heat, structure.air_properties))
+        lam = lam[np.isfinite(lam)]
+        if lam.size:
+            out["interval_90"] = [float(np.quantile(lam, 0.05)), float(np.quantile(lam, 0.95))]
+            out["value"] = float(np.median(lam))
+    return out
 
 
 def assess(

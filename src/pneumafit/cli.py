@@ -66,15 +66,21 @@ def run(
     ] = False,
     walkers: Annotated[int | None, typer.Option(help="MCMC walkers of every fit.")] = None,
     steps: Annotated[int | None, typer.Option(help="MCMC steps of every fit.")] = None,
+    strict: Annotated[
+        bool,
+        typer.Option("--strict", help="Exit 3 when a fit is not trustworthy (see pneumafit fit)."),
+    ] = False,
 ) -> None:
     """The main job: check, fit the three models, compare, discover, design, report, export.
 
-    Finished stages in OUT are reused on a re-run (see OUT/stages.json).
+    Finished stages in OUT are reused on a re-run (see OUT/stages.json). Exit
+    status: 0 ok, 1 a stage failed, 2 bad input, 3 a fit not trustworthy under
+    --strict, 130 interrupted.
     """
     from pneumafit.pipeline import run as run_pipeline
 
     code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
-                        steps=steps)  # fmt: skip
+                        steps=steps, strict=strict)  # fmt: skip
     raise typer.Exit(code)
 
 

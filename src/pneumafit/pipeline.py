@@ -38,10 +38,16 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
+from rich.text import Text
 
 from pneumafit import __version__
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
-from pneumafit.commandline import EXIT_BAD_INPUT, folder_problem, report_problems
+from pneumafit.commandline import (
+    EXIT_BAD_INPUT,
+    EXIT_UNTRUSTWORTHY,
+    folder_problem,
+    report_problems,
+)
 from pneumafit.fileio import write_text_atomic
 
 #: The bundled demo campaign (a virtual-rig recording of a rig like the paper's).
@@ -131,8 +137,10 @@ def run(
     mcmc: bool = True,
     walkers: int | None = None,
     steps: int | None = None,
+    strict: bool = False,
 ) -> int:
-    """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input).
+    """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input,
+    3 a fit is not trustworthy under ``strict``).
 
     Parameters
     ----------
@@ -147,6 +155,9 @@ def run(
         Sample the posteriors (False: Laplace intervals only, faster).
     walkers, steps : int, optional
         MCMC settings of the fits (default: those of ``pneumafit fit``).
+    strict : bool
+        Return 3 when a fit is not trustworthy (fit.json ``quality``); every
+        stage still runs, and the verdicts are printed at the end either way.
     """
     started = time.perf_counter()
     path = Path(campaign_path) if campaign_path is not None else DEMO
@@ -199,9 +210,29 @@ def run(
         return 130
     total = _summary(out, campaign, path, timings, started, conv_fit=conv)
     console.rule("done")
+    trusted = _verdicts(fit_files, console)
     console.print(f"report: {out / 'report.html'}")
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
-    return 0
+    return EXIT_UNTRUSTWORTHY if strict and not trusted else 0
+
+
+def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
+    """Print each fit's quality verdict; True when every fit is trustworthy."""
+    trusted = True
+    for model, file in fit_files.items():
+        try:
+            quality = json.loads(file.read_text()).get("quality") or {}
+        except (OSError, ValueError):
+            quality = {}
+        ok = bool(quality.get("trustworthy", False))
+        trusted = trusted and ok
+        style = "green" if ok else "red"
+        verdict = quality.get("verdict", "no quality in fit.json (an older fit)")
+        console.print(Text(f"fit {model}: {verdict}", style=style))
+        if not ok:
+            for line in quality.get("problems") or []:
+                console.print(Text(f"  - {line}", style="red"))
+    return trusted
 
 
 def _fits(

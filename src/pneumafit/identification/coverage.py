@@ -27,7 +27,7 @@ import numpy as np
 
 from pneumafit.campaign.model import Campaign
 
-__all__ = ["MAX_GAP", "MIN_SHARE", "TOLERANCE", "uncovered_commands"]
+__all__ = ["MAX_GAP", "MIN_SHARE", "TOLERANCE", "centre_measured", "uncovered_commands"]
 
 #: Largest distance (fraction of u_sat) from a flow level for a command to
 #: count as measured: 0.5 V of a 10-V valve, the width of its dead band.
@@ -58,6 +58,12 @@ def _covered(u: float, levels: np.ndarray, width: float, u_sat: float) -> bool:
         return False
     below, above = levels[levels <= u], levels[levels >= u]
     return bool(below.size and above.size and above.min() - below.max() <= MAX_GAP * u_sat)
+
+
+def centre_measured(campaign: Campaign, values: Mapping[str, float]) -> bool:
+    """True when a flow test has a level within the tolerance of 0 V (centre leakage)."""
+    width = TOLERANCE * float(values.get("valve_u_sat", 10.0))
+    return any(v.size and np.min(np.abs(v)) <= width for v in _levels(campaign).values())
 
 
 def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[str]:

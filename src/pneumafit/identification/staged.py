@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign, Recording
-from pneumafit.identification.coverage import uncovered_commands
+from pneumafit.identification.coverage import centre_measured, uncovered_commands
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
 from pneumafit.identification.optimise import PointEstimate, fit_least_squares
@@ -532,15 +532,19 @@ def identify(
     stages.append(stage)
 
     # -------------------------------------------------------------- (b) heat
-    # the centre leakage is fitted here too: the charge/discharge tests' rest
-    # phases measure it (the valve rests at 0 V for seconds), which flow tests
-    # without a 0-V level cannot; a leak held wrong makes the heat law
-    # absorb the pressure drift (beta on its bound on an independent rig)
-    free_heat = heat_names + tuple(nuisance) + (LEAK_PARAMETERS if blocked else ())
+    # without a flow level at 0 V the centre leakage is fitted here too: the
+    # charge/discharge tests' rest phases measure it (the valve rests at 0 V
+    # for seconds); a leak held wrong makes the heat law absorb the pressure
+    # drift (beta on its bound on an independently written rig)
+    leak_here = bool(blocked) and not (flows and centre_measured(campaign, values))
+    free_heat = heat_names + tuple(nuisance) + (LEAK_PARAMETERS if leak_here else ())
     stage = StageResult("heat", [r.file for r in blocked], free_heat)
     heat_alternatives: list[dict[str, float]] = []
     if blocked:
-        starts = _leak_starts(heat_starts(structure.heat), values)
+        starts = heat_starts(structure.heat)
+        if leak_here:
+            starts = _leak_starts(starts, values)
+            stage.note = "no flow level at 0 V: the centre leakage is fitted with the heat law"
         run_stage(stage, blocked, free_heat, starts, seeds[1], opts.random_starts)
         heat_alternatives = _distinct_optima(stage.estimate, heat_names, JOINT_STARTS - 1)
         say(f"heat: {stage.seconds:.1f} s, " + _brief(stage.estimate, heat_names + LEAK_PARAMETERS))

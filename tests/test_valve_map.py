@@ -381,6 +381,9 @@ def test_map_structure_end_to_end_and_bad_valve_name():
         ModelStructure(heat="convection", valve="linear")
     with pytest.raises(ValueError, match="valve"):
         choose_step({}, valve="linear")
+    # the step bound follows the law's largest conductance (rate ~ C_max)
+    big = {"valve_map_CS_14": 1e-6}
+    assert choose_step(big, default=1.0, valve="map") < 0.02 * choose_step(big, default=1.0)
     # bounds of the vector builder and admissibility in the kernel
     with pytest.raises(ValueError, match="valve_map_CS_03"):
         parameter_vector({"valve_map_CS_03": 0.0})

@@ -43,10 +43,16 @@ from pneumafit.models.layout import (
     C_SEAL_FRICTION,
     C_STATIC_FLOW,
     C_SUPPLY_DROP,
+    C_VALVE_LAW,
     C_VALVE_ORDER,
     C_WALL_MASS,
     CTRL_DB_AMPLITUDE,
     CTRL_DB_WIDTH,
+    MAP_B_LOWER,
+    MAP_B_UPPER,
+    MAP_C_LOWER,
+    MAP_C_UPPER,
+    N_MAP_KNOTS,
     NX,
     P_ANGLE,
     P_BE,
@@ -69,6 +75,10 @@ from pneumafit.models.layout import (
     P_LAMBDA,
     P_LEAKW,
     P_LEN,
+    P_MAP_BE,
+    P_MAP_BS,
+    P_MAP_CE,
+    P_MAP_CS,
     P_MASS,
     P_OVERLAP,
     P_PE,
@@ -111,12 +121,26 @@ from pneumafit.physics.friction import FASTMATH, end_stop_force, next_mode, slid
 from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
 from pneumafit.physics.valve import NVC, VC_RTA, flows_core, laminar_tail, valve_constants
+from pneumafit.physics.valve_map import (
+    NVM,
+    VM_BE,
+    VM_BS,
+    VM_CE_LO,
+    VM_CS_HI,
+    flows_core_map,
+    map_constants,
+)
 
 # Derived per-simulation constants (array d), computed once by derive()
 D_SP, D_SN, D_FEXT, D_MU, D_KAIR, D_LAMC, D_GRC, D_RTA = 0, 1, 2, 3, 4, 5, 6, 7
 D_A0P, D_A0N, D_CAP, D_CAN, D_IPS, D_IM = 8, 9, 10, 11, 12, 13
-D_VC = 14  # valve constants (physics.valve.valve_constants) from here on
-ND = D_VC + NVC
+D_VC = 14  # valve constants (physics.valve.valve_constants), NVC of them
+D_VM = D_VC + NVC  # valve-map constants (physics.valve_map.map_constants), NVM of them
+ND = D_VM + NVM
+
+# Valve laws (configuration slot C_VALVE_LAW; layout.VALVE_LAWS)
+VALVE_ISO6358 = 0
+VALVE_MAP = 1
 
 # Auxiliary outputs of one right-hand-side evaluation (array aux)
 A_QN, A_QP, A_UN, A_UP, A_LAMN, A_LAMP, A_FF, A_FD, A_FS = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -158,7 +182,32 @@ def check_parameters(p: np.ndarray) -> bool:
         return False
     if p[P_WCAP] <= 0.0 or p[P_KSTOP] < 0.0 or p[P_CSTOP] < 0.0:
         return False
+    # valve map (checked whatever the law: the defaults are admissible)
+    for i in range(N_MAP_KNOTS):
+        for c in (p[P_MAP_CS + i], p[P_MAP_CE + i]):
+            if c < MAP_C_LOWER or c > MAP_C_UPPER:
+                return False
+    for i in range(3):
+        for b in (p[P_MAP_BS + i], p[P_MAP_BE + i]):
+            if b < MAP_B_LOWER or b > MAP_B_UPPER or b >= p[P_XLAM]:
+                return False
     return True
+
+
+@njit(cache=True)
+def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
+    """Fill the ISO 6358 constants vc (NVC) and the valve-map constants vm (NVM).
+
+    Both are filled whatever the configured law (derive() does not see the
+    configuration); the map's PCHIP slopes cost ~1 us once per simulation.
+    """
+    valve_constants(
+        p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
+        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc,
+    )  # fmt: skip
+    n = N_MAP_KNOTS
+    map_constants(p[P_MAP_CS:P_MAP_CS + n], p[P_MAP_CE:P_MAP_CE + n], p[P_MAP_BS:P_MAP_BS + 3],
+                  p[P_MAP_BE:P_MAP_BE + 3], p[P_USAT], vm)  # fmt: skip
 
 
 @njit(cache=True)
@@ -185,10 +234,7 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     d[D_CAN] = math.pi * (bore + rod)
     d[D_IPS] = 1.0 / p[P_PS]
     d[D_IM] = 1.0 / p[P_MASS]
-    valve_constants(
-        p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
-        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], d[D_VC:],
-    )  # fmt: skip
+    valve_arrays(p, d[D_VC:D_VM], d[D_VM:])
 
 
 @njit(cache=True, fastmath=_FM)
@@ -247,8 +293,49 @@ def _valve(
     p_s: float,
     inv_ps: float,
     d: np.ndarray,
+    law: int,
 ):
+    # flows of one valve under the configured law (cfg[C_VALVE_LAW])
+    if law == VALVE_MAP:
+        return flows_core_map(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:D_VM], d[D_VM:])
     return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:])
+
+
+@njit(cache=True)
+def static_valve_flows(
+    p: np.ndarray, valve_law: int, u: float, pres: float, temp: float
+) -> tuple[float, float, float]:
+    """Flows of one valve at a given chamber state, under either valve law.
+
+    Parameters
+    ----------
+    p : ndarray, shape (NP,)
+        Parameters (SI); the supply and exhaust pressures, ambient
+        temperature and the valve parameters of the law are used.
+    valve_law : int
+        0 ISO 6358, 1 measured map (``layout.VALVE_LAWS``).
+    u : float
+        Command (V).
+    pres : float
+        Chamber pressure (Pa), > 0.
+    temp : float
+        Chamber temperature (K), > 0.
+
+    Returns
+    -------
+    q_net, h_in, q_supply : float
+        Net mass flow into the chamber (kg/s), enthalpy-carrying flow
+        sum(q_i T_i) (kg K/s), flow drawn from supply (kg/s); as
+        :func:`pneumafit.physics.valve.valve_flows`.
+    """
+    vc = np.empty(NVC)
+    vm = np.empty(NVM)
+    valve_arrays(p, vc, vm)
+    p_s = p[P_PS]
+    rt = math.sqrt(T_REF / temp)
+    if valve_law == VALVE_MAP:
+        return flows_core_map(u, pres, 1.0 / pres, temp, rt, p_s, 1.0 / p_s, vc, vm)
+    return flows_core(u, pres, 1.0 / pres, temp, rt, p_s, 1.0 / p_s, vc)
 
 
 @njit(cache=True, fastmath=_FM)
@@ -336,15 +423,16 @@ def rhs(
     dv_p = s_p * v
     dv_n = -s_n * v
 
-    # --- valve flows (ISO 6358), optional supply-line pressure drop
+    # --- valve flows (ISO 6358 or measured map), optional supply-line pressure drop
+    law = cfg[C_VALVE_LAW]
     inv_pp = 1.0 / p_p
     inv_pn = 1.0 / p_n
     rt_p = math.sqrt(T_REF / t_p)
     rt_n = math.sqrt(T_REF / t_n)
     p_s = p[P_PS]
     inv_ps = d[D_IPS]
-    q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d)
-    q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d)
+    q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d, law)
+    q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d, law)
     if cfg[C_SUPPLY_DROP] == 1:
         # supply pressure behind a line resistance: one fixed-point iteration of
         # P_S' = P_S - R (q_sP + q_sN), flows first evaluated at P_S
@@ -355,8 +443,8 @@ def rhs(
         if p_s < p_e:
             p_s = p_e
         inv_ps = 1.0 / p_s
-        q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d)
-        q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d)
+        q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d, law)
+        q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d, law)
     if blocked:
         if cfg[C_CHAMBER] == 1:
             qs_n = 0.0
@@ -812,7 +900,8 @@ def integrate(
             if not pres > 0.0:
                 return _fail(out, k, STATUS_BAD_INPUT)
             rt_a = d[D_VC + VC_RTA]  # gas at ambient temperature
-            q, _, _ = _valve(u, pres, 1.0 / pres, p[P_TAMB], rt_a, p[P_PS], d[D_IPS], d)
+            q, _, _ = _valve(u, pres, 1.0 / pres, p[P_TAMB], rt_a, p[P_PS], d[D_IPS], d,
+                             cfg[C_VALVE_LAW])  # fmt: skip
             x[X_PP if on_p else X_PN] = pres
             aux[A_QP if on_p else A_QN] = q
             aux[A_UP if on_p else A_UN] = u
@@ -999,7 +1088,7 @@ def integrate_many_serial(
 
 
 @njit(cache=True)
-def stiffness_bound(p: np.ndarray, y_min: float, y_max: float) -> float:
+def stiffness_bound(p: np.ndarray, y_min: float, y_max: float, valve_law: int = 0) -> float:
     """Upper bound of the fastest rate of the model (1/s) over [y_min, y_max].
 
     The fastest pressure mode is a fully open valve near pressure equality,
@@ -1007,6 +1096,9 @@ def stiffness_bound(p: np.ndarray, y_min: float, y_max: float) -> float:
     phi(x_l) / (1 - x_l); with dP/dt = gamma r T q / V this is a rate
     gamma r T dq/dP / V at the smallest chamber volume. The piston modes
     (end-stop contact, viscous friction) are bounded by their own rates.
+    ``valve_law`` 1 (measured map) takes the largest map conductance (at
+    +-u_sat: the map is monotone and does not overshoot its knots) and the
+    steepest tail over the map's critical ratios; 0 (default) the ISO law.
     """
     d = np.empty(ND)
     derive(p, d)
@@ -1015,12 +1107,28 @@ def stiffness_bound(p: np.ndarray, y_min: float, y_max: float) -> float:
     v_p, _ = chamber_volumes(y_min, p[P_STROKE], s_p, s_n, p[P_V0P], p[P_V0N])
     _, v_n = chamber_volumes(y_max, p[P_STROKE], s_p, s_n, p[P_V0P], p[P_V0N])
     v_min = min(v_p, v_n)
-    c_max = max(p[P_CS], p[P_CE]) + 2.0 * p[P_CLEAK]
-    slope_s, _ = laminar_tail(p[P_BS], p[P_VM], p[P_XLAM])
-    slope_e, _ = laminar_tail(p[P_BE], p[P_VM], p[P_XLAM])
+    if valve_law == VALVE_MAP:
+        c_max = max(d[D_VM + VM_CS_HI], d[D_VM + VM_CE_LO])
+        # the tail slope a(b) over the range of b the map spans (b is linear
+        # between its knots): sampled on a grid, ends included
+        b_lo = 1.0
+        b_hi = 0.0
+        for i in range(3):
+            for b in (d[D_VM + VM_BS + i], d[D_VM + VM_BE + i]):
+                b_lo = min(b_lo, b)
+                b_hi = max(b_hi, b)
+        slope = 0.0
+        for j in range(17):
+            a, _ = laminar_tail(b_lo + (b_hi - b_lo) * j / 16.0, p[P_VM], p[P_XLAM])
+            slope = max(slope, a)
+    else:
+        c_max = max(p[P_CS], p[P_CE]) + 2.0 * p[P_CLEAK]
+        slope_s, _ = laminar_tail(p[P_BS], p[P_VM], p[P_XLAM])
+        slope_e, _ = laminar_tail(p[P_BE], p[P_VM], p[P_XLAM])
+        slope = max(slope_s, slope_e)
     t_hot = GAMMA * p[P_TAMB]  # hottest gas of a filling from supply at T_amb
     # largest |d phi / dx| is the tail's slope at x = 1, a
-    dq_dp = c_max * RHO0 * math.sqrt(T_REF / p[P_TAMB]) * max(slope_s, slope_e)
+    dq_dp = c_max * RHO0 * math.sqrt(T_REF / p[P_TAMB]) * slope
     rate_p = GAMMA * R_AIR * t_hot * dq_dp / v_min
     m = p[P_MASS]
     rate_stop = p[P_CSTOP] / m + math.sqrt(p[P_KSTOP] / m)

@@ -9,6 +9,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pneumafit.physics.valve_map import (
+    MAP_B_FRACTIONS,
+    MAP_BE_NAMES,
+    MAP_BS_NAMES,
+    MAP_C_BOUNDS,
+    MAP_CE_NAMES,
+    MAP_CS_NAMES,
+    MAP_KNOTS,
+    sample_iso,
+)
+
 # ----------------------------------------------------------------------------
 # State vector (fixed maximal layout; a structure uses a subset)
 # ----------------------------------------------------------------------------
@@ -54,9 +65,11 @@ C_FORCED_CONV = 9  # effect forced_convection on/off
 C_SUPPLY_DROP = 10  # effect supply_pressure_drop on/off
 C_STATIC_FLOW = 11  # 1: no ODE, static valve flow at measured p, u (flow tests)
 C_SEAL_FRICTION = 12  # effect pressure-dependent seal friction on/off
-NCFG = 13
+C_VALVE_LAW = 13  # servo-valve law: 0 ISO 6358 (parametric), 1 measured map
+NCFG = 14
 
 HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
+VALVE_LAWS = {"iso6358": 0, "map": 1}
 
 # ----------------------------------------------------------------------------
 # Controller vector (float64): pd law [kp, kd, u0, umax, 0...]; state feedback
@@ -88,7 +101,8 @@ class ParameterSpec:
     lower, upper : float
         Physical bounds (inclusive) used to validate values and as fit bounds.
     group : str
-        ``rig``, ``valve``, ``heat``, ``friction``, ``effect`` or ``numerics``.
+        ``rig``, ``valve``, ``heat``, ``friction``, ``effect``, ``numerics``
+        or ``valve_map`` (the measured valve map, used by the ``map`` law).
     description : str
         One line for tables and reports.
     """
@@ -104,7 +118,7 @@ class ParameterSpec:
 
 _INF = float("inf")
 
-PARAMETER_SPECS: tuple[ParameterSpec, ...] = (
+_BASE_SPECS: tuple[ParameterSpec, ...] = (
     # --- rig (from campaign.toml) ---
     ParameterSpec("bore", "m", 0.032, 1e-3, 1.0, "rig", "cylinder bore D"),
     ParameterSpec("rod", "m", 0.016, 0.0, 1.0, "rig", "rod diameter d"),
@@ -171,6 +185,39 @@ PARAMETER_SPECS: tuple[ParameterSpec, ...] = (
     ParameterSpec("stop_damping", "N s/m", 6.0e3, 0.0, 1e8, "numerics", "end-stop damping"),
 )  # fmt: skip
 
+
+def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
+    # measured valve map (physics.valve_map): knot values of the default ISO valve
+    by_name = {s.name: s for s in base}
+    iso = {name: s.default for name, s in by_name.items()}
+    c_s, c_e = sample_iso(
+        iso["valve_C_supply"], iso["valve_b_supply"], iso["valve_C_exhaust"],
+        iso["valve_b_exhaust"], iso["valve_overlap"], iso["valve_u_sat"], iso["valve_C_leak"],
+        iso["valve_leak_width"],
+    )  # fmt: skip
+    lo, hi = MAP_C_BOUNDS
+    specs = []
+    for path, names, values in (("supply", MAP_CS_NAMES, c_s), ("exhaust", MAP_CE_NAMES, c_e)):
+        for name, value, f in zip(names, values, MAP_KNOTS, strict=True):
+            specs.append(ParameterSpec(
+                name, "m^3/s/Pa", value, lo, hi, "valve_map",
+                f"sonic conductance of the {path} path at u = {f:+g} u_sat",
+            ))  # fmt: skip
+    for path, names, key in (("supply", MAP_BS_NAMES, "valve_b_supply"),
+                             ("exhaust", MAP_BE_NAMES, "valve_b_exhaust")):  # fmt: skip
+        side = "u" if path == "supply" else "-u"
+        for name, f in zip(names, MAP_B_FRACTIONS, strict=True):
+            specs.append(ParameterSpec(
+                name, "", iso[key], by_name[key].lower, by_name[key].upper, "valve_map",
+                f"critical ratio of the {path} path at {side} = {f:g} u_sat",
+            ))  # fmt: skip
+    return tuple(specs)
+
+
+#: Every model parameter. The valve-map parameters come last so that the
+#: indices of the others did not move when they were added.
+PARAMETER_SPECS: tuple[ParameterSpec, ...] = _BASE_SPECS + _map_specs(_BASE_SPECS)
+
 PARAMETER_NAMES: tuple[str, ...] = tuple(s.name for s in PARAMETER_SPECS)
 NP = len(PARAMETER_SPECS)
 P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
@@ -220,3 +267,11 @@ P_RSUP = P["supply_line_resistance"]
 P_SEAL = P["seal_friction_coefficient"]
 P_KSTOP = P["stop_stiffness"]
 P_CSTOP = P["stop_damping"]
+# valve map: contiguous blocks (physics.valve_map.map_constants reads slices)
+N_MAP_KNOTS = len(MAP_KNOTS)
+P_MAP_CS = P[MAP_CS_NAMES[0]]
+P_MAP_CE = P[MAP_CE_NAMES[0]]
+P_MAP_BS = P[MAP_BS_NAMES[0]]
+P_MAP_BE = P[MAP_BE_NAMES[0]]
+MAP_C_LOWER, MAP_C_UPPER = MAP_C_BOUNDS
+MAP_B_LOWER, MAP_B_UPPER = SPECS[MAP_BS_NAMES[0]].lower, SPECS[MAP_BS_NAMES[0]].upper

@@ -24,11 +24,14 @@ from pneumafit.models.layout import (
     C_SEAL_FRICTION,
     C_STATIC_FLOW,
     C_SUPPLY_DROP,
+    C_VALVE_LAW,
     C_VALVE_ORDER,
     C_WALL_MASS,
     HEAT_LAWS,
     NCFG,
+    VALVE_LAWS,
 )
+from pneumafit.physics.valve_map import MAP_PARAMETER_NAMES
 
 #: Optional effects: configuration slot, parameters, one-line description.
 EFFECT_SLOTS: dict[str, tuple[int, tuple[str, ...], str]] = {
@@ -76,6 +79,16 @@ HEAT_PARAMETERS: dict[str, tuple[str, ...]] = {
     "convection": ("xi", "beta"),
 }
 
+#: Valve parameters that each valve law uses (``valve_m`` and
+#: ``valve_x_laminar``, the flow function's shape, are shared).
+VALVE_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "iso6358": (
+        "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
+        "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak", "valve_leak_width",
+    ),
+    "map": ("valve_m", "valve_x_laminar", "valve_u_sat", *MAP_PARAMETER_NAMES),
+}  # fmt: skip
+
 
 @dataclass(frozen=True)
 class ModelStructure:
@@ -92,13 +105,19 @@ class ModelStructure:
         Optional effects switched on (value 1; ``valve_dynamics`` takes the
         order 1 or 2). Names in :data:`EFFECT_SLOTS`.
     name : str
-        Name used in reports; defaults to the heat law.
+        Name used in reports; defaults to the heat law (the valve law does
+        not change it: model lists key on it).
+    valve : {"iso6358", "map"}
+        Servo-valve law: the parametric ISO 6358 law
+        (:mod:`pneumafit.physics.valve`) or the measured valve map
+        (:mod:`pneumafit.physics.valve_map`).
     """
 
     heat: str
     air_properties: str = "constant"
     effects: Mapping[str, int] = field(default_factory=dict)
     name: str = ""
+    valve: str = "iso6358"
 
     def __post_init__(self) -> None:
         if self.heat not in HEAT_LAWS:
@@ -110,6 +129,11 @@ class ModelStructure:
             raise ValueError(
                 "model structure: air_properties: expected 'constant' or 'sutherland', "
                 f"found {self.air_properties!r}"
+            )
+        if self.valve not in VALVE_LAWS:
+            raise ValueError(
+                f"model structure: valve: expected one of {sorted(VALVE_LAWS)}, "
+                f"found {self.valve!r}"
             )
         for name, value in self.effects.items():
             if name not in EFFECT_SLOTS:
@@ -159,6 +183,11 @@ class ModelStructure:
             names.extend(params)
         return tuple(names)
 
+    @property
+    def valve_parameter_names(self) -> tuple[str, ...]:
+        """Valve parameters used by this structure's valve law."""
+        return VALVE_PARAMETERS[self.valve]
+
     def config(
         self,
         *,
@@ -188,6 +217,7 @@ class ModelStructure:
         cfg[C_CHAMBER] = 1 if chamber == "P" else 0
         cfg[C_INPUT] = int(closed_loop)
         cfg[C_STATIC_FLOW] = int(static_flow)
+        cfg[C_VALVE_LAW] = VALVE_LAWS[self.valve]
         for name, value in self.effects.items():
             cfg[EFFECT_SLOTS[name][0]] = value
         return cfg

@@ -5,6 +5,6 @@ layer can compose them inside the compiled right-hand side; each one is also an
 ordinary Python function (``f.py_func``) for tests and reference solvers.
 """
 
-from pneumafit.physics import air, friction, geometry, heat, valve
+from pneumafit.physics import air, friction, geometry, heat, valve, valve_map
 
-__all__ = ["air", "friction", "geometry", "heat", "valve"]
+__all__ = ["air", "friction", "geometry", "heat", "valve", "valve_map"]

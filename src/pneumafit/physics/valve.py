@@ -43,6 +43,12 @@ both paths at u = 0, and shifted towards the path that opens as the spool
 moves (the land on that side shortens, the other lengthens). It gives the
 valve its non-zero pressure gain at the centre, which sets the equilibrium
 pressures of the paper's eq. (10) and the gains of eq. (12).
+
+This is the ``iso6358`` valve law (the default). The ``map`` law
+(:mod:`pneumafit.physics.valve_map`, selected by ``ModelStructure(valve=
+"map")``) keeps the restriction (phi, m, x_l) and replaces C_S(u), C_E(u) by
+measured knot tables interpolated monotonically in log C, and b by a
+piecewise-linear function of the opening.
 """
 
 from __future__ import annotations

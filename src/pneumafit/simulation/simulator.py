@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneumafit.models import kernel
-from pneumafit.models.layout import CHANNEL_UNITS, CHANNELS, NCTRL, NP, NX, P
+from pneumafit.models.layout import CHANNEL_UNITS, CHANNELS, NCTRL, NP, NX, VALVE_LAWS, P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation.experiment import Experiment
@@ -351,6 +351,7 @@ def choose_step(
     default: float = DEFAULT_STEP,
     y_range: tuple[float, float] | None = None,
     method: str | Tableau = DEFAULT_METHOD,
+    valve: str = "iso6358",
 ) -> float:
     """Largest fixed step (s) that is stable for a parameter set.
 
@@ -371,7 +372,13 @@ def choose_step(
         Positions (m) the piston visits.
     method : str or Tableau
         Integration method the step is for.
+    valve : {"iso6358", "map"}
+        Valve law of the model (:attr:`ModelStructure.valve`): the rate
+        bound takes that law's largest conductance.
     """
+    if valve not in VALVE_LAWS:
+        raise ValueError(f"choose_step: valve: expected one of {sorted(VALVE_LAWS)}, "
+                         f"found {valve!r}")  # fmt: skip
     tableau = TABLEAUS[method] if isinstance(method, str) else method
     vec = (
         np.asarray(parameters, dtype=float)
@@ -380,5 +387,5 @@ def choose_step(
     )
     stroke = vec[P["stroke"]]
     lo, hi = y_range if y_range is not None else (0.0, stroke)
-    rate = kernel.stiffness_bound(vec, max(lo, 0.0), min(hi, stroke))
+    rate = kernel.stiffness_bound(vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve])
     return float(min(default, STABILITY_MARGIN * tableau.stability / rate))

@@ -105,6 +105,13 @@ def fit(
             "noise, an estimate at a bound or outside its interval, chains too short).",
         ),
     ] = False,
+    valve: Annotated[
+        str,
+        typer.Option(
+            help="Valve law: iso6358 (parametric) or map (measured conductance and critical "
+            "ratio tables over the command, started from the ISO fit).",
+        ),
+    ] = "iso6358",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -115,7 +122,7 @@ def fit(
     from pneumafit.identification.command import fit_command
 
     raise typer.Exit(
-        fit_command(campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict)
+        fit_command(campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve)
     )
 
 

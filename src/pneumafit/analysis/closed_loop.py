@@ -26,6 +26,7 @@ overlap (docs/physics.md, "State feedback on the nonlinear model"):
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import math
@@ -588,6 +589,7 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
             structure = ModelStructure(
                 heat=spec["heat"], air_properties=spec.get("air_properties", "constant"),
                 effects=spec.get("effects", {}), name="rig truth",
+                valve=spec.get("valve", "iso6358"),
             )  # fmt: skip
         except (KeyError, TypeError, ValueError) as exc:
             raise PneumafitInputError(
@@ -597,4 +599,8 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
         _, values = parse_parameters({"model": spec["heat"], "parameters": values}, str(file))
         return structure, values
     model, values = parse_parameters(document, str(file))
-    return get_structure(model), values
+    structure = get_structure(model)
+    valve = (document.get("structure") or {}).get("valve") if isinstance(document, dict) else None
+    if valve and valve != structure.valve:  # a fit of the measured valve map
+        structure = dataclasses.replace(structure, valve=str(valve))
+    return structure, values

@@ -253,7 +253,7 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
     described = document.get("structure") or {}
     air = described.get("air_properties") or "sutherland"
     try:
-        structure = fit_structure(model, air)
+        structure = fit_structure(model, air, str(described.get("valve") or "iso6358"))
         effects = described.get("effects") or {}
         if effects:  # a fit with optional effects is replayed with them
             structure = dataclasses.replace(

@@ -154,7 +154,7 @@ class BaseFit:
         st = doc["structure"]
         structure = ModelStructure(
             st["heat"], air_properties=st.get("air_properties", "wall"),
-            effects=dict(st.get("effects") or {}),
+            effects=dict(st.get("effects") or {}), valve=st.get("valve", "iso6358"),
         )  # fmt: skip
         values = {n: float(p["value"]) for n, p in doc["parameters"].items()}
         nuisance = doc.get("nuisance") or {}

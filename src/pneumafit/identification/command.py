@@ -49,6 +49,7 @@ from pneumafit.identification.staged import (
     FitResult,
     identify,
 )
+from pneumafit.models.layout import VALVE_LAWS
 from pneumafit.models.structure import MODELS
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
@@ -104,6 +105,7 @@ def fit_command(
     mcmc: bool,
     console: Console,
     strict: bool = False,
+    valve: str = "iso6358",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -123,6 +125,8 @@ def fit_command(
     console : rich.console.Console
     strict : bool
         Return 3 when the fit is not trustworthy (:class:`FitQuality`).
+    valve : {"iso6358", "map"}
+        Valve law (:class:`FitOptions`).
 
     Returns
     -------
@@ -139,6 +143,8 @@ def fit_command(
     ]
     if model not in MODELS:
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
+    if valve not in VALVE_LAWS:
+        problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -155,8 +161,11 @@ def fit_command(
         + f" --seed {seed}"
         + ("" if mcmc else " --no-mcmc")
         + (" --strict" if strict else "")
+        + (f" --valve {valve}" if valve != "iso6358" else "")
     )
-    options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
+    options = FitOptions(
+        mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve
+    )
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -167,7 +176,8 @@ def fit_command(
     partial = out / PARTIAL_FILE
     chains_path: Path | None = None
     if mcmc:
-        fingerprint = _fingerprint(camp.sha256, model, seed, walkers, steps)
+        fingerprint = _fingerprint(camp.sha256, model + ("" if valve == "iso6358" else "+" + valve),
+                                   seed, walkers, steps)  # fmt: skip
         _prepare_partial(partial, fingerprint, console)
         _stamp(partial, fingerprint)
         chains_path = partial

@@ -168,6 +168,7 @@ def fit_document(
             "name": result.structure.name,
             "heat": result.structure.heat,
             "air_properties": result.structure.air_properties,
+            "valve": result.structure.valve,
             "effects": dict(result.structure.effects),
         },
         "campaign": {

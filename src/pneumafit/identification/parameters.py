@@ -758,13 +758,18 @@ class ParameterSet:
         if "characteristic_length" not in rig and "bore" in rig:
             values["characteristic_length"] = rig["bore"]
         plist: list[Parameter] = []
+        valve_used = set(structure.valve_parameter_names)
+        if structure.valve == "map" and free is None:
+            free_set = (free_set - set(_DEFAULT_FREE_VALVE)) | set(_map_free())
         for name in PARAMETER_NAMES:
             spec = SPECS[name]
             if spec.group == "heat" and name not in heat_used:
                 continue
             if spec.group == "effect" and name not in heat_used:
                 continue
-            scale = "log" if name in _LOG_SCALE else "linear"
+            if spec.group in ("valve", "valve_map") and name not in valve_used:
+                continue
+            scale = "log" if name in _LOG_SCALE or name.startswith(_MAP_C_PREFIX) else "linear"
             lower, upper = _FIT_BOUNDS.get(name, (spec.lower, spec.upper))
             value = float(np.clip(values[name], lower, upper))
             plist.append(
@@ -792,6 +797,29 @@ _DEFAULT_FREE_VALVE = (
     "valve_overlap", "valve_C_leak", "valve_leak_width",
 )  # fmt: skip
 _FRICTION = ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity")
+#: Prefix of the valve map's knot conductances (log scale).
+_MAP_C_PREFIX = ("valve_map_CS_", "valve_map_CE_")
+
+
+def _map_free() -> tuple[str, ...]:
+    """Valve-map parameters free by default: each path's knots from the centre
+    (its leakage) to full opening, every critical-ratio knot and m. A path's
+    knots on its closed side (|u| >= 0.1 u_sat away from opening) carry less
+    than the centre leakage (the map is monotone), which no flow test
+    resolves; they are held at their start."""
+    from pneumafit.physics.valve_map import (
+        MAP_BE_NAMES,
+        MAP_BS_NAMES,
+        MAP_CE_NAMES,
+        MAP_CS_NAMES,
+        MAP_KNOTS,
+    )
+
+    cs = [n for n, f in zip(MAP_CS_NAMES, MAP_KNOTS, strict=True) if f > -0.1]
+    ce = [n for n, f in zip(MAP_CE_NAMES, MAP_KNOTS, strict=True) if f < 0.1]
+    return (*cs, *ce, *MAP_BS_NAMES, *MAP_BE_NAMES, "valve_m")
+
+
 _LOG_SCALE = {
     "valve_C_supply", "valve_C_exhaust", "valve_C_leak", "valve_leak_width", "xi", "lambda",
     "friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity",

@@ -325,7 +325,8 @@ def rest_step(parameters: NDArray[np.float64], cap: float, stability: float) -> 
     fits that move it), at most ``cap``.
     """
     vec = np.array(parameters, dtype=float)
-    leak = vec[P["valve_C_leak"]]
+    # the larger of the ISO and the map centre leakages (map knot 7 at u = 0)
+    leak = max(vec[P["valve_C_leak"]], vec[P["valve_map_CS_07"]], vec[P["valve_map_CE_07"]])
     vec[P["valve_C_supply"]] = 0.0
     vec[P["valve_C_exhaust"]] = 0.0
     vec[P["valve_C_leak"]] = 10.0 * leak  # margin for fits that move it
@@ -578,10 +579,14 @@ class Problem:
         else:
             y_range = None
         if self.max_step is None:
-            step = choose_step(nominal, default=DEFAULT_STEP, y_range=y_range)
+            step = choose_step(
+                nominal, default=DEFAULT_STEP, y_range=y_range, valve=self.structure.valve
+            )
             idx = np.arange(n)
             return _Layout(exp, step, idx, idx, None, None)
-        step = choose_step(nominal, default=self.max_step, y_range=y_range)
+        step = choose_step(
+            nominal, default=self.max_step, y_range=y_range, valve=self.structure.valve
+        )
         dt = float(np.median(np.diff(t)))
         k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
         # dense samples: everywhere, or for blocked tests only around the

@@ -58,7 +58,15 @@ from pneumafit.identification.quality import (
 from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import friction_starts, heat_starts, valve_starts
+from pneumafit.models.layout import PARAMETER_SPECS
 from pneumafit.models.structure import HEAT_PARAMETERS, MODELS, ModelStructure
+from pneumafit.physics.valve_map import (
+    CENTRE_KNOT,
+    MAP_CE_NAMES,
+    MAP_CS_NAMES,
+    MAP_KNOTS,
+    map_from_iso,
+)
 
 __all__ = [
     "DEFAULT_CHANNELS",
@@ -113,11 +121,64 @@ LEAK_FACTORS = (1.0, 0.2, 5.0)
 
 
 def _leak_starts(
-    heat: Sequence[Mapping[str, float]], values: Mapping[str, float]
+    heat: Sequence[Mapping[str, float]],
+    values: Mapping[str, float],
+    names: Sequence[str] = LEAK_PARAMETERS,
 ) -> list[dict[str, float]]:
     """Every heat start with the valve stage's centre leakage times :data:`LEAK_FACTORS`."""
-    leak = float(values["valve_C_leak"])
-    return [{**h, "valve_C_leak": max(leak * f, 1e-14)} for f in LEAK_FACTORS for h in heat]
+    return [
+        {**h, **{n: max(float(values[n]) * f, 1e-14) for n in names}}
+        for f in LEAK_FACTORS
+        for h in heat
+    ]
+
+
+#: Centre leakage of the valve map: each path's conductance at u = 0.
+MAP_LEAK_PARAMETERS: tuple[str, ...] = (
+    MAP_CS_NAMES[CENTRE_KNOT],
+    MAP_CE_NAMES[CENTRE_KNOT],
+)
+_VALVE_GROUPS = ("valve", "valve_map")
+SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
+
+
+def _iso_valve(
+    flows: Sequence[Recording],
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    options: FitOptions,
+    seed: int,
+) -> dict[str, float]:
+    """ISO 6358 fit of the flow tests (the valve map's start)."""
+    iso = replace(structure, valve="iso6358")
+    rig = {n: values[n] for n in values if SPECS_GROUP.get(n) == "rig"}
+    ps = ParameterSet.for_model(iso, rig).only_free(VALVE_PARAMETERS)
+    prob = _problem(flows, iso, {**ps.values(), **rig}, options)
+    starts = valve_starts(flows, rig)
+    prob.linearize({**ps.values(), **starts[0]})
+    est = _least_squares(prob, ps, starts, seed)
+    return {n: est.parameters[n].value for n in ps.names if SPECS_GROUP.get(n) == "valve"}
+
+
+def _uninformed_knots(campaign: Campaign, values: Mapping[str, float]) -> list[str]:
+    """Map knots with no flow level strictly between their neighbouring knots."""
+    u_sat = float(values["valve_u_sat"])
+    levels = np.concatenate(
+        [np.unique(np.asarray(r.channels[f"u_{r.chamber}"], float))
+         for r in campaign.by_role("fit") if r.kind == "flow"] or [np.array([])]
+    )  # fmt: skip
+    knots = np.asarray(MAP_KNOTS) * u_sat
+    held = []
+    for k in range(len(knots)):
+        lo = knots[k - 1] if k > 0 else -np.inf
+        hi = knots[k + 1] if k + 1 < len(knots) else np.inf
+        if not np.any((levels > lo) & (levels < hi)):
+            held += [MAP_CS_NAMES[k], MAP_CE_NAMES[k]]
+    return held
+
+
+def _brief_values(values: Mapping[str, float], names: Sequence[str]) -> str:
+    return ", ".join(f"{n} {values[n]:.4g}" for n in names if n in values)
 
 
 def _distinct_optima(
@@ -159,7 +220,7 @@ def default_walkers(n_free: int) -> int:
 
 
 def fit_structure(
-    model: str | ModelStructure, air_properties: str = "sutherland"
+    model: str | ModelStructure, air_properties: str = "sutherland", valve: str = "iso6358"
 ) -> ModelStructure:
     """The structure fitted for a model name.
 
@@ -173,7 +234,7 @@ def fit_structure(
     """
     if isinstance(model, ModelStructure):
         return model
-    base = MODELS[model]
+    base = replace(MODELS[model], valve=valve)
     if base.heat == "convection":
         return replace(base, air_properties=air_properties)
     return base
@@ -187,6 +248,10 @@ class FitOptions:
     ----------
     mcmc : bool
         Sample the posteriors after the point estimates.
+    valve : {"iso6358", "map"}
+        Valve law: the parametric ISO 6358 characteristic, or the measured
+        map (:mod:`pneumafit.physics.valve_map`), started from the ISO fit of
+        the flow tests.
     walkers : int or None
         Walkers of every sampled stage (default :func:`default_walkers`).
     steps : int or None
@@ -221,6 +286,7 @@ class FitOptions:
     """
 
     mcmc: bool = True
+    valve: str = "iso6358"
     walkers: int | None = None
     steps: int | None = None
     sample: tuple[str, ...] = DEFAULT_SAMPLE
@@ -468,7 +534,7 @@ def identify(
     say = log or (lambda _msg: None)
     t_start = time.perf_counter()
     name = model if isinstance(model, str) else model.name
-    structure = fit_structure(model, opts.air_properties)
+    structure = fit_structure(model, opts.air_properties, opts.valve)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
     rig = campaign.rig.as_parameters()
     nuisance = ["temperature_sensor_lag"] if {"T_P", "T_N"} & set(opts.channels) else []
@@ -520,11 +586,27 @@ def identify(
         return prob
 
     # ------------------------------------------------------------ (a) valve
-    stage = StageResult("valve", [r.file for r in flows], VALVE_PARAMETERS)
+    valve_free = tuple(n for n in params.free_names if SPECS_GROUP.get(n) in _VALVE_GROUPS)
+    leak_names = LEAK_PARAMETERS if structure.valve == "iso6358" else MAP_LEAK_PARAMETERS
+    if structure.valve == "map" and flows:
+        # the map starts from the ISO 6358 fit of the same flow tests, sampled
+        # at its knots; knots no flow level informs stay at that start
+        iso = _iso_valve(flows, structure, values, opts, seeds[0])
+        values.update(map_from_iso({**values, **iso}))
+        values["valve_m"] = iso["valve_m"]
+        held = _uninformed_knots(campaign, values)
+        if held:
+            warns.append(
+                "valve map: knots without a flow level between their neighbours, held at the "
+                "ISO 6358 fit: " + ", ".join(held)
+            )
+        valve_free = tuple(n for n in valve_free if n not in held)
+        say(f"valve: ISO 6358 start {_brief_values(iso, VALVE_PARAMETERS)}")
+    stage = StageResult("valve", [r.file for r in flows], valve_free)
     if flows:
-        starts = valve_starts(flows, rig)
+        starts = valve_starts(flows, rig) if structure.valve == "iso6358" else [{}]
         values.update(starts[0])
-        run_stage(stage, flows, VALVE_PARAMETERS, starts, seeds[0])
+        run_stage(stage, flows, valve_free, starts, seeds[0])
         say(f"valve: {stage.seconds:.1f} s, log-likelihood {stage.estimate.log_likelihood:.1f}")
     else:
         stage.note = "no fit flow test: valve parameters held at their defaults"
@@ -537,17 +619,18 @@ def identify(
     # for seconds); a leak held wrong makes the heat law absorb the pressure
     # drift (beta on its bound on an independently written rig)
     leak_here = bool(blocked) and not (flows and centre_measured(campaign, values))
-    free_heat = heat_names + tuple(nuisance) + (LEAK_PARAMETERS if leak_here else ())
+    free_heat = heat_names + tuple(nuisance) + (leak_names if leak_here else ())
     stage = StageResult("heat", [r.file for r in blocked], free_heat)
     heat_alternatives: list[dict[str, float]] = []
     if blocked:
         starts = heat_starts(structure.heat)
         if leak_here:
-            starts = _leak_starts(starts, values)
+            starts = _leak_starts(starts, values, leak_names)
             stage.note = "no flow level at 0 V: the centre leakage is fitted with the heat law"
         run_stage(stage, blocked, free_heat, starts, seeds[1], opts.random_starts)
-        heat_alternatives = _distinct_optima(stage.estimate, heat_names, JOINT_STARTS - 1)
-        say(f"heat: {stage.seconds:.1f} s, " + _brief(stage.estimate, heat_names + LEAK_PARAMETERS))
+        if len(heat_names) > 1:  # the xi-beta ridge: one-parameter laws have one optimum
+            heat_alternatives = _distinct_optima(stage.estimate, heat_names, JOINT_STARTS - 1)
+        say(f"heat: {stage.seconds:.1f} s, " + _brief(stage.estimate, heat_names + leak_names))
     else:
         stage.note = "no fit charge/discharge test: heat parameters from the step tests only"
         warns.append(f"heat: {stage.note}")
@@ -566,7 +649,7 @@ def identify(
 
     # ------------------------------------------------------------- (d) joint
     joint_free = tuple(
-        [*(VALVE_PARAMETERS if flows else ()), *(heat_names if (blocked or steps) else ()),
+        [*(valve_free if flows else ()), *(heat_names if (blocked or steps) else ()),
          *(FRICTION_PARAMETERS if steps else ()), *nuisance]
     )  # fmt: skip
     all_fit = flows + blocked + steps
@@ -635,7 +718,7 @@ def identify(
     heat_draws: dict[str, NDArray[np.float64]] | None = None
     if opts.mcmc:
         groups = {
-            "valve": (flows + blocked, VALVE_PARAMETERS),
+            "valve": (flows + blocked, valve_free),
             "heat": (blocked + steps, heat_names + tuple(nuisance)),
             "friction": (steps, FRICTION_PARAMETERS),
         }

@@ -147,6 +147,7 @@ def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str
             air_properties=str(spec.get("air_properties") or "constant"),
             effects=dict(spec.get("effects") or {}),
             name=str(spec.get("name") or ""),
+            valve=str(spec.get("valve") or "iso6358"),
         )
     elif name in MODELS:
         structure = MODELS[name]

@@ -231,12 +231,24 @@ def rig(
         typer.Option("--effect", help="Undeclared extra effect NAME[=VALUE]; repeatable."),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of every random draw (sensor noise).")] = 2026,
-    protocol: Annotated[str, typer.Option(help="Test protocol: demo, quick or tutorial.")] = "demo",
+    protocol: Annotated[
+        str, typer.Option(help="Test protocol: demo, quick, tutorial or sparse.")
+    ] = "demo",
+    truth: Annotated[
+        str | None,
+        typer.Option(
+            "--truth",
+            help="Independent truth: a preset (power-valve, table-valve-asym, lugre-pressure, "
+            "dahl-bump-leak, mixed, fit-laws) or a TOML/JSON file.",
+        ),
+    ] = None,
 ) -> None:
     """Record a campaign on the virtual rig (deterministic for a seed)."""
     from pneumafit.rig import run_rig
 
-    raise typer.Exit(run_rig(out, effect or [], seed=seed, console=console, protocol=protocol))
+    raise typer.Exit(
+        run_rig(out, effect or [], seed=seed, console=console, protocol=protocol, truth=truth)
+    )
 
 
 @app.command()

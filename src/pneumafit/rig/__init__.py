@@ -3,7 +3,9 @@
 :class:`VirtualRig` simulates a richer model than the fitted structures, at a
 finer step, through a sensor model, following a :class:`Protocol`, and writes
 a campaign folder plus a ``truth.json`` that campaign.toml never mentions.
-:func:`run_rig` is the body of ``pneumafit rig``.
+:func:`run_rig` is the body of ``pneumafit rig``. :mod:`pneumafit.rig.truth`
+holds an independently written truth simulator with configurable parts
+(``VirtualRig(truth=...)``, ``pneumafit rig --truth``).
 """
 
 from pneumafit.rig.command import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, run_rig
@@ -23,6 +25,7 @@ from pneumafit.rig.protocol import (
     demo_protocol,
     get_protocol,
     quick_protocol,
+    sparse_protocol,
     tutorial_protocol,
 )
 from pneumafit.rig.sensors import SensorModel, first_order_lag
@@ -76,6 +79,7 @@ __all__ = [
     "quick_protocol",
     "resolve_effects",
     "run_rig",
+    "sparse_protocol",
     "truth_readme",
     "tutorial_protocol",
 ]

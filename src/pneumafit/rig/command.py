@@ -1,4 +1,6 @@
-"""``pneumafit rig --out DIR [--effect NAME=VALUE ...] [--seed N]``: the command body.
+"""``pneumafit rig --out DIR [--effect NAME=VALUE ...] [--truth NAME_OR_FILE] [--seed N]``.
+
+The command body.
 
 The command line only parses its options and calls :func:`run_rig`, which
 prints a short summary and returns the exit status; bad input never escapes
@@ -48,6 +50,7 @@ def run_rig(
     seed: int = DEMO_SEED,
     console: Console | None = None,
     protocol: str | Protocol = "demo",
+    truth: str | None = None,
 ) -> int:
     """Record a virtual-rig campaign into ``out`` and print a summary.
 
@@ -67,14 +70,19 @@ def run_rig(
     console : rich.console.Console, optional
         Where to print; default standard output.
     protocol : str or Protocol
-        ``"demo"`` (default), ``"quick"`` or a protocol.
+        ``"demo"`` (default), ``"quick"``, ``"tutorial"``, ``"sparse"`` or a protocol.
+    truth : str or None
+        ``--truth``: an independently simulated truth, a preset name of
+        :data:`pneumafit.rig.truth.PRESETS` or a TOML/JSON configuration file
+        (docs/virtual-rig.md, "Mismatched truths"); None simulates the truth
+        with the fitting kernel.
 
     Returns
     -------
     int
         0 on success, 2 on bad input (unknown effect, bad value, bad seed,
-        ``out`` not writable as a campaign), 1 when a simulation or the
-        writing failed.
+        unknown truth preset or a bad truth file, ``out`` not writable as a
+        campaign), 1 when a simulation or the writing failed.
     """
     console = console if console is not None else Console()
     target = Path(out)
@@ -83,7 +91,7 @@ def run_rig(
         proto = get_protocol(protocol)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise PneumafitInputError(f"--seed: expected an integer >= 0, found {seed!r}")
-        rig = VirtualRig(effects=parsed, seed=seed)
+        rig = VirtualRig(effects=parsed, seed=seed, truth=truth)
         check_output_folder(target)
     except (PneumafitInputError, ValueError) as exc:
         _error(console, str(exc))
@@ -136,6 +144,16 @@ def _summary(console: Console, run: RigRun, target: Path) -> None:
     console.print(Text(f"truth: {truth['model']['name']} ({truth['model']['air_properties']} air)"))
     if effects:
         console.print(Text(f"undeclared effects (only in {TRUTH_FILE}): {hidden}"))
+    independent = truth.get("truth_model")
+    if independent is not None:
+        ref = independent["reference_quantities"]
+        console.print(
+            Text(
+                f"independent truth (only in {TRUTH_FILE}): lambda at 5 bar/50 degC "
+                f"{ref['lambda_reference']:.1f} W/m^2/K, static friction "
+                f"{ref['friction_static']:.1f} N, Coulomb friction {ref['friction_coulomb']:.1f} N"
+            )
+        )
     lam = truth["diagnostics"].get("lambda_equivalent")
     if lam is not None:
         console.print(Text(f"equivalent lambda over the relaxations: {lam:.1f} W/m^2/K"))

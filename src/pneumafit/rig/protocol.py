@@ -33,6 +33,7 @@ __all__ = [
     "demo_protocol",
     "get_protocol",
     "quick_protocol",
+    "sparse_protocol",
 ]
 
 #: Rate (Hz) at which flow tests are computed before the flow meter's lag;
@@ -462,8 +463,48 @@ def tutorial_protocol() -> Protocol:
     )
 
 
+def sparse_protocol() -> Protocol:
+    """A deliberately thin campaign, to test what identification can do with little.
+
+    One flow test of valve P only, at three held pressures and without a 0-V
+    command level (the centre leak is never measured directly); charge and
+    discharge tests of chamber P only (one of each to fit, one of each held
+    out); two short closed-loop step tests (one to fit, one held out).
+    Chamber N's valve and heat exchange are seen only through the steps.
+    """
+    cmds = (-10.0, -4.0, -1.5, -0.6, 0.6, 1.5, 4.0, 10.0)
+    u = _BLOCKED_UNITS
+    tests: tuple[Test, ...] = (
+        FlowTest(file="flow_P.h5", chamber="P", commands=cmds,
+                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.3, units=_FLOW_UNITS),
+        BlockedTest(file="charge_P_1.h5", kind="charge", chamber="P", position=0.12,
+                    amplitude=10.0, opening_time=0.3, duration=2.0, temperature=True, units=u),
+        BlockedTest(file="discharge_P_1.h5", kind="discharge", chamber="P", position=0.12,
+                    amplitude=10.0, opening_time=0.4, duration=2.0, units=u),
+        BlockedTest(file="charge_P_2.h5", kind="charge", chamber="P", position=0.35,
+                    amplitude=6.0, opening_time=0.6, duration=2.0, role="validate", units=u),
+        BlockedTest(file="discharge_P_2.h5", kind="discharge", chamber="P", position=0.35,
+                    amplitude=7.0, opening_time=0.6, duration=2.0, role="validate", units=u),
+        StepTest(file="step_1.h5", start=0.25, steps=((0.3, 0.34), (1.2, 0.19)), duration=2.0,
+                 preroll=1.0),
+        StepTest(file="step_2.h5", start=0.30, steps=((0.3, 0.22), (1.2, 0.31)), duration=2.0,
+                 preroll=1.0, kp=45.0, kd=3.0, temperature=True, role="validate"),
+    )  # fmt: skip
+    return Protocol(
+        name="sparse",
+        description="Virtual rig sparse campaign: one flow test (valve P, no 0 V), chamber P "
+        "charge/discharge only, two short steps",
+        tests=tests,
+    )
+
+
 #: Protocols by name.
-PROTOCOLS = {"demo": demo_protocol, "quick": quick_protocol, "tutorial": tutorial_protocol}
+PROTOCOLS = {
+    "demo": demo_protocol,
+    "quick": quick_protocol,
+    "tutorial": tutorial_protocol,
+    "sparse": sparse_protocol,
+}
 
 
 def get_protocol(protocol: str | Protocol) -> Protocol:

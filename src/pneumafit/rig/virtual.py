@@ -60,6 +60,13 @@ from pneumafit.rig.protocol import (
     get_protocol,
 )
 from pneumafit.rig.sensors import SensorModel
+from pneumafit.rig.truth import (
+    TruthConfig,
+    TruthSimulation,
+    TruthSimulator,
+    get_truth,
+    reference_quantities,
+)
 from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_step
 
 __all__ = [
@@ -193,12 +200,22 @@ class VirtualRig:
         Truth integration method (``"dp5"``).
     air_properties : {"sutherland", "constant"}
         Air viscosity and conductivity in the Grashof number.
+    truth : TruthConfig, str or None
+        An independently simulated truth (:mod:`pneumafit.rig.truth`): a
+        configuration, a preset name or a TOML/JSON file. Its valve,
+        friction, heat and probe parts replace the fitted laws, its
+        ``parameters`` table overrides ``truth_parameters``; the rig's
+        geometry and conditions come from the parameter set. None (default)
+        simulates the truth with the fitting kernel, as before.
+    truth_rtol : float
+        Relative tolerance of the independent truth's integrator.
 
     Raises
     ------
     PneumafitInputError
         Unknown parameter or effect name, a value out of bounds, a negative
-        seed, or an unknown method.
+        seed, an unknown method, a bad truth configuration, or effects
+        requested together with an independent truth.
     """
 
     def __init__(
@@ -211,6 +228,8 @@ class VirtualRig:
         step: float = TRUTH_STEP,
         method: str = TRUTH_METHOD,
         air_properties: str = "sutherland",
+        truth: TruthConfig | str | None = None,
+        truth_rtol: float = 1e-8,
     ) -> None:
         if seed is None:
             seed = int(np.random.SeedSequence().entropy)  # type: ignore[arg-type]
@@ -220,7 +239,16 @@ class VirtualRig:
         self.sensors = sensors if sensors is not None else SensorModel()
         self.effects_requested = dict(effects or {})
         resolved = resolve_effects(self.effects_requested)
-        values = {**DEMO_TRUTH, **dict(truth_parameters or {}), **resolved.parameters}
+        self.truth: TruthConfig | None = None
+        if truth is not None:
+            if self.effects_requested:
+                raise PneumafitInputError(
+                    "--truth: an independent truth has its own parts; expected no --effect "
+                    f"with it, found {', '.join(self.effects_requested)}"
+                )
+            self.truth = get_truth(truth)
+        own = dict(self.truth.parameters) if self.truth is not None else {}
+        values = {**DEMO_TRUTH, **dict(truth_parameters or {}), **resolved.parameters, **own}
         try:
             vector = parameter_vector(values)
         except ValueError as exc:
@@ -242,6 +270,12 @@ class VirtualRig:
                 f"truth simulator: expected a method of pneumafit.simulation (e.g. 'dp5') and a "
                 f"step > 0, found method={method!r}, step={step!r} ({exc})"
             ) from None
+        self.truth_simulator: TruthSimulator | None = None
+        if self.truth is not None:
+            try:
+                self.truth_simulator = TruthSimulator(self.truth, rtol=truth_rtol)
+            except ValueError as exc:
+                raise PneumafitInputError(str(exc)) from None
 
     # ------------------------------------------------------------------ campaign
     @property
@@ -284,9 +318,10 @@ class VirtualRig:
                 rec.columns = {column: ch for ch, column in test.columns.items()}
             recordings.append(rec)
             traces[test.file] = trace
+        label = proto.name if self.truth is None else f"{proto.name}-{self.truth.name}"
         campaign = Campaign(
             path=None,
-            name=f"virtual-rig-{proto.name}-seed-{self.seed}",
+            name=f"virtual-rig-{label}-seed-{self.seed}",
             description=proto.description,
             rig=self.rig,
             recordings=recordings,
@@ -342,8 +377,26 @@ class VirtualRig:
         return run
 
     # ------------------------------------------------------------------ tests
-    def _simulate(self, experiment: Experiment) -> Simulation:
-        sim = self.simulator.simulate(self.parameters, experiment)
+    @property
+    def wall_temperature(self) -> float:
+        """True wall temperature (K): the independent truth's, else the parameter set's."""
+        if self.truth is not None and self.truth.heat.wall_temperature is not None:
+            return float(self.truth.heat.wall_temperature)
+        return self.parameters["wall_temperature"]
+
+    def _temperature(
+        self, true: NDArray[np.float64], dt: float, rng: np.random.Generator
+    ) -> NDArray[np.float64]:
+        """Reading of a gas-temperature sensor: the truth's probe if it names one."""
+        if self.truth is not None and self.truth.probe is not None:
+            return self.truth.probe.read(true, dt, rng)
+        return self.sensors.temperature(true, dt, rng)
+
+    def _simulate(self, experiment: Experiment) -> Simulation | TruthSimulation:
+        if self.truth_simulator is not None:
+            sim = self.truth_simulator.simulate(self.parameters, experiment)
+        else:
+            sim = self.simulator.simulate(self.parameters, experiment)
         if not sim.ok:
             raise RigError(
                 f"virtual rig: test {experiment.name!r}: the truth simulation failed "
@@ -415,7 +468,7 @@ class VirtualRig:
             f"p_{ch}": self.sensors.pressure(p_true, offsets[f"p_{ch}"], rng),
         }
         if test.temperature:
-            channels[f"T_{ch}"] = self.sensors.temperature(sim[f"T_{ch}"], dt, rng)
+            channels[f"T_{ch}"] = self._temperature(sim[f"T_{ch}"], dt, rng)
         description = test.description or (
             f"{test.kind} of chamber {ch}, piston blocked at {test.position * 1e3:g} mm: "
             f"{test.command:+g} V for {test.opening_time:g} s after {test.delay:g} s, "
@@ -487,7 +540,7 @@ class VirtualRig:
         if test.temperature:
             for c in ("P", "N"):
                 # the sensor has followed the gas through the pre-roll
-                reading = self.sensors.temperature(sim[f"T_{c}"], dt, rng)
+                reading = self._temperature(sim[f"T_{c}"], dt, rng)
                 channels[f"T_{c}"] = reading[rec_part].copy()
         steps = ", ".join(f"{pos * 1e3:g} mm at {when:g} s" for when, pos in test.steps)
         description = test.description or (
@@ -522,11 +575,18 @@ class VirtualRig:
         as the true, variable one over the relaxation phases (valve back at
         rest) of the charge/discharge tests, sum(lambda |T - T_w|) /
         sum(|T - T_w|), overall and by recording.
+
+        With an independent truth (``truth``), ``truth_model`` holds its
+        configuration (``config``, :meth:`TruthConfig.as_dict`), its
+        ``reference_quantities`` (:func:`pneumafit.rig.truth.reference_quantities`),
+        the simulator settings and the names of the parameters it took from
+        ``parameters`` (the rig's geometry and conditions; the valve,
+        friction and heat entries of ``parameters`` are then not the truth).
         """
         per_test: dict[str, float] = {}
         heat_weighted = 0.0
         weights = 0.0
-        t_wall = self.parameters["wall_temperature"]
+        t_wall = self.wall_temperature
         for test in protocol.tests:
             if not isinstance(test, BlockedTest):
                 continue
@@ -542,7 +602,7 @@ class VirtualRig:
         if weights > 0.0:
             diagnostics["lambda_equivalent"] = heat_weighted / weights
             diagnostics["lambda_equivalent_by_recording"] = per_test
-        return {
+        record = {
             "format": TRUTH_FORMAT,
             "version": TRUTH_VERSION,
             "generator": {
@@ -567,9 +627,40 @@ class VirtualRig:
             "recordings": [_test_summary(test, traces[test.file]) for test in protocol.tests],
             "diagnostics": diagnostics,
         }
+        if self.truth is not None and self.truth_simulator is not None:
+            cfg = self.truth
+            record["model"] = {
+                "name": f"truth:{cfg.name}",
+                "heat": f"{cfg.heat.name} ({cfg.heat.area} area)",
+                "air_properties": cfg.heat.air,
+                "effects": {},
+                "parameter_names": [],
+            }
+            record["simulator"] = {
+                "method": f"scipy solve_ivp {self.truth_simulator.method}",
+                "rtol": self.truth_simulator.rtol,
+            }
+            record["truth_model"] = {
+                "config": cfg.as_dict(),
+                "reference_quantities": reference_quantities(cfg, self.parameters),
+                "simulator": {
+                    "program": "pneumafit.rig.truth",
+                    "method": self.truth_simulator.method,
+                    "rtol": self.truth_simulator.rtol,
+                },
+                "parameters_used": list(_TRUTH_RIG_PARAMETERS),
+                "wall_temperature": self.wall_temperature,
+            }
+        return record
 
 
 _STATE_CHANNELS = ("y", "v", "p_P", "p_N", "T_P", "T_N")
+#: Parameters an independent truth takes from the parameter set.
+_TRUTH_RIG_PARAMETERS = (
+    "bore", "rod", "stroke", "dead_volume_P", "dead_volume_N", "moving_mass", "supply_pressure",
+    "exhaust_pressure", "ambient_temperature", "wall_temperature", "characteristic_length",
+    "mounting_angle", "external_force",
+)  # fmt: skip
 
 
 def _test_summary(test: Test, trace: TruthTrace) -> dict[str, Any]:
@@ -657,6 +748,36 @@ def _fmt(value: float) -> str:
     return f"{value:.4g}"
 
 
+def _independent_truth_lines(independent: Mapping[str, Any]) -> list[str]:
+    cfg = independent["config"]
+    valve = cfg["valve"]
+
+    def part(table: Mapping[str, Any], selector: str) -> str:
+        rest = ", ".join(f"{k} = {v}" for k, v in table.items() if k != selector)
+        return f"`{table[selector]}` ({rest})"
+
+    ref = independent["reference_quantities"]
+    lines = [
+        f"- independent truth `{cfg['name']}` ({cfg.get('description', '')}), written "
+        "apart from the fitting code (`pneumafit.rig.truth`), simulated with scipy "
+        f"`{independent['simulator']['method']}` at rtol {independent['simulator']['rtol']:g}",
+        f"- valve supply path: {part(valve['supply'], 'family')}",
+        f"- valve exhaust path: {part(valve['exhaust'], 'family')}",
+        f"- centre leak: {part(valve['leak'], 'shape')}; m = {valve['m']}, laminar above "
+        f"x = {valve['x_laminar']}",
+        f"- friction: {part(cfg['friction'], 'model')}",
+        f"- heat: {part(cfg['heat'], 'model')}",
+        "- temperature probes: " + (part(cfg["probe"], "model") if "probe" in cfg else
+                                    "the sensor model's"),
+        "- reference quantities: "
+        + ", ".join(f"{k} = {_fmt(v)}" for k, v in ref.items()),
+        "- the valve, heat and friction entries of the parameter set are not used by this "
+        f"truth (only the rig's geometry and conditions, listed below); see `{TRUTH_FILE}` "
+        "key `truth_model`",
+    ]  # fmt: skip
+    return lines
+
+
 def truth_readme(run: RigRun) -> str:
     """The campaign folder's README.md: how it was made and the true parameters."""
     truth = run.truth
@@ -674,6 +795,11 @@ def truth_readme(run: RigRun) -> str:
         "```",
         ("" if truth["protocol"] == "demo" else f"# protocol {truth['protocol']!r}: run_rig\n")
         + "pneumafit rig --out DIR"
+        + (
+            ""
+            if "truth_model" not in truth
+            else f" --truth {truth['truth_model']['config']['name']}"
+        )
         + "".join(
             f" --effect {name}" + ("" if value is None else f"={value!r}")
             for name, value in truth["effects_requested"].items()
@@ -696,9 +822,15 @@ def truth_readme(run: RigRun) -> str:
             if truth["model"]["effects"]
             else "none"
         ),
-        f"- simulated with `{truth['simulator']['method']}` at a fixed step of "
-        f"{truth['simulator']['step']:g} s (the fitting default is Kutta RK3 at 1 ms)",
     ]
+    independent = truth.get("truth_model")
+    if independent is None:
+        lines.append(
+            f"- simulated with `{truth['simulator']['method']}` at a fixed step of "
+            f"{truth['simulator']['step']:g} s (the fitting default is Kutta RK3 at 1 ms)"
+        )
+    else:
+        lines += _independent_truth_lines(independent)
     lam = truth["diagnostics"].get("lambda_equivalent")
     if lam is not None:
         by_rec = truth["diagnostics"]["lambda_equivalent_by_recording"]
@@ -713,7 +845,10 @@ def truth_readme(run: RigRun) -> str:
     effect_params = set(truth["model"]["parameter_names"]) - heat_used
     for name, value in truth["parameters"].items():
         spec = specs[name]
-        if spec.group in used_groups and (spec.group != "heat" or name in heat_used):
+        if independent is not None:
+            if name not in independent["parameters_used"]:
+                continue  # the independent truth's own parts replace these
+        elif spec.group in used_groups and (spec.group != "heat" or name in heat_used):
             pass
         elif name not in effect_params:
             continue

@@ -209,19 +209,16 @@ class TruthConfig:
         leak = _build(LEAK_SHAPES, "shape", v.get("leak", {"shape": "none"}),
                       f"{source}: valve.leak")  # fmt: skip
         rest = {k: v[k] for k in ("m", "x_laminar") if k in v}
-        valve = _instantiate(ServoValve, {"supply": supply, "exhaust": exhaust, "leak": leak},
-                             f"{source}: valve") if not rest else None  # fmt: skip
-        if valve is None:
-            for key, value in rest.items():
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise PneumafitInputError(
-                        f"{source}: valve.{key}: expected a number, found {value!r}"
-                    )
-            try:
-                valve = ServoValve(supply=supply, exhaust=exhaust, leak=leak,
-                                   **{k: float(x) for k, x in rest.items()})  # fmt: skip
-            except ValueError as exc:
-                raise PneumafitInputError(f"{source}: {exc}") from None
+        for key, value in rest.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise PneumafitInputError(
+                    f"{source}: valve.{key}: expected a number, found {value!r}"
+                )
+        try:
+            valve = ServoValve(supply=supply, exhaust=exhaust, leak=leak,
+                               **{k: float(x) for k, x in rest.items()})  # fmt: skip
+        except ValueError as exc:
+            raise PneumafitInputError(f"{source}: {exc}") from None
         friction = _build(FRICTION_MODELS, "model", data["friction"], f"{source}: friction")
         heat = _build(HEAT_MODELS, "model", data["heat"], f"{source}: heat")
         stops = _instantiate(EndStops, data.get("end_stops", {}), f"{source}: end_stops")

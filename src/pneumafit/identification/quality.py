@@ -249,6 +249,8 @@ class FitQuality:
         Estimates outside their own 90 % interval (a defect).
     unreliable : list of str
         Parameters whose chain is shorter than 50 tau or has R-hat > 1.01.
+    unconverged : list of str
+        Least-squares stages that stopped at their iteration limit.
     threshold : float
     """
 
@@ -256,6 +258,7 @@ class FitQuality:
     at_bounds: list[str] = field(default_factory=list)
     outside_interval: list[str] = field(default_factory=list)
     unreliable: list[str] = field(default_factory=list)
+    unconverged: list[str] = field(default_factory=list)
     threshold: float = THRESHOLD
 
     def failing(self, role: str | None = None) -> list[ChannelQuality]:
@@ -274,6 +277,7 @@ class FitQuality:
             and not self.at_bounds
             and not self.outside_interval
             and not self.unreliable
+            and not self.unconverged
         )
 
     def problems(self) -> list[str]:
@@ -296,6 +300,11 @@ class FitQuality:
                 f"does not reach the noise on {len(recs)} {role} recording"
                 f"{'s' if len(recs) > 1 else ''} (residual RMS up to {worst.ratio:.1f}x the "
                 f"sensor noise, threshold {self.threshold:g}x): " + "; ".join(items)
+            )
+        if self.unconverged:
+            out.append(
+                "least squares stopped before converging (the estimate may not be the "
+                "optimum): " + "; ".join(self.unconverged)
             )
         if self.at_bounds:
             out.append("estimate at a bound: " + ", ".join(self.at_bounds))
@@ -330,6 +339,7 @@ class FitQuality:
             "at_bounds": list(self.at_bounds),
             "outside_interval": list(self.outside_interval),
             "unreliable": list(self.unreliable),
+            "unconverged": list(self.unconverged),
             "recordings": [c.as_dict() for c in self.channels],
         }
 

@@ -775,6 +775,11 @@ def identify(
     )
     runs = [s.mcmc for s in stages if s.mcmc is not None]
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels)
+    quality.unconverged = [
+        f"{s.name} ({s.estimate.message})"
+        for s in stages
+        if s.estimate is not None and not s.estimate.success and s.name == "joint"
+    ]
     say(f"quality: {quality.verdict()}")
     return FitResult(
         model=name, structure=structure, parameters=final, laplace=laplace, stages=stages,

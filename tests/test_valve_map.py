@@ -184,14 +184,14 @@ def test_laminar_tail_and_flows_continuous_with_varying_critical_ratio():
     x_lam, m = 0.995, 0.5
     for b in np.linspace(0.05, 0.9, 18):
         eps = 1e-9
-        lo = valve_map._phi_b(x_lam - eps, b, m, x_lam)
-        hi = valve_map._phi_b(x_lam + eps, b, m, x_lam)
+        lo = valve_map.flow_function(x_lam - eps, b, m, x_lam)
+        hi = valve_map.flow_function(x_lam + eps, b, m, x_lam)
         assert abs(hi - lo) < 1e-6
         h = 1e-6
-        s_lo = (valve_map._phi_b(x_lam - eps, b, m, x_lam)
-                - valve_map._phi_b(x_lam - eps - h, b, m, x_lam)) / h  # fmt: skip
-        s_hi = (valve_map._phi_b(x_lam + eps + h, b, m, x_lam)
-                - valve_map._phi_b(x_lam + eps, b, m, x_lam)) / h  # fmt: skip
+        s_lo = (valve_map.flow_function(x_lam - eps, b, m, x_lam)
+                - valve_map.flow_function(x_lam - eps - h, b, m, x_lam)) / h  # fmt: skip
+        s_hi = (valve_map.flow_function(x_lam + eps + h, b, m, x_lam)
+                - valve_map.flow_function(x_lam + eps, b, m, x_lam)) / h  # fmt: skip
         assert s_hi == pytest.approx(s_lo, rel=1e-2)
     # b varying with the opening: continuous flows across the b knots
     p = parameter_vector({})

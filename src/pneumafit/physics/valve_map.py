@@ -81,7 +81,7 @@ from pneumafit.physics.valve import (
     VC_TA,
     VC_XLAM,
     conductances,
-    laminar_tail,
+    flow_function,
 )
 
 #: Knot positions as fractions of ``valve_u_sat`` (-).
@@ -283,21 +283,6 @@ def map_critical_ratios(u: float, vm: np.ndarray) -> tuple[float, float]:
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _phi_b(x: float, b: float, m: float, x_lam: float) -> float:
-    # flow_function with b known only now: the tail coefficients from b
-    if x <= b:
-        return 1.0
-    if x < x_lam:
-        inv_1mb = 1.0 / (1.0 - b)
-        s = (x - b) * inv_1mb
-        base = 1.0 - s * s
-        return math.sqrt(base) if m == 0.5 else base**m
-    a, c = laminar_tail(b, m, x_lam)
-    z = 1.0 - x
-    return a * z + c * z * z
-
-
-@njit(cache=True, fastmath=FASTMATH)
 def flows_core_map(
     u: float,
     pres: float,
@@ -323,18 +308,18 @@ def flows_core_map(
     k = RHO0
     # supply path, supply -> chamber
     if p_supply >= pres:
-        q_s = c_s * k * p_supply * vc[VC_RTA] * _phi_b(pres * inv_p_supply, b_s, m, x_lam)
+        q_s = c_s * k * p_supply * vc[VC_RTA] * flow_function(pres * inv_p_supply, b_s, m, x_lam)
         t_s = vc[VC_TA]
     else:
-        q_s = -c_s * k * pres * rt * _phi_b(p_supply * inv_pres, b_s, m, x_lam)
+        q_s = -c_s * k * pres * rt * flow_function(p_supply * inv_pres, b_s, m, x_lam)
         t_s = temp
     # exhaust path, chamber -> exhaust
     p_e = vc[VC_PE]
     if pres >= p_e:
-        q_e = c_e * k * pres * rt * _phi_b(p_e * inv_pres, b_e, m, x_lam)
+        q_e = c_e * k * pres * rt * flow_function(p_e * inv_pres, b_e, m, x_lam)
         t_e = temp
     else:
-        q_e = -c_e * k * p_e * vc[VC_RTA] * _phi_b(pres * vc[VC_IPE], b_e, m, x_lam)
+        q_e = -c_e * k * p_e * vc[VC_RTA] * flow_function(pres * vc[VC_IPE], b_e, m, x_lam)
         t_e = vc[VC_TA]
     return q_s - q_e, q_s * t_s - q_e * t_e, q_s
 

@@ -66,9 +66,16 @@ def test_other_structures_converge_on_the_same_data(small: tuple, model: str) ->
     then), and stops at the 6 x 500-iteration limit with scipy 1.17.1 and
     numpy 2.4.6 (measured on the code before and after the quality check:
     the same estimate). What must hold either way: the fit reports the
-    unconverged joint stage and the bound, and is not called trustworthy."""
+    unconverged joint stage and the bound, and is not called trustworthy.
+
+    The polytropic case caps the joint stage at 60 evaluations per start
+    (``joint_iterations``): it stops unconverged either way, and at the
+    default 500 the test took 7.5 of the suite's 14.7 minutes to check the
+    same report (1.4 min capped, both structures). The k and friction
+    checks below hold at the capped estimate."""
     _, campaign, truth = small
-    result = identify(campaign, model, options=FitOptions(mcmc=False), seed=0)
+    cap = {"joint_iterations": 60} if model == "polytropic" else {}
+    result = identify(campaign, model, options=FitOptions(mcmc=False, **cap), seed=0)
     for stage in result.stages:
         assert stage.estimate is not None, stage.name
         assert np.isfinite(stage.estimate.log_likelihood)

@@ -283,6 +283,10 @@ class FitOptions:
         Chains shorter than 50 tau or with R-hat > 1.01 are extended up to
         this many times their default length (:data:`DEFAULT_STEPS`); with
         ``steps`` given, chains are exactly that long (and flagged when short).
+    joint_iterations : int
+        Limit of the joint least squares (function evaluations per start,
+        :data:`JOINT_NFEV`); a joint stage stopped by it is reported as
+        unconverged (``quality.unconverged``).
     """
 
     mcmc: bool = True
@@ -300,6 +304,7 @@ class FitOptions:
     correct_solver: bool = True
     progress: bool = False
     extend: float = 2.0
+    joint_iterations: int = JOINT_NFEV
 
 
 @dataclass
@@ -577,7 +582,12 @@ def identify(
         if not explicit_initial:
             prob.linearize({**ps.values(), **(starts[0] if starts else {})})
         est = _least_squares(
-            prob, ps, starts, stage_seed, random_starts, JOINT_NFEV if explicit_initial else 60
+            prob,
+            ps,
+            starts,
+            stage_seed,
+            random_starts,
+            opts.joint_iterations if explicit_initial else 60,
         )
         stage.estimate, stage.seconds = est, time.perf_counter() - t0
         evaluations += est.n_evaluations
@@ -695,7 +705,7 @@ def identify(
         ps = with_initial_states(
             params.with_values(values).only_free(joint_free), joint_problem, values, True
         )
-        est2 = _least_squares(joint_problem, ps, [dict(values)], seeds[3], 0, JOINT_NFEV)
+        est2 = _least_squares(joint_problem, ps, [dict(values)], seeds[3], 0, opts.joint_iterations)
         evaluations += est2.n_evaluations
         if math.isfinite(est2.log_likelihood):
             est2.starts = est.starts + est2.starts

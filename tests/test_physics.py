@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pneumafit.models import kernel
+from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.physics import air, friction, geometry, heat, valve
 
@@ -98,6 +99,36 @@ def test_valve_centre_leakage_and_monotonicity():
     pres = np.linspace(1.2e5, 6.9e5, 200)
     qp = np.array([valve.valve_flows(0.0, x, 293.15, *args)[0] for x in pres])
     assert qp[0] > 0 > qp[-1]
+
+
+def test_opening_shape_exponents_nest_the_linear_ramp():
+    """C = C_max open(u)^n + leak: n = 1 is the linear law bit for bit (the
+    demo's valve), n = 2 squares the opening by hand, and the compiled flow
+    (valve_flows through valve_constants and flows_core) uses the same law
+    as conductances(); each path has its own exponent."""
+    base = (1e-8, 1.1e-8, 0.3, 10.0, 2e-11, 0.3)
+    for u in (-10.0, -4.0, -0.2, 0.0, 0.31, 2.0, 6.5, 10.0):
+        assert valve.conductances(u, *base) == valve.conductances(u, *base, 1.0, 1.0)
+        o_s, o_e = valve.opening(u, 0.3, 10.0), valve.opening(-u, 0.3, 10.0)
+        c_s, c_e = valve.conductances(u, *base, 2.0, 0.5)
+        leak_s, leak_e = valve.conductances(u, 0.0, 0.0, 0.3, 10.0, 2e-11, 0.3)
+        assert c_s == pytest.approx(1e-8 * o_s**2 + leak_s, rel=1e-14, abs=1e-30)
+        assert c_e == pytest.approx(1.1e-8 * o_e**0.5 + leak_e, rel=1e-14, abs=1e-30)
+    # the compiled flow at a choked pressure ratio is C rho0 P_S (ISO 6358's C)
+    args = (7e5, 293.15, 1.013e5, 1e-8, 0.3, 1.1e-8, 0.3, 0.5, 0.995, 0.3, 10.0, 0.0, 0.3)
+    for n in (0.6, 1.0, 1.7):
+        q = valve.valve_flows(5.15, 1.5e5, 293.15, *args, n, 1.0)[2]
+        c_s, _ = valve.conductances(5.15, 1e-8, 1.1e-8, 0.3, 10.0, 0.0, 0.3, n, 1.0)
+        assert q == pytest.approx(c_s * air.RHO0 * 7e5, rel=1e-12)
+    assert valve.opening(5.15, 0.3, 10.0) == pytest.approx(0.5, rel=1e-12)
+    q_lin = valve.valve_flows(5.15, 1.5e5, 293.15, *args)[2]
+    q_pow = valve.valve_flows(5.15, 1.5e5, 293.15, *args, 2.0, 1.0)[2]
+    assert q_pow == pytest.approx(0.5 * q_lin, rel=1e-12)  # half open, squared
+    # the kernel rejects exponents below 1/3 (infinite slope at the dead-band corner)
+    vec = parameter_vector({"valve_n_supply": 0.5})
+    assert kernel.check_parameters(vec)
+    vec[P["valve_n_exhaust"]] = 0.3
+    assert not kernel.check_parameters(vec)
 
 
 def test_convection_law_zero_at_wall_temperature_and_scaled_form():

@@ -9,6 +9,7 @@ heat law and centre leakage (it must not, and must name the rest phases).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -166,3 +167,24 @@ def test_commands_no_flow_test_measured_are_named(small: tuple) -> None:
         if m and float(m[1]) < 0.0 < float(m[2]) and line.startswith("valve P")
     ]  # fmt: skip
     assert rest and "charge_P.h5" in rest[0] and "discharge_P.h5" in rest[0]
+
+
+def test_shape_exponents_are_freed_only_where_the_flow_levels_resolve_them(small: tuple) -> None:
+    """The small campaign's levels beyond 0.5 V are +-3 and +-10 V: two per
+    side, one short of conductance, overlap and exponent; a sparse-protocol
+    campaign (+-0.6, 1.5, 4, 10 V) resolves both paths; held-out flow tests
+    do not count."""
+    from pneumafit.campaign import Campaign
+    from pneumafit.identification.coverage import shape_informed
+    from pneumafit.rig import VirtualRig
+
+    _, campaign, _ = small
+    assert shape_informed(campaign, {"valve_u_sat": 10.0}) == {"supply": False, "exhaust": False}
+    sparse = VirtualRig(seed=1).campaign("sparse")
+    assert shape_informed(sparse, {"valve_u_sat": 10.0}) == {"supply": True, "exhaust": True}
+    held_out = Campaign(
+        path=None, name="held-out", description="", rig=sparse.rig,
+        recordings=[dataclasses.replace(r, role="validate") if r.kind == "flow" else r
+                    for r in sparse.recordings],
+    )  # fmt: skip
+    assert shape_informed(held_out, {"valve_u_sat": 10.0}) == {"supply": False, "exhaust": False}

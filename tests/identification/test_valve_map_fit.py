@@ -49,7 +49,7 @@ def test_knots_without_a_flow_level_are_held_and_the_iso_start_is_sampled(small:
     flows = [r for r in campaign.by_role("fit") if r.kind == "flow"]
     st = fit_structure("convection", valve="map")
     values = {**truth}
-    iso = _iso_valve(flows, st, values, FitOptions(mcmc=False), seed=0)
+    iso = _iso_valve(campaign, flows, st, values, FitOptions(mcmc=False), seed=0)
     # the flow tests determine the full-opening conductances to a fraction of a percent
     assert np.isclose(iso["valve_C_supply"], truth["valve_C_supply"], rtol=0.01, atol=0.0)
     start = map_from_iso({**values, **iso})

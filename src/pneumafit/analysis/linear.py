@@ -108,7 +108,8 @@ def _net_flow(p: np.ndarray, u: float, pres: float) -> float:
         p[P["exhaust_pressure"]], p[P["valve_C_supply"]], p[P["valve_b_supply"]],
         p[P["valve_C_exhaust"]], p[P["valve_b_exhaust"]], p[P["valve_m"]],
         p[P["valve_x_laminar"]], p[P["valve_overlap"]], p[P["valve_u_sat"]],
-        p[P["valve_C_leak"]], p[P["valve_leak_width"]],
+        p[P["valve_C_leak"]], p[P["valve_leak_width"]], p[P["valve_n_supply"]],
+        p[P["valve_n_exhaust"]],
     )[0]  # fmt: skip
 
 
@@ -220,7 +221,7 @@ def equilibrium(parameters: Mapping[str, float] | np.ndarray, y: float) -> Equil
 def _valve_args(p: np.ndarray) -> tuple[float, ...]:
     names = ("valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust",
              "valve_m", "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak",
-             "valve_leak_width")  # fmt: skip
+             "valve_leak_width", "valve_n_supply", "valve_n_exhaust")  # fmt: skip
     return tuple(p[P[n]] for n in names)
 
 

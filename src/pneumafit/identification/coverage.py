@@ -60,6 +60,37 @@ def _covered(u: float, levels: np.ndarray, width: float, u_sat: float) -> bool:
     return bool(below.size and above.size and above.min() - below.max() <= MAX_GAP * u_sat)
 
 
+#: Distinct opening levels (beyond the tolerance of 0 V) a path needs in the
+#: fit flow tests before its opening shape exponent is fitted: with the
+#: full-opening conductance and the overlap, the exponent is the third unknown
+#: of the path's C(u).
+SHAPE_LEVELS = 3
+
+
+def shape_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str, bool]:
+    """Which paths' opening shapes (``valve_n_supply``, ``valve_n_exhaust``) the fit
+    flow tests resolve.
+
+    Both valves share one characteristic, so the levels of every fit flow test
+    count: positive commands open the supply path, negative ones the exhaust
+    path.
+
+    Returns
+    -------
+    dict
+        ``{"supply": bool, "exhaust": bool}``: at least :data:`SHAPE_LEVELS`
+        distinct levels on that side.
+    """
+    width = TOLERANCE * float(values.get("valve_u_sat", 10.0))
+    levels: set[float] = set()
+    for rec in campaign.by_role("fit"):
+        if rec.kind == "flow" and f"u_{rec.chamber}" in rec.channels:
+            levels.update(np.unique(np.round(np.asarray(rec.channels[f"u_{rec.chamber}"]), 3)))
+    lv = np.array(sorted(levels))
+    return {"supply": int(np.sum(lv > width)) >= SHAPE_LEVELS,
+            "exhaust": int(np.sum(lv < -width)) >= SHAPE_LEVELS}  # fmt: skip
+
+
 def centre_measured(campaign: Campaign, values: Mapping[str, float]) -> bool:
     """True when a flow test has a level within the tolerance of 0 V (centre leakage)."""
     width = TOLERANCE * float(values.get("valve_u_sat", 10.0))

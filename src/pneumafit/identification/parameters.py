@@ -794,7 +794,7 @@ class ParameterSet:
 #: from flow tests whose commands stop at full scale).
 _DEFAULT_FREE_VALVE = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
-    "valve_overlap", "valve_C_leak", "valve_leak_width",
+    "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
 )  # fmt: skip
 _FRICTION = ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity")
 #: Prefix of the valve map's knot conductances (log scale).
@@ -835,6 +835,8 @@ _FIT_BOUNDS: dict[str, tuple[float, float]] = {
     "valve_b_supply": (0.01, 0.9),
     "valve_b_exhaust": (0.01, 0.9),
     "valve_overlap": (0.0, 3.0),
+    "valve_n_supply": (0.4, 3.0),
+    "valve_n_exhaust": (0.4, 3.0),
     "xi": (1e-3, 10.0),
     "beta": (0.05, 0.6),
     "lambda": (0.01, 1e4),

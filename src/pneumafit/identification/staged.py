@@ -37,7 +37,11 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign, Recording
-from pneumafit.identification.coverage import centre_measured, uncovered_commands
+from pneumafit.identification.coverage import (
+    centre_measured,
+    shape_informed,
+    uncovered_commands,
+)
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
 from pneumafit.identification.optimise import PointEstimate, fit_least_squares
@@ -82,7 +86,7 @@ __all__ = [
 #: Valve parameters fitted in stage (a).
 VALVE_PARAMETERS: tuple[str, ...] = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
-    "valve_overlap", "valve_C_leak", "valve_leak_width",
+    "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
 )  # fmt: skip
 FRICTION_PARAMETERS: tuple[str, ...] = (
     "friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity",
@@ -142,7 +146,21 @@ _VALVE_GROUPS = ("valve", "valve_map")
 SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
 
 
+#: Opening shape exponent of each path (see :func:`coverage.shape_informed`).
+SHAPE_PARAMETERS = {"supply": "valve_n_supply", "exhaust": "valve_n_exhaust"}
+
+
+def _informed_valve(
+    campaign: Campaign, values: Mapping[str, float], names: Sequence[str]
+) -> tuple[str, ...]:
+    """``names`` without the opening shape exponents the fit flow tests do not resolve."""
+    known = shape_informed(campaign, values)
+    drop = {SHAPE_PARAMETERS[path] for path, ok in known.items() if not ok}
+    return tuple(n for n in names if n not in drop)
+
+
 def _iso_valve(
+    flows_campaign: Campaign,
     flows: Sequence[Recording],
     structure: ModelStructure,
     values: Mapping[str, float],
@@ -152,7 +170,8 @@ def _iso_valve(
     """ISO 6358 fit of the flow tests (the valve map's start)."""
     iso = replace(structure, valve="iso6358")
     rig = {n: values[n] for n in values if SPECS_GROUP.get(n) == "rig"}
-    ps = ParameterSet.for_model(iso, rig).only_free(VALVE_PARAMETERS)
+    informed = _informed_valve(flows_campaign, {**values, **rig}, VALVE_PARAMETERS)
+    ps = ParameterSet.for_model(iso, rig).only_free(informed)
     prob = _problem(flows, iso, {**ps.values(), **rig}, options)
     starts = valve_starts(flows, rig)
     prob.linearize({**ps.values(), **starts[0]})
@@ -596,12 +615,15 @@ def identify(
         return prob
 
     # ------------------------------------------------------------ (a) valve
-    valve_free = tuple(n for n in params.free_names if SPECS_GROUP.get(n) in _VALVE_GROUPS)
+    valve_free = _informed_valve(
+        campaign, values,
+        [n for n in params.free_names if SPECS_GROUP.get(n) in _VALVE_GROUPS],
+    )  # fmt: skip
     leak_names = LEAK_PARAMETERS if structure.valve == "iso6358" else MAP_LEAK_PARAMETERS
     if structure.valve == "map" and flows:
         # the map starts from the ISO 6358 fit of the same flow tests, sampled
         # at its knots; knots no flow level informs stay at that start
-        iso = _iso_valve(flows, structure, values, opts, seeds[0])
+        iso = _iso_valve(campaign, flows, structure, values, opts, seeds[0])
         values.update(map_from_iso({**values, **iso}))
         values["valve_m"] = iso["valve_m"]
         held = _uninformed_knots(campaign, values)

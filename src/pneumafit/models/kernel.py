@@ -80,6 +80,8 @@ from pneumafit.models.layout import (
     P_MAP_CE,
     P_MAP_CS,
     P_MASS,
+    P_NE,
+    P_NS,
     P_OVERLAP,
     P_PE,
     P_PS,
@@ -170,6 +172,8 @@ def check_parameters(p: np.ndarray) -> bool:
         return False
     if p[P_CS] < 0.0 or p[P_CE] < 0.0 or p[P_CLEAK] < 0.0 or p[P_LEAKW] <= 0.0:
         return False
+    if p[P_NS] < 1.0 / 3.0 or p[P_NE] < 1.0 / 3.0:
+        return False
     if p[P_BS] < 0.0 or p[P_BE] < 0.0 or p[P_BS] >= p[P_XLAM] or p[P_BE] >= p[P_XLAM]:
         return False
     if p[P_XLAM] >= 1.0 or p[P_VM] <= 0.0 or p[P_USAT] <= p[P_OVERLAP] or p[P_OVERLAP] < 0.0:
@@ -203,7 +207,7 @@ def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
     """
     valve_constants(
         p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
-        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc,
+        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc, p[P_NS], p[P_NE],
     )  # fmt: skip
     n = N_MAP_KNOTS
     map_constants(p[P_MAP_CS:P_MAP_CS + n], p[P_MAP_CE:P_MAP_CE + n], p[P_MAP_BS:P_MAP_BS + 3],

@@ -149,6 +149,10 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
                   "centre leakage conductance of each path at u = 0"),
     ParameterSpec("valve_leak_width", "V", 0.3, 1e-3, 10.0, "valve",
                   "command scale of the leakage shift between paths"),
+    ParameterSpec("valve_n_supply", "", 1.0, 0.34, 4.0, "valve",
+                  "opening shape exponent of the supply path (1: linear ramp)"),
+    ParameterSpec("valve_n_exhaust", "", 1.0, 0.34, 4.0, "valve",
+                  "opening shape exponent of the exhaust path (1: linear ramp)"),
     # --- heat transfer ---
     ParameterSpec("k", "", 1.2, 1.0, 1.4, "heat", "polytropic index"),
     ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e6, "heat", "constant heat-transfer coeff."),
@@ -247,6 +251,8 @@ P_OVERLAP = P["valve_overlap"]
 P_USAT = P["valve_u_sat"]
 P_CLEAK = P["valve_C_leak"]
 P_LEAKW = P["valve_leak_width"]
+P_NS = P["valve_n_supply"]
+P_NE = P["valve_n_exhaust"]
 P_K = P["k"]
 P_LAMBDA = P["lambda"]
 P_XI = P["xi"]

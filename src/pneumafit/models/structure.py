@@ -85,6 +85,7 @@ VALVE_PARAMETERS: dict[str, tuple[str, ...]] = {
     "iso6358": (
         "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
         "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak", "valve_leak_width",
+        "valve_n_supply", "valve_n_exhaust",
     ),
     "map": ("valve_m", "valve_x_laminar", "valve_u_sat", *MAP_PARAMETER_NAMES),
 }  # fmt: skip

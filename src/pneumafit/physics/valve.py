@@ -24,8 +24,8 @@ chamber exceeds supply pressure.
 Command dependence. For a command u (V), with overlap (dead band) u_0 and
 full opening at u_sat:
 
-    C_S(u) = C_S,max open(u) + 2 C_leak sigma(+u / w)
-    C_E(u) = C_E,max open(-u) + 2 C_leak sigma(-u / w)
+    C_S(u) = C_S,max open(u)^n_S + 2 C_leak sigma(+u / w)
+    C_E(u) = C_E,max open(-u)^n_E + 2 C_leak sigma(-u / w)
 
     open(u) = min(ramp(u - u_0) / (u_sat - u_0), 1)
     sigma(z) = (1 + z / sqrt(1 + z^2)) / 2       (a smooth step from 0 to 1)
@@ -37,7 +37,18 @@ z above +eps, and twice continuously differentiable: a kink in C(u) at the
 dead-band edge made the fixed-step error second order (1.2 Pa at 0.5 ms on a
 charge test instead of 0.05 Pa) and the likelihood non-smooth in the overlap.
 The algebraic sigmoid costs a square root where the logistic would cost an
-exponential. The second
+exponential.
+
+The shape exponents n_S, n_E (1 by default: the linear ramp of ISO 6358
+catalogues) let the opening area grow progressively (n > 1: a spool with
+round or notched ports, area ~ stroke^n) or regressively (n < 1) with the
+spool stroke; they nest the linear law. They are what an independently
+written rig needed: flow tests of power-law and tabulated servo-valves left
+the linear ramp at 0.47-0.57 g/s RMS on the flow-level means (20-30x the
+flow meter noise), the exponents at 0.04-0.13 g/s
+(``benchmarks/bench_recovery.py``, docs/identification.md). With n >= 1/3
+the slope of open^n stays finite at the rounded dead-band corner (open ~
+t^3 there). The second
 term is the centre leakage through the overlapped lands: equal to C_leak on
 both paths at u = 0, and shifted towards the path that opens as the spool
 moves (the land on that side shortens, the other lengthens). It gives the
@@ -205,6 +216,8 @@ def conductances(
     u_sat: float,
     c_leak: float,
     leak_width: float,
+    n_supply: float = 1.0,
+    n_exhaust: float = 1.0,
 ) -> tuple[float, float]:
     """Sonic conductances (C_S(u), C_E(u)) of the supply and exhaust paths.
 
@@ -222,6 +235,8 @@ def conductances(
         Centre leakage conductance of each path at u = 0 (m^3/s/Pa).
     leak_width : float
         Command scale w (V) over which the leakage shifts between paths.
+    n_supply, n_exhaust : float
+        Opening shape exponents of the two paths (-), > 0; 1 is the linear ramp.
 
     Returns
     -------
@@ -231,9 +246,17 @@ def conductances(
     z = u / leak_width
     sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
     sig_e = 1.0 - sig_s
-    c_s = c_supply * opening(u, overlap, u_sat) + 2.0 * c_leak * sig_s
-    c_e = c_exhaust * opening(-u, overlap, u_sat) + 2.0 * c_leak * sig_e
+    c_s = c_supply * _shaped(opening(u, overlap, u_sat), n_supply) + 2.0 * c_leak * sig_s
+    c_e = c_exhaust * _shaped(opening(-u, overlap, u_sat), n_exhaust) + 2.0 * c_leak * sig_e
     return c_s, c_e
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _shaped(fraction: float, n: float) -> float:
+    # open^n, exact (no pow) for the linear law
+    if n == 1.0 or fraction <= 0.0:
+        return fraction
+    return fraction**n
 
 
 # Valve constants, computed once per simulation by valve_constants() so that
@@ -241,7 +264,8 @@ def conductances(
 VC_CS, VC_CE, VC_BS, VC_BE, VC_IBS, VC_IBE, VC_M, VC_XLAM = 0, 1, 2, 3, 4, 5, 6, 7
 VC_AS, VC_QS, VC_AE, VC_QE, VC_OVER, VC_IRANGE, VC_LEAK2, VC_IW = 8, 9, 10, 11, 12, 13, 14, 15
 VC_PE, VC_IPE, VC_TA, VC_RTA = 16, 17, 18, 19
-NVC = 20
+VC_NS, VC_NE = 20, 21
+NVC = 22
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -259,12 +283,16 @@ def valve_constants(
     p_exhaust: float,
     t_ambient: float,
     vc: np.ndarray,
+    n_supply: float = 1.0,
+    n_exhaust: float = 1.0,
 ) -> None:
     """Fill ``vc`` (length NVC) with the constants of :func:`flows_core`.
 
     Parameters are those of :func:`valve_flows` (SI); supply and exhaust air
     are at ``t_ambient``.
     """
+    vc[VC_NS] = n_supply
+    vc[VC_NE] = n_exhaust
     vc[VC_CS] = c_supply
     vc[VC_CE] = c_exhaust
     vc[VC_BS] = b_supply
@@ -345,8 +373,10 @@ def flows_core(
     """
     z = u * vc[VC_IW]
     sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
-    c_s = vc[VC_CS] * _open(u, vc[VC_OVER], vc[VC_IRANGE]) + vc[VC_LEAK2] * sig_s
-    c_e = vc[VC_CE] * _open(-u, vc[VC_OVER], vc[VC_IRANGE]) + vc[VC_LEAK2] * (1.0 - sig_s)
+    o_s = _shaped(_open(u, vc[VC_OVER], vc[VC_IRANGE]), vc[VC_NS])
+    o_e = _shaped(_open(-u, vc[VC_OVER], vc[VC_IRANGE]), vc[VC_NE])
+    c_s = vc[VC_CS] * o_s + vc[VC_LEAK2] * sig_s
+    c_e = vc[VC_CE] * o_e + vc[VC_LEAK2] * (1.0 - sig_s)
     k = RHO0
     # supply path, supply -> chamber
     if p_supply >= pres:
@@ -392,6 +422,8 @@ def valve_flows(
     u_sat: float,
     c_leak: float,
     leak_width: float,
+    n_supply: float = 1.0,
+    n_exhaust: float = 1.0,
 ) -> tuple[float, float, float]:
     """Flows of one 3-way servo-distributor into its chamber.
 
@@ -411,5 +443,6 @@ def valve_flows(
     """
     vc = np.empty(NVC)
     valve_constants(c_supply, b_supply, c_exhaust, b_exhaust, m, x_lam, overlap, u_sat,
-                    c_leak, leak_width, p_exhaust, t_ambient, vc)  # fmt: skip
+                    c_leak, leak_width, p_exhaust, t_ambient, vc, n_supply,
+                    n_exhaust)  # fmt: skip
     return flows_core(u, p, 1.0 / p, t, math.sqrt(T_REF / t), p_supply, 1.0 / p_supply, vc)

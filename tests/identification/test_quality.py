@@ -169,6 +169,23 @@ def test_commands_no_flow_test_measured_are_named(small: tuple) -> None:
     assert rest and "charge_P.h5" in rest[0] and "discharge_P.h5" in rest[0]
 
 
+def test_an_estimate_on_a_constraint_is_flagged_like_a_bound() -> None:
+    """Static friction pinned to the Coulomb level (the kernel rejects F_s < F_c):
+    the Stribeck drop is unresolved and the interval squeezed by the wall, which
+    the quality check must say (seen on every LuGre-truth campaign of the
+    recovery benchmark)."""
+    from pneumafit.identification import Parameter
+
+    fs = Parameter("friction_static", 28.8, "N", 0.01, 1e4, scale="log")
+    fc = Parameter("friction_coulomb", 28.8 * (1 - 1e-7), "N", 0.01, 1e4, scale="log")
+    free = ["friction_static", "friction_coulomb"]
+    (problem,) = bound_problems([fs, fc], free)
+    assert problem.startswith("friction_static (= friction_coulomb")
+    apart = Parameter("friction_static", 40.0, "N", 0.01, 1e4, scale="log")
+    assert bound_problems([apart, fc], free) == []
+    assert bound_problems([fs, fc], ["friction_coulomb"]) == []  # held: not an estimate
+
+
 def test_shape_exponents_are_freed_only_where_the_flow_levels_resolve_them(small: tuple) -> None:
     """The small campaign's levels beyond 0.5 V are +-3 and +-10 V: two per
     side, one short of conductance, overlap and exponent; a sparse-protocol

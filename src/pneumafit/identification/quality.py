@@ -244,7 +244,8 @@ class FitQuality:
     ----------
     channels : list of ChannelQuality
     at_bounds : list of str
-        ``"name (lower bound)"`` for every free estimate at a bound.
+        ``"name (lower bound)"`` for every free estimate at a bound,
+        ``"name (= other: meaning)"`` for one on a :data:`CONSTRAINTS` partner.
     outside_interval : list of str
         Estimates outside their own 90 % interval (a defect).
     unreliable : list of str
@@ -307,7 +308,7 @@ class FitQuality:
                 "optimum): " + "; ".join(self.unconverged)
             )
         if self.at_bounds:
-            out.append("estimate at a bound: " + ", ".join(self.at_bounds))
+            out.append("estimate at a bound or constraint: " + ", ".join(self.at_bounds))
         if self.outside_interval:
             out.append(
                 "estimate outside its own 90 % interval: " + ", ".join(self.outside_interval)
@@ -414,10 +415,26 @@ def assess_residuals(
     return out
 
 
+#: Inequality constraints between parameters (larger, smaller, what an
+#: estimate on the constraint means) that the kernel enforces by rejecting
+#: the parameter set; an estimate on one is as untrustworthy as one on a bound
+#: (its Laplace interval is squeezed by the wall, its partner unidentified).
+CONSTRAINTS: tuple[tuple[str, str, str], ...] = (
+    ("friction_static", "friction_coulomb",
+     "no Stribeck drop resolved, stribeck_velocity not identified"),
+)  # fmt: skip
+
+
 def bound_problems(parameters: Iterable[Any], free: Iterable[str], rtol: float = 1e-4) -> list[str]:
-    """Free estimates within ``rtol`` of their range (log range for log scale) of a bound."""
+    """Free estimates within ``rtol`` of their range (log range for log scale) of a
+    bound, or of a :data:`CONSTRAINTS` partner."""
     names = set(free)
+    parameters = list(parameters)
+    values = {p.name: p.value for p in parameters}
     out = []
+    for big, small, meaning in CONSTRAINTS:
+        if {big, small} <= names and values[big] <= values[small] * (1.0 + rtol):
+            out.append(f"{big} (= {small}: {meaning})")
     for p in parameters:
         if p.name not in names or p.group == "initial":
             continue

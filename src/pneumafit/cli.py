@@ -32,7 +32,9 @@ app = typer.Typer(
 # Not a terminal (a log file, a pipe, CI): no 80-column cut, so that tables
 # of parameter names and values stay readable in logs.
 console = Console() if sys.stdout.isatty() else Console(width=200)
-err_console = Console(stderr=True)
+# messages to a log or a pipe are not wrapped: a path cut at 80 columns
+# cannot be searched for (soft_wrap keeps each message on its own lines)
+err_console = Console(stderr=True) if sys.stderr.isatty() else Console(stderr=True, soft_wrap=True)
 
 EXIT_INVALID_INPUT = 2
 

@@ -1,0 +1,104 @@
+"""Identification on a truth the fitted model does not share (no inverse crime).
+
+The campaign comes from :mod:`pneumafit.rig.truth`, a simulator written
+independently of the fitted kernel, preset ``mixed``: a tabulated supply path
+with an opening-dependent critical ratio, a power-law exhaust path, a Gaussian
+leak bump off the centre, LuGre friction with a pressure-dependent seal term,
+heat exchanged over the barrel only with a warmer wall, lagging temperature
+probes with an offset; solved by LSODA at rtol 1e-8, with sensor noise; the
+sparse test plan (one flow test of one valve without a 0-V level, chamber P's
+charge/discharge tests only, two short step tests). The convection model
+cannot follow it to the noise; what is tested is what must hold anyway:
+
+- the noise the quality check uses is the sensors' (it is estimated from the
+  recordings' quiet windows, never from the truth);
+- the verdict names every recording whose residual is above 3x the true
+  noise, and no recording whose residual is below it (judged against the
+  truth's noise, not the estimate);
+- what the fit does reach (``benchmarks/bench_recovery.py``, the table in
+  docs/identification.md): the fit charge/discharge tests and the Coulomb
+  friction, where the opening shape exponents made the difference.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+import pytest
+
+from pneumafit.campaign import read_campaign
+from pneumafit.identification import FitOptions, identify
+from pneumafit.rig import VirtualRig
+from pneumafit.rig.truth import reference_quantities
+
+pytestmark = pytest.mark.slow
+
+#: Seed of the campaign and the fit (not one of the benchmark's seeds 1-3).
+SEED = 7
+
+
+@pytest.fixture(scope="module")
+def mismatched(tmp_path_factory: pytest.TempPathFactory) -> tuple:
+    folder = tmp_path_factory.mktemp("mismatched") / "mixed"
+    rig = VirtualRig(truth="mixed", seed=SEED)
+    rig.write(folder, "sparse")
+    campaign = read_campaign(folder)
+    result = identify(campaign, "convection", options=FitOptions(mcmc=False), seed=SEED)
+    truth = reference_quantities(rig.truth, rig.parameters)
+    return rig, campaign, result, truth
+
+
+def test_the_noise_is_the_sensors(mismatched: tuple) -> None:
+    """Every pressure channel's noise estimate within 15 % of the sensor's
+    400 Pa: at 15 % the 3x threshold moves by less than 0.5x, the resolution
+    the verdict needs (measured on this truth: 0.97-1.07)."""
+    rig, _, result, _ = mismatched
+    true = rig.sensors.pressure_noise
+    pressures = [c for c in result.quality.channels if c.channel.startswith("p_")]
+    assert len(pressures) >= 6
+    for c in pressures:
+        assert c.noise is not None
+        assert 0.85 * true <= c.noise <= 1.15 * true, (c.recording, c.channel, c.noise)
+
+
+def test_the_verdict_names_what_misses_the_true_noise(mismatched: tuple) -> None:
+    """Judged with the sensor's true noise: a recording above 3.5x is named,
+    one below 2.5x is not (between, the 15 % of the noise estimate decides)."""
+    rig, _, result, _ = mismatched
+    true = rig.sensors.pressure_noise
+    text = "\n".join(result.quality.problems())
+    above, below = [], []
+    for c in result.quality.channels:
+        if not c.channel.startswith("p_"):
+            continue
+        ratio = c.rms / true
+        (above if ratio > 3.5 else below if ratio < 2.5 else []).append(c)
+    assert above, "the mismatched truth is not followed to the noise: something must be named"
+    assert not result.quality.trustworthy
+    for c in above:
+        assert f"{c.recording} {c.channel}" in text, (c.recording, c.channel, c.rms / true)
+    for c in below:
+        assert f"{c.recording} {c.channel}" not in text, (c.recording, c.channel, c.rms / true)
+
+
+def test_what_the_fit_reaches_on_a_mismatched_truth(mismatched: tuple) -> None:
+    """The targets of the robust-identification issue that hold on this truth.
+
+    - fit charge/discharge tests within 5x the noise (the issue asks 3x;
+      measured 3.3-3.4x on seed 1; the linear ramp left 18-25x): 5x keeps the
+      factor-5 improvement guarded without claiming the 3x target;
+    - Coulomb friction within 25 % of the truth's (the issue's figure;
+      measured -4 to -6 %).
+    Not asserted, because they fail (docs/identification.md): the step tests
+    (12-17x), the held-out tests at commands no flow test measured, the
+    static friction (pinned to the Coulomb level, flagged), lambda."""
+    rig, _, result, truth = mismatched
+    true = rig.sensors.pressure_noise
+    blocked = [c for c in result.quality.channels
+               if c.role == "fit" and c.kind in ("charge", "discharge") and c.channel == "p_P"]  # fmt: skip
+    assert blocked
+    for c in blocked:
+        assert c.rms / true <= 5.0, (c.recording, c.rms / true)
+    f_c = result.parameters["friction_coulomb"].value
+    assert f_c == pytest.approx(truth["friction_coulomb"], rel=0.25)
+    assert np.isfinite(result.stage("joint").estimate.log_likelihood)

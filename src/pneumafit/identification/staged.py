@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import chi2
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign, Recording
@@ -148,6 +149,11 @@ SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
 
 #: Opening shape exponent of each path (see :func:`coverage.shape_informed`).
 SHAPE_PARAMETERS = {"supply": "valve_n_supply", "exhaust": "valve_n_exhaust"}
+#: Level of the likelihood-ratio test that keeps the shape exponents (the
+#: linear ramp is the null hypothesis; chi-square with one degree of freedom
+#: per exponent): 0.999, so a linear valve keeps its linear law in all but
+#: one fit in a thousand.
+SHAPE_CONFIDENCE = 0.999
 
 
 def _informed_valve(
@@ -638,7 +644,29 @@ def identify(
     if flows:
         starts = valve_starts(flows, rig) if structure.valve == "iso6358" else [{}]
         values.update(starts[0])
-        run_stage(stage, flows, valve_free, starts, seeds[0])
+        shapes = tuple(n for n in valve_free if n in SHAPE_PARAMETERS.values())
+        linear = tuple(n for n in valve_free if n not in shapes)
+        run_stage(stage, flows, linear if shapes else valve_free, starts, seeds[0])
+        if shapes:
+            # the linear ramp nests the shaped law: keep the exponents only when
+            # the flow tests ask for them (likelihood-ratio test), so a valve
+            # that is a linear ramp keeps the linear law and its fewer parameters
+            ramp, ramp_values, ramp_seconds = stage.estimate, dict(values), stage.seconds
+            run_stage(stage, flows, valve_free, [dict(values)], seeds[0])
+            stage.seconds += ramp_seconds
+            gain = stage.estimate.log_likelihood - ramp.log_likelihood
+            needed = 2.0 * gain > chi2.ppf(SHAPE_CONFIDENCE, len(shapes))
+            stage.note = (
+                f"opening shape exponents {'kept' if needed else 'not needed'}: log-likelihood "
+                f"gain {gain:.1f} over the linear ramp ({', '.join(shapes)})"
+            )
+            if not needed:
+                stage.estimate = ramp
+                values.update(ramp_values)
+                values.update({n: 1.0 for n in shapes})
+                valve_free = linear
+                stage.free = linear
+            say(f"valve: {stage.note}")
         say(f"valve: {stage.seconds:.1f} s, log-likelihood {stage.estimate.log_likelihood:.1f}")
     else:
         stage.note = "no fit flow test: valve parameters held at their defaults"

@@ -116,6 +116,38 @@ def test_run_on_a_missing_campaign_is_a_message(tmp_path):
     assert not (tmp_path / "run" / "fits").exists()
 
 
+def test_linear_and_export_use_a_fitted_valve_map(tmp_path):
+    """A fit of the measured valve map (fit.json ``structure.valve = "map"``)
+    is analysed and exported with its map: here a map whose supply knots are
+    three times those of the ISO valve it was sampled from, so that the map's
+    equilibrium differs from the ISO parameters' (by 12 % in P_P)."""
+    from pneumafit.analysis import equilibrium
+    from pneumafit.models.parameters import parameter_dict, parameter_vector
+    from pneumafit.physics.valve_map import MAP_CS_NAMES, map_from_iso
+
+    base = parameter_dict(parameter_vector({}))
+    knots = map_from_iso(base)
+    knots.update({k: 3.0 * knots[k] for k in MAP_CS_NAMES[7:]})
+    fit = tmp_path / "fit.json"
+    fit.write_text(json.dumps({"model": "convection", "structure": {"valve": "map"},
+                               "parameters": knots}))  # fmt: skip
+    out = tmp_path / "lin"
+    res = cli("linear", str(fit), "--positions", "250 mm", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    doc = json.loads((out / "linear.json").read_text())
+    expected = equilibrium(parameter_vector(knots), 0.25, valve="map")
+    assert doc["valve"] == "map"
+    assert doc["positions"][0]["equilibrium"]["p_P"] == pytest.approx(expected.p_P, rel=1e-9)
+    assert expected.p_P > 1.05 * equilibrium(parameter_vector({}), 0.25).p_P
+    res = cli("export", str(fit), "--format", "json", "--out", str(tmp_path / "x.json"))
+    assert res.returncode == 0, res.stderr
+    exported = json.loads((tmp_path / "x.json").read_text())
+    assert exported["source"]["valve"] == "map"
+    assert exported["parameters"][MAP_CS_NAMES[10]]["value"] == pytest.approx(
+        knots[MAP_CS_NAMES[10]]
+    )
+
+
 @pytest.mark.parametrize("args", [[], ["bogus"], ["simulate"], ["rig"]])
 def test_usage_errors_have_no_traceback(args):
     res = cli(*args)

@@ -118,3 +118,79 @@ def test_gain_schedule_over_the_stroke():
     )
     # the chambers' stiffness changes along the stroke, so does the gain
     assert np.ptp(sched["K"][:, 0]) > 0.05 * np.abs(sched["K"][:, 0]).mean()
+
+
+# --------------------------------------------------------------------------
+# The measured valve map in the linear analysis (a fit with --valve map)
+# --------------------------------------------------------------------------
+def _map_of_params() -> np.ndarray:
+    """PARAMS with a valve map sampled from its own ISO 6358 valve."""
+    from pneumafit.models.parameters import parameter_dict
+    from pneumafit.physics.valve_map import map_from_iso
+
+    return parameter_vector({**parameter_dict(PARAMS), **map_from_iso(parameter_dict(PARAMS))})
+
+
+@pytest.mark.parametrize("y", POSITIONS)
+def test_map_sampled_from_the_iso_valve_gives_its_equilibrium(y):
+    """The map law reproduces the ISO valve it samples: equilibrium pressures
+    within 0.05 % (measured 0.007 %: the centre leak interpolated in log C
+    between knots 0.25 V apart), the pneumatic pair of poles within 0.1 %
+    (measured 0.01 %), the real poles within 5 % (measured 3 % on the slowest:
+    it is set by dq/dP of the centre leakage, the part the knots interpolate),
+    and eq. 10 holds under the map's own flows."""
+    mp = _map_of_params()
+    a, b = equilibrium(PARAMS, y), equilibrium(mp, y, valve="map")
+    assert b.exists, b.message
+    np.testing.assert_allclose([b.p_P, b.p_N], [a.p_P, a.p_N], rtol=5e-4)
+    assert abs(_net_flow(mp, b.u, b.p_P, 1)) < 1e-12 * 8e-3
+    poles_a = np.sort_complex(linearize(PARAMS, y, order=6).poles)
+    poles_b = np.sort_complex(linearize(mp, y, order=6, valve="map").poles)
+    pair = np.abs(poles_a.imag) > 0
+    np.testing.assert_allclose(poles_b[pair], poles_a[pair], rtol=1e-3)
+    np.testing.assert_allclose(poles_b[~pair], poles_a[~pair], rtol=0.05, atol=1e-9)
+
+
+def test_map_law_is_the_one_used():
+    """Tripling the supply path's knots from the centre up moves the map's
+    equilibrium (P_P up by 12 %) and leaves the ISO one, which does not read
+    the knots, unchanged: the linear analysis follows the fitted map."""
+    from pneumafit.models.parameters import parameter_dict
+    from pneumafit.physics.valve_map import MAP_CS_NAMES
+
+    values = parameter_dict(_map_of_params())
+    scaled = parameter_vector(
+        {k: v * (3.0 if k in MAP_CS_NAMES[7:] else 1.0) for k, v in values.items()}
+    )
+    base = equilibrium(_map_of_params(), 0.25, valve="map")
+    moved = equilibrium(scaled, 0.25, valve="map")
+    assert moved.p_P > 1.05 * base.p_P
+    assert equilibrium(scaled, 0.25).p_P == equilibrium(PARAMS, 0.25).p_P
+    with pytest.raises(ValueError, match="valve: expected one of"):
+        equilibrium(PARAMS, 0.25, valve="table")
+
+
+@pytest.mark.parametrize("order", [4, 6])
+def test_map_jacobian_matches_finite_differences(order):
+    """The analytic (A, B) with the map's gains equal central differences of
+    the compiled right-hand side under the map law (tolerances as the ISO
+    test above: measured 7e-11)."""
+    mp = _map_of_params()
+    lin = linearize(mp, 0.25, order=order, lambda_e=15.0, valve="map")
+    a_num, b_num = numerical_jacobian(mp, lin.equilibrium, order=order, lambda_e=15.0,
+                                      valve="map")  # fmt: skip
+    nonzero = np.abs(lin.A) > 0
+    np.testing.assert_allclose(a_num[nonzero], lin.A[nonzero], rtol=1e-7)
+    np.testing.assert_allclose(b_num, lin.B, rtol=1e-7, atol=1e-7 * np.abs(lin.B).max())
+
+
+def test_map_overlap_is_the_ramps_edge():
+    """The dead-band edge read off a map sampled from a linear ramp with
+    overlap 0.3 V is 0.3 V to within 0.05 V (measured 0.283 V: the knots at
+    0.5, 1 and 2 V carry the opening, interpolated in log C)."""
+    from pneumafit.analysis.linear import deadband_compensation, overlap
+
+    assert overlap(PARAMS) == pytest.approx(0.3)
+    assert overlap(_map_of_params(), "map") == pytest.approx(0.3, abs=0.05)
+    comp = deadband_compensation(_map_of_params(), 0.25, valve="map")
+    assert comp is not None and comp.amplitude == pytest.approx(0.3, abs=0.05)

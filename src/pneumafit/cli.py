@@ -358,14 +358,14 @@ def _positions(text: str | None, stroke: float) -> np.ndarray:
     return np.array(values)
 
 
-def _fit_parameters(fit: Path) -> tuple[np.ndarray, float, str]:
-    """Parameter vector, nominal lambda_e and model of a fit or parameter file."""
+def _fit_parameters(fit: Path) -> tuple[np.ndarray, float, str, str]:
+    """Parameter vector, nominal lambda_e, model and valve law of a fit or parameter file."""
     from pneumafit.models import parameter_vector
-    from pneumafit.parameters_io import read_parameter_file
+    from pneumafit.parameters_io import read_parameter_file, read_valve_law
 
     model, values = read_parameter_file(fit)
     lambda_e = values["lambda"] if model == "constant-lambda" and "lambda" in values else 15.0
-    return parameter_vector(values), lambda_e, model
+    return parameter_vector(values), lambda_e, model, read_valve_law(fit)
 
 
 @app.command()
@@ -381,9 +381,9 @@ def linear(
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_linear
 
-    params, nominal, _ = _fit_parameters(fit)
+    params, nominal, _, valve = _fit_parameters(fit)
     ys = _positions(positions, params[P["stroke"]])
-    doc = write_linear(params, ys, out, lambda_e=lambda_e or nominal)
+    doc = write_linear(params, ys, out, lambda_e=lambda_e or nominal, valve=valve)
     bad = [e for e in doc["positions"] if "error" in e]
     for entry in bad:
         console.print(f"[yellow]{entry['error']}[/yellow]")
@@ -409,9 +409,10 @@ def design(
         raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
     if not w0 > 0:
         raise PneumafitInputError(f"option --w0: expected a positive frequency, found {w0}")
-    params, nominal, _ = _fit_parameters(fit)
+    params, nominal, _, valve = _fit_parameters(fit)
     ys = _positions(positions, params[P["stroke"]])
-    doc = write_design(params, ys, out, order=order, w0=w0, lambda_e=lambda_e or nominal)
+    doc = write_design(params, ys, out, order=order, w0=w0, lambda_e=lambda_e or nominal,
+                       valve=valve)  # fmt: skip
     mid = doc["schedule"][len(doc["schedule"]) // 2]
     if mid["K"] is not None:
         gains = ", ".join(f"{s}: {k:.4g}" for s, k in zip(doc["states"], mid["K"], strict=True))
@@ -486,11 +487,11 @@ def export(
         )
     if order not in (4, 6):
         raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
-    params, nominal, model = _fit_parameters(fit)
+    params, nominal, model, valve = _fit_parameters(fit)
     _, details = read_parameter_details(fit)
     ys = _positions(positions, params[P["stroke"]])
     doc = build_export(details, model=model, source=fit.name, positions=ys, order=order, w0=w0,
-                       lambda_e=lambda_e or nominal)  # fmt: skip
+                       lambda_e=lambda_e or nominal, valve=valve)  # fmt: skip
     write_export(doc, out, format)
     console.print(
         f"wrote {out}: {len(doc['grid']['positions'])} positions, order {order}"

@@ -133,6 +133,21 @@ def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, fl
     return parse_parameters(document, str(file))
 
 
+def read_valve_law(path: str | os.PathLike[str]) -> str:
+    """Valve law of a fit.json (``structure.valve``) or parameter file.
+
+    ``"map"`` for a fit of the measured valve map, else ``"iso6358"`` (a
+    parameter file, or a fit written before the map existed).
+    """
+    try:
+        document = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "iso6358"
+    structure = document.get("structure") if isinstance(document, dict) else None
+    valve = structure.get("valve") if isinstance(structure, dict) else None
+    return str(valve) if valve in ("iso6358", "map") else "iso6358"
+
+
 def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str, dict]]:
     """Model name and, per parameter given in the file, its SI value with the
     uncertainty a fit.json carries (``std``, ``interval_90``; None otherwise).

@@ -342,14 +342,14 @@ def _lambda_e(constant_lambda_fit: Path) -> float:
     return float(values.get("lambda", 15.0))
 
 
-def _design_frequency(params: Any) -> float:
+def _design_frequency(params: Any, valve: str = "iso6358") -> float:
     """w0 of the gain schedule: the open-loop natural frequency at half stroke (rad/s)."""
     import numpy as np
 
     from pneumafit.analysis import linearize
     from pneumafit.models.layout import P
 
-    mid = linearize(params, 0.5 * params[P["stroke"]], order=4).poles
+    mid = linearize(params, 0.5 * params[P["stroke"]], order=4, valve=valve).poles
     return float(np.abs(mid[np.abs(mid.imag) > 0]).max())
 
 
@@ -365,16 +365,17 @@ def _linear(fit: Path, lambda_fit: Path, out: Path, console: Console) -> None:
     """Linear analysis and both designs at the fitted parameters."""
     from pneumafit.models import parameter_vector
     from pneumafit.outputs.linear_report import write_design, write_linear
-    from pneumafit.parameters_io import read_parameter_file
+    from pneumafit.parameters_io import read_parameter_file, read_valve_law
 
     _, values = read_parameter_file(fit)
+    valve = read_valve_law(fit)
     params = parameter_vector(values)
     lam = _lambda_e(lambda_fit)
     ys = _grid(params)
-    w0 = _design_frequency(params)
-    write_linear(params, ys, out, lambda_e=lam)
+    w0 = _design_frequency(params, valve)
+    write_linear(params, ys, out, lambda_e=lam, valve=valve)
     for order in (4, 6):
-        write_design(params, ys, out, order=order, w0=w0, lambda_e=lam)
+        write_design(params, ys, out, order=order, w0=w0, lambda_e=lam, valve=valve)
     console.print(f"linear analysis and designs (w0 = {w0:.1f} rad/s, lambda_e = {lam:.1f} "
                   f"W/m^2/K) in {out}")  # fmt: skip
 
@@ -383,12 +384,14 @@ def _export(fit: Path, lambda_fit: Path, out: Path, console: Console) -> None:
     """The convection fit for controllers, in every export format."""
     from pneumafit.models import parameter_vector
     from pneumafit.outputs.export import build_export, write_export
-    from pneumafit.parameters_io import read_parameter_details
+    from pneumafit.parameters_io import read_parameter_details, read_valve_law
 
     model, details = read_parameter_details(fit)
+    valve = read_valve_law(fit)
     params = parameter_vector({k: v["value"] for k, v in details.items()})
     doc = build_export(details, model=model, source=str(fit), positions=_grid(params), order=6,
-                       w0=_design_frequency(params), lambda_e=_lambda_e(lambda_fit))  # fmt: skip
+                       w0=_design_frequency(params, valve), lambda_e=_lambda_e(lambda_fit),
+                       valve=valve)  # fmt: skip
     for fmt, name in EXPORT_FORMATS.items():
         write_export(doc, out / name, fmt)
     console.print(f"controller export ({', '.join(EXPORT_FORMATS)}) in {out}")

@@ -145,6 +145,7 @@ def design_controller(
     lambda_e: float = 15.0,
     compensate: bool = True,
     placement: str = "dominant",
+    valve: str = "iso6358",
 ) -> ControllerDesign:
     """State-feedback design of one order at position y (m).
 
@@ -165,10 +166,12 @@ def design_controller(
         compensated plant.
     placement : {"dominant", "itae"}
         Pole choice (:func:`design_poles`).
+    valve : {"iso6358", "map"}
+        Valve law of the parameters (a fit's ``structure.valve``).
     """
     p = parameters if isinstance(parameters, np.ndarray) else parameter_vector(parameters)
-    comp = deadband_compensation(p, y) if compensate else None
-    model = linearize(p, y, order=order, lambda_e=lambda_e, compensation=comp)
+    comp = deadband_compensation(p, y, valve=valve) if compensate else None
+    model = linearize(p, y, order=order, lambda_e=lambda_e, compensation=comp, valve=valve)
     poles = design_poles(model, w0, placement)
     gain = place(model, poles)[0]
     return ControllerDesign(f"order {order}", order, w0, placement, poles, gain, model, comp)
@@ -331,7 +334,9 @@ def step_reference(
     return t, y_ref, starts
 
 
-def stiction_band(design: ControllerDesign, parameters: np.ndarray) -> float:
+def stiction_band(
+    design: ControllerDesign, parameters: np.ndarray, valve: str = "iso6358"
+) -> float:
     """Largest |y - y_ref| (m) at which the closed loop holds a stuck piston.
 
     With the piston stuck (v = 0, y fixed) the valves settle at zero flow:
@@ -347,13 +352,14 @@ def stiction_band(design: ControllerDesign, parameters: np.ndarray) -> float:
     Linear in the valve's static characteristic around the equilibrium;
     temperatures return to the wall's, so their gains drop out.
     """
-    from pneumafit.analysis.linear import _gains
+    from pneumafit.analysis.linear import _gains, valve_law
     from pneumafit.physics.geometry import piston_areas
 
+    law = valve_law(valve)
     eq = design.model.equilibrium
     slope = 1.0 if design.compensation is None else design.compensation.slope(design.model.v_e)
-    qp_p, qu_p = _gains(parameters, eq.u, eq.p_P)
-    qp_n, qu_n = _gains(parameters, -eq.u, eq.p_N)
+    qp_p, qu_p = _gains(parameters, eq.u, eq.p_P, law)
+    qp_n, qu_n = _gains(parameters, -eq.u, eq.p_N, law)
     g_p = -qu_p / qp_p * slope
     g_n = qu_n / qp_n * slope  # u_N = -u
     s_p, s_n = piston_areas(parameters[P["bore"]], parameters[P["rod"]])
@@ -391,6 +397,7 @@ def largest_w0(
     lambda_e: float = 15.0,
     compensate: bool = True,
     placement: str = "dominant",
+    valve: str = "iso6358",
 ) -> float:
     """Largest ITAE w0 (rad/s) whose designs keep the command within the limit.
 
@@ -403,7 +410,8 @@ def largest_w0(
 
     def fits(w0: float, order: int) -> bool:
         d = design_controller(p, y, order=order, w0=w0, lambda_e=lambda_e,
-                              compensate=compensate, placement=placement)  # fmt: skip
+                              compensate=compensate, placement=placement,
+                              valve=valve)  # fmt: skip
         extra = d.compensation.amplitude if d.compensation else 0.0
         return peak_command(d, step) + extra <= fraction * umax
 
@@ -436,6 +444,7 @@ def compare_controllers(
     orders: tuple[int, ...] = (4, 6),
     compensate: bool = True,
     placement: str = "dominant",
+    valve: str | None = None,
 ) -> list[ClosedLoopResult]:
     """Step responses of the order-4 and order-6 designs on the nonlinear plant.
 
@@ -468,6 +477,9 @@ def compare_controllers(
         Dead-band compensation (module docstring).
     placement : {"dominant", "itae"}
         Pole choice (:func:`design_poles`).
+    valve : {"iso6358", "map"}, optional
+        Valve law of ``parameters``; default the plant's (when the designs
+        use the plant's parameters, the plant's law is theirs).
 
     Returns
     -------
@@ -495,11 +507,14 @@ def compare_controllers(
     if not hold > 0:
         raise ValueError(f"hold: expected a positive time in s, found {hold}")
     t, y_ref, starts = step_reference(y_mid, offsets, hold=hold)
-    sim = Simulator(get_structure(plant), channels=CHANNELS)
+    plant_structure = get_structure(plant)
+    design_valve = plant_structure.valve if valve is None else valve
+    sim = Simulator(plant_structure, channels=CHANNELS)
     results = []
     for order in orders:
         design = design_controller(p, y_mid, order=order, w0=w0, lambda_e=lambda_e,
-                                   compensate=compensate, placement=placement)  # fmt: skip
+                                   compensate=compensate, placement=placement,
+                                   valve=design_valve)  # fmt: skip
         eq = design.model.equilibrium
         exp = Experiment(time=t, kind="step", y_ref=y_ref, controller=design.controller(umax),
                          initial={"y": y_mid, "p_P": eq.p_P, "p_N": eq.p_N, "T_P": eq.T,
@@ -516,7 +531,7 @@ def compare_controllers(
             design=design, time=t, y_ref=y_ref, channels=r.channels, ok=True,
             message="ok", air_mass=r.air.mass_supplied, exergy=r.air.exergy, steps=metrics,
             max_abs_u=float(u.max()), saturation=float(np.mean(u >= umax * (1 - 1e-12))),
-            stiction_band=stiction_band(design, p_plant),
+            stiction_band=stiction_band(design, p_plant, plant_structure.valve),
         ))  # fmt: skip
     return results
 

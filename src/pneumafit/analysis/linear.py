@@ -59,6 +59,7 @@ from pneumafit.models.layout import (
     LAW_STATE_FEEDBACK,
     NCTRL,
     NX,
+    VALVE_LAWS,
     X_PN,
     X_PP,
     X_TN,
@@ -71,7 +72,8 @@ from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure
 from pneumafit.physics.air import GAMMA, R_AIR
 from pneumafit.physics.geometry import chamber_volumes, exchange_areas, piston_areas
-from pneumafit.physics.valve import valve_flows
+from pneumafit.physics.valve import NVC
+from pneumafit.physics.valve_map import NVM, map_conductances
 
 #: ITAE step-response prototype polynomials for w0 = 1 rad/s (Graham and
 #: Lathrop, 1953), coefficients from s^n down to s^0.
@@ -100,29 +102,41 @@ def _vec(parameters: Mapping[str, float] | np.ndarray) -> np.ndarray:
     return parameter_vector(parameters)
 
 
-def _net_flow(p: np.ndarray, u: float, pres: float) -> float:
+def valve_law(valve: str) -> int:
+    """Kernel code of a valve law name (``"iso6358"`` or ``"map"``).
+
+    Raises
+    ------
+    ValueError
+        An unknown name.
+    """
+    if valve not in VALVE_LAWS:
+        raise ValueError(f"valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
+    return VALVE_LAWS[valve]
+
+
+def _flows(p: np.ndarray, u: float, pres: float, law: int) -> tuple[float, float, float]:
+    """Valve flows (net, enthalpy, from supply) into a chamber at pressure pres
+    (Pa), gas at T_0, under the valve law ``law`` (the fitted one: ISO 6358 or
+    the measured map)."""
+    return kernel.static_valve_flows(p, law, u, pres, p[P["wall_temperature"]])
+
+
+def _net_flow(p: np.ndarray, u: float, pres: float, law: int = 0) -> float:
     """Net valve flow into a chamber at pressure pres (Pa), gas at T_0 (kg/s)."""
-    t0 = p[P["wall_temperature"]]
-    return valve_flows(
-        u, pres, t0, p[P["supply_pressure"]], p[P["ambient_temperature"]],
-        p[P["exhaust_pressure"]], p[P["valve_C_supply"]], p[P["valve_b_supply"]],
-        p[P["valve_C_exhaust"]], p[P["valve_b_exhaust"]], p[P["valve_m"]],
-        p[P["valve_x_laminar"]], p[P["valve_overlap"]], p[P["valve_u_sat"]],
-        p[P["valve_C_leak"]], p[P["valve_leak_width"]], p[P["valve_n_supply"]],
-        p[P["valve_n_exhaust"]],
-    )[0]  # fmt: skip
+    return _flows(p, u, pres, law)[0]
 
 
-def _zero_flow_pressure(p: np.ndarray, u: float) -> float:
+def _zero_flow_pressure(p: np.ndarray, u: float, law: int = 0) -> float:
     """Chamber pressure (Pa) at which a valve at command u passes no net flow."""
     lo, hi = p[P["exhaust_pressure"]], p[P["supply_pressure"]]
-    f_lo = _net_flow(p, u, lo * (1 + 1e-12))
-    f_hi = _net_flow(p, u, hi * (1 - 1e-12))
+    f_lo = _net_flow(p, u, lo * (1 + 1e-12), law)
+    f_hi = _net_flow(p, u, hi * (1 - 1e-12), law)
     if f_lo <= 0.0:
         return lo
     if f_hi >= 0.0:
         return hi
-    return brentq(lambda x: _net_flow(p, u, x), lo * (1 + 1e-12), hi * (1 - 1e-12),
+    return brentq(lambda x: _net_flow(p, u, x, law), lo * (1 + 1e-12), hi * (1 - 1e-12),
                   xtol=1e-9, rtol=1e-14)  # fmt: skip
 
 
@@ -170,7 +184,9 @@ def _external_force(p: np.ndarray) -> tuple[float, float, float]:
     return s_p, s_n, f_ext
 
 
-def equilibrium(parameters: Mapping[str, float] | np.ndarray, y: float) -> Equilibrium:
+def equilibrium(
+    parameters: Mapping[str, float] | np.ndarray, y: float, *, valve: str = "iso6358"
+) -> Equilibrium:
     """Solve eq. 10 at piston position y (m).
 
     Parameters
@@ -179,6 +195,8 @@ def equilibrium(parameters: Mapping[str, float] | np.ndarray, y: float) -> Equil
         SI parameter values (the fitted valve characteristic matters most).
     y : float
         Equilibrium position (m), within the stroke.
+    valve : {"iso6358", "map"}
+        Valve law of the parameters (a fit's ``structure.valve``).
 
     Returns
     -------
@@ -186,6 +204,7 @@ def equilibrium(parameters: Mapping[str, float] | np.ndarray, y: float) -> Equil
         ``exists`` False, with a message, when no command holds the load.
     """
     p = _vec(parameters)
+    law = valve_law(valve)
     stroke = p[P["stroke"]]
     if not 0.0 <= y <= stroke:
         raise ValueError(f"equilibrium: y: expected a position in [0, {stroke}] m, found {y}")
@@ -194,44 +213,69 @@ def equilibrium(parameters: Mapping[str, float] | np.ndarray, y: float) -> Equil
     u_sat = p[P["valve_u_sat"]]
 
     def force(u: float) -> float:
-        return s_p * _zero_flow_pressure(p, u) - s_n * _zero_flow_pressure(p, -u) - f_ext
+        return s_p * _zero_flow_pressure(p, u, law) - s_n * _zero_flow_pressure(p, -u, law) - f_ext
 
     f_lo, f_hi = force(-u_sat), force(u_sat)
     if f_lo > 0.0 or f_hi < 0.0:
         u_e = -u_sat if f_lo > 0.0 else u_sat
-        p_p, p_n = _zero_flow_pressure(p, u_e), _zero_flow_pressure(p, -u_e)
+        p_p, p_n = _zero_flow_pressure(p, u_e, law), _zero_flow_pressure(p, -u_e, law)
         return Equilibrium(
             False, y, p_p, p_n, t0, u_e, float("nan"), float("nan"), force(u_e),
             f"no equilibrium at y = {y:g} m: the valves hold forces from {f_lo + f_ext:.1f} to "
             f"{f_hi + f_ext:.1f} N, the load needs {f_ext:.1f} N",
         )  # fmt: skip
     u_e = brentq(force, -u_sat, u_sat, xtol=1e-13, rtol=1e-15)
-    p_p, p_n = _zero_flow_pressure(p, u_e), _zero_flow_pressure(p, -u_e)
-    leak_p = valve_flows(
-        u_e, p_p, t0, p[P["supply_pressure"]], p[P["ambient_temperature"]],
-        p[P["exhaust_pressure"]], *_valve_args(p),
-    )[2]  # fmt: skip
-    leak_n = valve_flows(
-        -u_e, p_n, t0, p[P["supply_pressure"]], p[P["ambient_temperature"]],
-        p[P["exhaust_pressure"]], *_valve_args(p),
-    )[2]  # fmt: skip
+    p_p, p_n = _zero_flow_pressure(p, u_e, law), _zero_flow_pressure(p, -u_e, law)
+    leak_p = _flows(p, u_e, p_p, law)[2]
+    leak_n = _flows(p, -u_e, p_n, law)[2]
     return Equilibrium(True, y, p_p, p_n, t0, u_e, leak_p, leak_n, force(u_e), "ok")
 
 
-def _valve_args(p: np.ndarray) -> tuple[float, ...]:
-    names = ("valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust",
-             "valve_m", "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak",
-             "valve_leak_width", "valve_n_supply", "valve_n_exhaust")  # fmt: skip
-    return tuple(p[P[n]] for n in names)
-
-
-def _gains(p: np.ndarray, u: float, pres: float) -> tuple[float, float]:
+def _gains(p: np.ndarray, u: float, pres: float, law: int = 0) -> tuple[float, float]:
     """Valve gains (dq/dP (kg/s/Pa), dq/du (kg/s/V)) by central differences."""
     dp = 1e-6 * pres
     du = 1e-6 * max(1.0, abs(u))
-    q_p = (_net_flow(p, u, pres + dp) - _net_flow(p, u, pres - dp)) / (2 * dp)
-    q_u = (_net_flow(p, u + du, pres) - _net_flow(p, u - du, pres)) / (2 * du)
+    q_p = (_net_flow(p, u, pres + dp, law) - _net_flow(p, u, pres - dp, law)) / (2 * dp)
+    q_u = (_net_flow(p, u + du, pres, law) - _net_flow(p, u - du, pres, law)) / (2 * du)
     return q_p, q_u
+
+
+#: Fractions of a path's rise from its centre conductance to full opening
+#: between which a measured map's opening is extrapolated to its dead-band
+#: edge (see :func:`overlap`).
+MAP_EDGE_FRACTIONS = (0.1, 0.3)
+
+
+def overlap(p: np.ndarray, valve: str = "iso6358") -> float:
+    """Dead-band half-width u_0 of the valve (V).
+
+    ISO 6358 law: the ``valve_overlap`` parameter. Measured map: per path,
+    the straight line through the commands where the conductance has risen
+    by 10 % and 30 % of its rise from the centre value to full opening,
+    extrapolated to zero rise (the ISO ramp's u_0 exactly, for a map
+    sampled from a linear ramp, up to the knot interpolation; knots at
+    0.25 and 0.5 V cannot place the edge more finely by themselves); the mean
+    over the supply (u > 0) and exhaust (u < 0) paths, on a 1-mV grid,
+    clipped to [0, u_sat / 2].
+    """
+    if valve_law(valve) == VALVE_LAWS["iso6358"]:
+        return float(p[P["valve_overlap"]])
+    vc, vm = np.empty(NVC), np.empty(NVM)
+    kernel.valve_arrays(p, vc, vm)
+    u_sat = float(p[P["valve_u_sat"]])
+    grid = np.arange(0.0, u_sat + 5e-4, 1e-3)
+    edges = []
+    for side in (0, 1):  # supply path at +u, exhaust at -u
+        c = np.array([map_conductances(u if side == 0 else -u, vm)[side] for u in grid])
+        rise = c - c[0]
+        if not rise[-1] > 0.0:
+            edges.append(0.0)
+            continue
+        lo, hi = (float(np.interp(f * rise[-1], np.maximum.accumulate(rise), grid))
+                  for f in MAP_EDGE_FRACTIONS)  # fmt: skip
+        f_lo, f_hi = MAP_EDGE_FRACTIONS
+        edges.append(lo - f_lo * (hi - lo) / (f_hi - f_lo))
+    return float(np.clip(0.5 * (edges[0] + edges[1]), 0.0, 0.5 * u_sat))
 
 
 @dataclass(frozen=True)
@@ -273,19 +317,23 @@ class DeadbandCompensation:
         return float(brentq(lambda v: self(v) - u, -span, span, xtol=1e-15, rtol=1e-15))
 
 
-def _force_gain(p: np.ndarray, u: float, p_p: float, p_n: float, y: float) -> float:
+def _force_gain(p: np.ndarray, u: float, p_p: float, p_n: float, y: float, law: int = 0) -> float:
     """Rate of piston force per volt through both valves at command u (N/s/V):
     sum over chambers of S r T0 |dq/du| / V (the force-producing part of B)."""
     s_p, s_n = piston_areas(p[P["bore"]], p[P["rod"]])
     v_p, v_n = chamber_volumes(y, p[P["stroke"]], s_p, s_n, p[P["dead_volume_P"]],
                                p[P["dead_volume_N"]])  # fmt: skip
-    g_p = _gains(p, u, p_p)[1]
-    g_n = _gains(p, -u, p_n)[1]
+    g_p = _gains(p, u, p_p, law)[1]
+    g_n = _gains(p, -u, p_n, law)[1]
     return R_AIR * p[P["wall_temperature"]] * (s_p * g_p / v_p + s_n * g_n / v_n)
 
 
 def deadband_compensation(
-    parameters: Mapping[str, float] | np.ndarray, y: float, *, margin: float = 2.0
+    parameters: Mapping[str, float] | np.ndarray,
+    y: float,
+    *,
+    margin: float = 2.0,
+    valve: str = "iso6358",
 ) -> DeadbandCompensation | None:
     """Dead-band compensation whose gain at the equilibrium matches the open valve.
 
@@ -311,6 +359,8 @@ def deadband_compensation(
     margin : float
         Multiple of the rounding width past the overlap where the open gain
         is taken (-).
+    valve : {"iso6358", "map"}
+        Valve law of the parameters; the overlap of a map is :func:`overlap`.
 
     Returns
     -------
@@ -326,16 +376,17 @@ def deadband_compensation(
     from pneumafit.physics.valve import OPENING_SMOOTHING
 
     p = _vec(parameters)
-    eq = equilibrium(p, y)
+    law = valve_law(valve)
+    eq = equilibrium(p, y, valve=valve)
     if not eq.exists:
         raise ValueError(eq.message)
-    a = float(p[P["valve_overlap"]])
+    a = overlap(p, valve)
     if a <= 0.0:
         return None
     u_open = a + margin * OPENING_SMOOTHING
-    g_open = 0.5 * (_force_gain(p, u_open, eq.p_P, eq.p_N, y)
-                    + _force_gain(p, -u_open, eq.p_P, eq.p_N, y))  # fmt: skip
-    ratio = g_open / _force_gain(p, eq.u, eq.p_P, eq.p_N, y)
+    g_open = 0.5 * (_force_gain(p, u_open, eq.p_P, eq.p_N, y, law)
+                    + _force_gain(p, -u_open, eq.p_P, eq.p_N, y, law))  # fmt: skip
+    ratio = g_open / _force_gain(p, eq.u, eq.p_P, eq.p_N, y, law)
     if not ratio > 1.0 or abs(eq.u) >= a:
         return None
 
@@ -385,6 +436,7 @@ def linearize(
     lambda_e: float = 15.0,
     k: float | None = None,
     compensation: DeadbandCompensation | None = None,
+    valve: str = "iso6358",
 ) -> LinearModel:
     """Analytic linear model around the equilibrium at y (see module docstring).
 
@@ -405,6 +457,8 @@ def linearize(
     compensation : DeadbandCompensation, optional
         Model the plant seen through u = c(v): B is multiplied by c'(v_e),
         the input is v (V).
+    valve : {"iso6358", "map"}
+        Valve law of the parameters (equilibrium and the gains of eq. 12).
 
     Raises
     ------
@@ -412,7 +466,8 @@ def linearize(
         When no equilibrium exists at y.
     """
     p = _vec(parameters)
-    eq = equilibrium(p, y)
+    law = valve_law(valve)
+    eq = equilibrium(p, y, valve=valve)
     if not eq.exists:
         raise ValueError(eq.message)
     bore, rod, stroke = p[P["bore"]], p[P["rod"]], p[P["stroke"]]
@@ -421,8 +476,8 @@ def linearize(
     a_p, a_n = exchange_areas(y, stroke, bore, rod, p[P["dead_volume_P"]], p[P["dead_volume_N"]])
     mass, b = p[P["moving_mass"]], p[P["friction_viscous"]]
     t0, r, g = eq.T, R_AIR, GAMMA
-    qp_p, qu_p = _gains(p, eq.u, eq.p_P)
-    qp_n, qu_n = _gains(p, -eq.u, eq.p_N)
+    qp_p, qu_p = _gains(p, eq.u, eq.p_P, law)
+    qp_n, qu_n = _gains(p, -eq.u, eq.p_N, law)
     qu_n = -qu_n  # u_N = -u
     n = 6 if order == 6 else 4
     if order not in (4, 6):
@@ -467,6 +522,7 @@ def numerical_jacobian(
     lambda_e: float = 15.0,
     rel_step: float = 1e-6,
     compensation: DeadbandCompensation | None = None,
+    valve: str = "iso6358",
 ) -> tuple[np.ndarray, np.ndarray]:
     """(A, B) by central differences of the compiled right-hand side.
 
@@ -476,12 +532,13 @@ def numerical_jacobian(
     friction), sliding mode so that F_f = b v. With ``compensation`` the input
     is the controller output v, mapped to the valve command by the compiled
     state-feedback law (kernel ``commands``, zero gain) around v_e = c^-1(u_e).
+    ``valve`` is the valve law of the parameters.
     """
     p = _vec(parameters).copy()
     p[P["friction_static"]] = 0.0
     p[P["friction_coulomb"]] = 0.0
     p[P["lambda"]] = lambda_e
-    structure = ModelStructure("constant-lambda" if order == 6 else "polytropic")
+    structure = ModelStructure("constant-lambda" if order == 6 else "polytropic", valve=valve)
     cfg = structure.config()
     d = np.empty(kernel.ND)
     kernel.derive(p, d)
@@ -616,8 +673,11 @@ def gain_schedule(
     order: int,
     w0: float,
     lambda_e: float = 15.0,
+    valve: str = "iso6358",
 ) -> dict[str, np.ndarray]:
     """K(y), open- and closed-loop poles over a grid of positions.
+
+    ``valve`` is the valve law of the parameters.
 
     Returns a dict with ``positions`` (m), ``K`` (n_positions, order),
     ``open_loop`` and ``closed_loop`` poles (n_positions, order); positions
@@ -630,7 +690,7 @@ def gain_schedule(
     cl = np.full((ys.size, order), np.nan, dtype=complex)
     for i, y in enumerate(ys):
         try:
-            lin = linearize(parameters, float(y), order=order, lambda_e=lambda_e)
+            lin = linearize(parameters, float(y), order=order, lambda_e=lambda_e, valve=valve)
         except ValueError:
             continue
         K[i] = place(lin, poles)[0]

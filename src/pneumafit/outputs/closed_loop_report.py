@@ -6,6 +6,7 @@ written atomically.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -200,11 +201,14 @@ def run_closed_loop(
         plant_structure, plant_params = structure, design_params
     if plant_structure.heat != "convection":  # the nonlinear model has variable lambda
         console.print(f"plant: the convection model with the {plant_structure.heat} file's values")
-        plant_structure = get_structure("convection")
+        plant_structure = dataclasses.replace(
+            get_structure("convection"), valve=plant_structure.valve
+        )
     stroke = float(design_params[P["stroke"]])
     y_mid = 0.5 * stroke if position is None else float(position)
     offsets = [float(v) for v in steps]
-    kwargs = dict(lambda_e=lambda_e or nominal, compensate=compensate, placement=placement)
+    kwargs = dict(lambda_e=lambda_e or nominal, compensate=compensate, placement=placement,
+                  valve=structure.valve)  # fmt: skip
     if w0 is None:
         biggest = max(abs(v) for v in offsets) or 0.01
         w0 = largest_w0(design_params, y_mid, biggest, umax=umax, **kwargs)

@@ -50,6 +50,7 @@ def build_export(
     order: int,
     w0: float,
     lambda_e: float,
+    valve: str = "iso6358",
 ) -> dict:
     """The export document (see the module docstring).
 
@@ -70,6 +71,9 @@ def build_export(
         ITAE frequency scale (rad/s).
     lambda_e : float
         Nominal lambda of the 6th-order design (W/m^2/K).
+    valve : {"iso6358", "map"}
+        Valve law of the source (a map's knot tables are among the
+        parameters, and the equilibria and B use them).
     """
     vec = parameter_vector({name: d["value"] for name, d in details.items()})
     values = parameter_dict(vec)
@@ -89,7 +93,7 @@ def build_export(
     skipped = []
     for y in positions:
         try:
-            lin = linearize(vec, float(y), order=order, lambda_e=lambda_e)
+            lin = linearize(vec, float(y), order=order, lambda_e=lambda_e, valve=valve)
         except ValueError as exc:
             skipped.append({"y": float(y), "reason": str(exc)})
             continue
@@ -106,7 +110,7 @@ def build_export(
         {
             "format": "pneumafit-controller-export",
             "version": 1,
-            "source": {"file": source, "model": model},
+            "source": {"file": source, "model": model, "valve": valve},
             "parameters": params,
             "design": {
                 "order": order,

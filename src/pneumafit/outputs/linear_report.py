@@ -25,9 +25,16 @@ def _save(fig, path: Path) -> None:
 
 
 def write_linear(
-    parameters: np.ndarray, positions: np.ndarray, out: Path, *, lambda_e: float
+    parameters: np.ndarray,
+    positions: np.ndarray,
+    out: Path,
+    *,
+    lambda_e: float,
+    valve: str = "iso6358",
 ) -> dict:
     """Equilibria, (A, B) and open-loop poles of both models over positions.
+
+    ``valve`` is the valve law of the parameters (a fit's ``structure.valve``).
 
     Writes ``out/linear.json`` and ``out/open_loop_poles.png`` (Figs. 3-5).
     Positions without an equilibrium are listed with the reason.
@@ -44,7 +51,8 @@ def write_linear(
         entry: dict = {"y": float(y)}
         for order in (4, 6):
             try:
-                lin = linearize(parameters, float(y), order=order, lambda_e=lambda_e)
+                lin = linearize(parameters, float(y), order=order, lambda_e=lambda_e,
+                                valve=valve)  # fmt: skip
             except ValueError as exc:
                 entry["error"] = str(exc)
                 break
@@ -62,6 +70,7 @@ def write_linear(
         "format": "pneumafit-linear",
         "version": 1,
         "lambda_e": lambda_e,
+        "valve": valve,
         "units": {"A": "SI, states [y m, v m/s, p_N Pa, p_P Pa, T_N K, T_P K]", "B": "per V"},
         "positions": entries,
     }
@@ -100,8 +109,11 @@ def write_design(
     order: int,
     w0: float,
     lambda_e: float,
+    valve: str = "iso6358",
 ) -> dict:
     """Gain schedule K(y) placing the ITAE poles, and the closed-loop poles.
+
+    ``valve`` is the valve law of the parameters.
 
     Writes ``out/design_<order>.json``, ``out/gain_schedule_<order>.png`` and
     ``out/closed_loop_poles_<order>.png`` (Figs. 6-7).
@@ -112,7 +124,8 @@ def write_design(
     import matplotlib.pyplot as plt
 
     out.mkdir(parents=True, exist_ok=True)
-    sched = gain_schedule(parameters, positions, order=order, w0=w0, lambda_e=lambda_e)
+    sched = gain_schedule(parameters, positions, order=order, w0=w0, lambda_e=lambda_e,
+                          valve=valve)  # fmt: skip
     states = ["y", "v", "p_N", "p_P", "T_N", "T_P"][:order]
     units = ["V/m", "V s/m", "V/Pa", "V/Pa", "V/K", "V/K"][:order]
     doc = {
@@ -121,6 +134,7 @@ def write_design(
         "order": order,
         "w0": w0,
         "lambda_e": lambda_e if order == 6 else None,
+        "valve": valve,
         "law": "delta u = -K (x - x_e), u = u_e + delta u",
         "target_poles": _complex_list(itae_poles(order, w0)),
         "states": states,

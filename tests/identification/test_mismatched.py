@@ -22,7 +22,6 @@ cannot follow it to the noise; what is tested is what must hold anyway:
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -94,8 +93,11 @@ def test_what_the_fit_reaches_on_a_mismatched_truth(mismatched: tuple) -> None:
     static friction (pinned to the Coulomb level, flagged), lambda."""
     rig, _, result, truth = mismatched
     true = rig.sensors.pressure_noise
-    blocked = [c for c in result.quality.channels
-               if c.role == "fit" and c.kind in ("charge", "discharge") and c.channel == "p_P"]  # fmt: skip
+    blocked = [
+        c
+        for c in result.quality.channels
+        if c.role == "fit" and c.kind in ("charge", "discharge") and c.channel == "p_P"
+    ]
     assert blocked
     for c in blocked:
         assert c.rms / true <= 5.0, (c.recording, c.rms / true)

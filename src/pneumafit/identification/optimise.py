@@ -19,7 +19,8 @@ uncertainty when no MCMC is run, and the spread of the MCMC walkers' start.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -135,19 +136,68 @@ class _Whitened:
         return res[0], jac
 
 
-class _Cached:
-    """fun and jac of least_squares from one batched simulation per point."""
+#: Status given to a solve stopped by the stall rule (scipy's are -1..4).
+STALLED = 5
 
-    def __init__(self, whitened: _Whitened) -> None:
+
+class _Stalled(Exception):
+    """Raised inside least_squares when the cost stopped falling (stall rule)."""
+
+
+class _Cached:
+    """fun and jac of least_squares from one batched simulation per point.
+
+    Also keeps the best point seen and applies the stall rule: with
+    ``stall`` = (window, gain), the solve is stopped when the cost (half the
+    sum of squared whitened residuals, a log-likelihood difference at the
+    held noise state) has fallen by less than ``gain`` over the last
+    ``window`` evaluated points. ``progress`` receives a line at most every
+    ``every`` seconds.
+    """
+
+    def __init__(
+        self,
+        whitened: _Whitened,
+        stall: tuple[int, float] | None = None,
+        progress: Callable[[str], None] | None = None,
+        every: float = 30.0,
+    ) -> None:
         self.whitened = whitened
         self.key: bytes | None = None
         self.value: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self.stall = stall
+        self.best: tuple[float, NDArray[np.float64]] | None = None
+        self.history: list[float] = []
+        self.progress = progress
+        self.every = every
+        self.started = self.last_said = time.perf_counter()
+        self.cost0: float | None = None
 
     def _get(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         key = x.tobytes()
         if key != self.key or self.value is None:
             self.key, self.value = key, self.whitened.fun_and_jac(x)
+            self._observe(x, 0.5 * float(np.dot(self.value[0], self.value[0])))
         return self.value
+
+    def _observe(self, x: NDArray[np.float64], cost: float) -> None:
+        if self.cost0 is None:
+            self.cost0 = cost
+        if self.best is None or cost < self.best[0]:
+            self.best = (cost, x.copy())
+        assert self.best is not None
+        self.history.append(self.best[0])
+        now = time.perf_counter()
+        if self.progress is not None and now - self.last_said >= self.every:
+            self.last_said = now
+            self.progress(
+                f"{len(self.history)} points in {now - self.started:.0f} s, log-likelihood "
+                f"+{self.cost0 - self.best[0]:.1f} since the start of this round"
+            )
+        if self.stall is not None:
+            window, gain = self.stall
+            if len(self.history) > window and self.history[-window - 1] - self.best[0] < gain:
+                raise _Stalled
 
     def fun(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         return self._get(x)[0]
@@ -165,6 +215,8 @@ def fit_least_squares(
     max_reweight: int = 6,
     max_nfev: int = 60,
     tol: float = 1e-8,
+    stall: tuple[int, float] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> PointEstimate:
     """Maximise the profile log-likelihood from one or more starts.
 
@@ -184,6 +236,15 @@ def fit_least_squares(
         Iterations of each inner least-squares solve.
     tol : float
         ftol, xtol and gtol of the inner solves.
+    stall : (int, float), optional
+        Stall rule (window, gain): an inner solve also stops when its
+        log-likelihood has gained less than ``gain`` over the last
+        ``window`` evaluated points (the best point is kept; status
+        :data:`STALLED`, counted as converged). A model that cannot follow
+        its data creeps for thousands of iterations with such gains, which
+        move no estimate by a fraction of its uncertainty.
+    progress : callable, optional
+        Receives a progress line at most every 30 s.
 
     Returns
     -------
@@ -212,18 +273,29 @@ def fit_least_squares(
         status = 0
         if math.isfinite(ll):
             for _ in range(max_reweight):
-                fj = _Cached(wh)
-                sol = least_squares(
-                    fj.fun, z, jac=fj.jac, bounds=(lo, hi),
-                    method="trf", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
-                    max_nfev=max_nfev,
-                )  # fmt: skip
-                nfev += int(sol.nfev)
-                status, message = int(sol.status), str(sol.message)
-                ll_new = wh.set_state(sol.x)
+                fj = _Cached(wh, stall, progress)
+                try:
+                    sol = least_squares(
+                        fj.fun, z, jac=fj.jac, bounds=(lo, hi),
+                        method="trf", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
+                        max_nfev=max_nfev,
+                    )  # fmt: skip
+                    x_end = sol.x
+                    nfev += int(sol.nfev)
+                    status, message = int(sol.status), str(sol.message)
+                except _Stalled:
+                    assert fj.best is not None and stall is not None
+                    x_end = fj.best[1]
+                    nfev += len(fj.history)
+                    status = STALLED
+                    message = (
+                        f"stalled: the log-likelihood gained less than {stall[1]:g} over the "
+                        f"last {stall[0]} points"
+                    )
+                ll_new = wh.set_state(x_end)
                 improved = ll_new > ll + 1e-6 * max(1.0, abs(ll))
                 if ll_new >= ll or not math.isfinite(ll):
-                    z, ll = sol.x, ll_new
+                    z, ll = x_end, ll_new
                 if not improved:
                     break
             wh.set_state(z)

@@ -388,6 +388,26 @@ _PRESET_DATA: dict[str, dict[str, Any]] = {
         "probe": {"model": "lagged", "time_constant": 0.38, "second_time_constant": 0.09,
                   "offset": -0.45, "noise": 0.05},
     },
+    "demo": {
+        "description": "the bundled demo's rig (data/demo): power-law valve paths that differ "
+        "(their own overlaps and full-scale commands), a slightly shifted Gaussian centre "
+        "leak, LuGre friction with a small additive seal term, full-area Nusselt heat, "
+        "lagging temperature probes with an offset; no value round",
+        "valve": {
+            "m": 0.49, "x_laminar": 0.999,
+            "supply": {"family": "power", "C_max": 9.73e-9, "u0": 0.34, "u_sat": 9.62,
+                       "n": 1.27, "b": 0.326},
+            "exhaust": {"family": "power", "C_max": 1.137e-8, "u0": 0.305, "u_sat": 9.81,
+                        "n": 1.34, "b": 0.283},
+            "leak": {"shape": "bump", "C0": 2.37e-11, "width": 0.328, "shift": 0.031},
+        },
+        "friction": {**_LUGRE, "sigma0": 2.31e5, "sigma1": 1.08e3, "sigma2": 63.4,
+                     "F_c": 31.7, "F_s": 47.3, "v_s": 0.0186, "seal": "additive",
+                     "c_p": 3.1e-6},
+        "heat": {"model": "nusselt", "xi": 0.414, "beta": 0.263, "area": "full"},
+        "probe": {"model": "lagged", "time_constant": 0.29, "second_time_constant": 0.065,
+                  "offset": 0.35, "noise": 0.05},
+    },
     "fit-laws": {
         "description": "the fitted laws where the truth can express them (linear ramps, the "
         "fit's leak shape, full area); a control, not a mismatch",

@@ -16,6 +16,7 @@ from pneumafit.analysis.closed_loop import compare_controllers, design_controlle
 from pneumafit.analysis.linear import deadband_compensation, numerical_jacobian
 from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.rig import DEMO_TRUTH
 from pneumafit.simulation import Experiment, Simulator, StateFeedback
 
 
@@ -90,8 +91,22 @@ STEPS = (0.03, 0.0, -0.03, 0.0)  # offsets from half stroke (m)
 
 
 @pytest.fixture(scope="module")
-def demo_truth():
-    structure, values = read_plant_file(DEMO / "truth.json")
+def demo_plant(tmp_path_factory) -> Path:
+    """A rig truth of the fitted models' laws on the demo rig (DEMO_TRUTH,
+    Sutherland air), as the virtual rig writes it without ``--truth``. The
+    committed demo's truth.json is an independent truth, which the compiled
+    model cannot run as a plant."""
+    path = tmp_path_factory.mktemp("plant") / "truth.json"
+    doc = {"format": "pneumafit-truth", "version": 1,
+           "model": {"heat": "convection", "air_properties": "sutherland", "effects": {}},
+           "parameters": dict(DEMO_TRUTH)}  # fmt: skip
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.fixture(scope="module")
+def demo_truth(demo_plant):
+    structure, values = read_plant_file(demo_plant)
     return structure, parameter_vector(values)
 
 
@@ -216,12 +231,12 @@ def test_air_mass_is_positive_and_conserved(demo_runs, demo_truth):
         )
 
 
-def test_closed_loop_command_reports_air_per_controller(tmp_path):
+def test_closed_loop_command_reports_air_per_controller(tmp_path, demo_plant):
     """The command on the demo rig's truth writes closed_loop.json with the air
     mass and exergy per controller and step, and the figures; bad input is a
     message with exit status 2."""
     out = tmp_path / "cl"
-    run = cli("closed-loop", str(DEMO / "truth.json"), "--out", str(out), "--w0", "20",
+    run = cli("closed-loop", str(demo_plant), "--out", str(out), "--w0", "20",
               "--steps", "30,-30 mm", "--hold", "1.5 s")  # fmt: skip
     assert run.returncode == 0, run.stderr
     doc = json.loads((out / "closed_loop.json").read_text())
@@ -231,8 +246,12 @@ def test_closed_loop_command_reports_air_per_controller(tmp_path):
         assert len(c["steps"]) == 2 and all(s["air_mass_kg"] > 0 for s in c["steps"])
     for name in doc["figures"]:
         assert (out / name).stat().st_size > 0
-    bad = cli("closed-loop", str(DEMO / "truth.json"), "--out", str(out), "--steps", "300 mm")
+    bad = cli("closed-loop", str(demo_plant), "--out", str(out), "--steps", "300 mm")
     assert bad.returncode == 2 and "inside the stroke" in bad.stderr
+    # the demo's independent truth is not a plant the compiled model can run
+    bad = cli("closed-loop", str(DEMO / "truth.json"), "--out", str(out))
+    assert bad.returncode == 2 and "independent truth ('demo'" in bad.stderr
+    assert "Traceback" not in bad.stderr
     assert "Traceback" not in bad.stderr
     bad = cli("closed-loop", str(tmp_path / "none.json"), "--out", str(out))
     assert bad.returncode == 2 and "Traceback" not in bad.stderr

@@ -240,8 +240,8 @@ def rig(
         str | None,
         typer.Option(
             "--truth",
-            help="Independent truth: a preset (power-valve, table-valve-asym, lugre-pressure, "
-            "dahl-bump-leak, mixed, fit-laws) or a TOML/JSON file.",
+            help="Independent truth: a preset (demo, power-valve, table-valve-asym, "
+            "lugre-pressure, dahl-bump-leak, mixed, fit-laws) or a TOML/JSON file.",
         ),
     ] = None,
 ) -> None:
@@ -273,14 +273,22 @@ def simulate(
     kd: Annotated[str, typer.Option(help="pd derivative gain (step).")] = "4 V*s/m",
     umax: Annotated[str, typer.Option(help="pd command limit (step).")] = "10 V",
 ) -> None:
-    """Simulate a test and write it as a campaign-format HDF5 recording."""
+    """Simulate a test and write it as a campaign-format HDF5 recording.
+
+    The parameter file's ``friction`` key (a fit.json's ``structure.friction``)
+    chooses the friction law: ``switch`` (default) or ``lugre``.
+    """
+    import dataclasses
+
     from pneumafit.campaign import Recording, write_recording_h5
-    from pneumafit.parameters_io import read_parameter_file
+    from pneumafit.models import get_structure
+    from pneumafit.parameters_io import read_friction_law, read_parameter_file
     from pneumafit.simulation import Simulator
     from pneumafit.simulation.scenarios import blocked_test, step_test
 
     file_model, values = read_parameter_file(params)
     model = model or file_model
+    structure = dataclasses.replace(get_structure(model), friction=read_friction_law(params))
     if kind not in ("charge", "discharge", "step"):
         raise PneumafitInputError(
             f"option --kind: expected charge, discharge or step, found {kind!r}"
@@ -291,7 +299,8 @@ def simulate(
     length = _quantity(duration, "s", "--duration")
     if kind == "step":
         exp = step_test(
-            model, values, y0=_quantity(y0, "m", "--y0"), y_ref=_quantity(y_ref, "m", "--y-ref"),
+            structure, values, y0=_quantity(y0, "m", "--y0"),
+            y_ref=_quantity(y_ref, "m", "--y-ref"),
             step_time=_quantity(step_time, "s", "--step-time"), duration=length,
             kp=_quantity(kp, "V/m", "--kp"), kd=_quantity(kd, "V*s/m", "--kd"),
             umax=_quantity(umax, "V", "--umax"), rate=fs,
@@ -303,8 +312,9 @@ def simulate(
             start=_quantity(start, "s", "--start"),
             open_time=_quantity(open_time, "s", "--open-time"), duration=length, rate=fs,
         )  # fmt: skip
+    law = ", LuGre friction" if structure.friction == "lugre" else ""
     t0 = time.perf_counter()
-    result = Simulator(model).simulate(values, exp)
+    result = Simulator(structure).simulate(values, exp)
     elapsed = time.perf_counter() - t0
     if not result.ok:
         err_console.print(f"[red]simulation failed:[/red] {result.message}")
@@ -316,12 +326,12 @@ def simulate(
     recording = Recording.from_arrays(
         exp.time, channels, kind=kind, chamber=None if kind == "step" else chamber,
         piston_position=None if kind == "step" else exp.initial["y"],
-        description=f"simulated by pneumafit ({model} model) from {params.name}",
+        description=f"simulated by pneumafit ({model} model{law}) from {params.name}",
     )  # fmt: skip
     write_recording_h5(out, recording)
     air = result.air
     table = Table(
-        title=f"{kind} test, {model} model, {exp.time[-1]:.2f} s ({elapsed * 1e3:.1f} ms)"
+        title=f"{kind} test, {model} model{law}, {exp.time[-1]:.2f} s ({elapsed * 1e3:.1f} ms)"
     )
     table.add_column("air consumption")
     table.add_column("value", justify="right")

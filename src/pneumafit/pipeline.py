@@ -50,7 +50,9 @@ from pneumafit.commandline import (
 )
 from pneumafit.fileio import write_text_atomic
 
-#: The bundled demo campaign (a virtual-rig recording of a rig like the paper's).
+#: The bundled demo campaign: a virtual-rig recording of a rig like the paper's,
+#: whose valve, leak, friction and probe laws are not the fitted models'
+#: (the independent truth preset ``demo``, docs/virtual-rig.md).
 DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 
 #: Models fitted and compared, in the order of the paper.

@@ -590,7 +590,11 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
     PneumafitInputError
         Unreadable file or bad entries.
     """
-    from pneumafit.parameters_io import parse_parameters, read_parameter_file
+    from pneumafit.parameters_io import (
+        parse_friction_law,
+        parse_parameters,
+        read_parameter_file,
+    )
 
     file = Path(path)
     try:
@@ -599,12 +603,20 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
         model, values = read_parameter_file(file)  # raises the readable message
         return get_structure(model), values
     if isinstance(document, dict) and document.get("format") == "pneumafit-truth":
+        if "truth_model" in document:
+            name = (document["truth_model"].get("config") or {}).get("name", "?")
+            raise PneumafitInputError(
+                f"{file}: expected the truth of a rig simulated with the fitted models' laws, "
+                f"found an independent truth ({name!r}: its own valve, friction and heat laws, "
+                "key truth_model) that the compiled model cannot run; give a fit.json or a "
+                "parameter file as the plant"
+            )
         spec = document.get("model", {})
         try:
             structure = ModelStructure(
                 heat=spec["heat"], air_properties=spec.get("air_properties", "constant"),
                 effects=spec.get("effects", {}), name="rig truth",
-                valve=spec.get("valve", "iso6358"),
+                valve=spec.get("valve", "iso6358"), friction=spec.get("friction", "switch"),
             )  # fmt: skip
         except (KeyError, TypeError, ValueError) as exc:
             raise PneumafitInputError(
@@ -618,4 +630,7 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
     valve = (document.get("structure") or {}).get("valve") if isinstance(document, dict) else None
     if valve and valve != structure.valve:  # a fit of the measured valve map
         structure = dataclasses.replace(structure, valve=str(valve))
+    friction = parse_friction_law(document, str(file))  # "switch" unless the file says
+    if friction != structure.friction:
+        structure = dataclasses.replace(structure, friction=friction)
     return structure, values

@@ -32,6 +32,7 @@ from pneumafit.rig.sensors import SensorModel, first_order_lag
 from pneumafit.rig.virtual import (
     DEMO_SEED,
     DEMO_TRUTH,
+    DEMO_TRUTH_PRESET,
     RIG_VERSION,
     TRUTH_FILE,
     TRUTH_FORMAT,
@@ -49,6 +50,7 @@ from pneumafit.rig.virtual import (
 __all__ = [
     "DEMO_SEED",
     "DEMO_TRUTH",
+    "DEMO_TRUTH_PRESET",
     "EFFECT_DEFAULTS",
     "EXIT_BAD_INPUT",
     "EXIT_FAILED",

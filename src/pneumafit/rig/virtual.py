@@ -72,6 +72,7 @@ from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_s
 __all__ = [
     "DEMO_SEED",
     "DEMO_TRUTH",
+    "DEMO_TRUTH_PRESET",
     "TRUTH_FILE",
     "TRUTH_FORMAT",
     "TRUTH_METHOD",
@@ -107,6 +108,11 @@ DEMO_TRUTH: dict[str, float] = {
 
 #: Seed of the committed demo campaign.
 DEMO_SEED = 2026
+#: Independent truth of the committed demo campaign (a preset of
+#: :data:`pneumafit.rig.truth.PRESETS`): data/demo is
+#: ``pneumafit rig --out data/demo --seed 2026 --truth demo``, a rig whose
+#: valve, leak, friction and probes are not the fitted models' laws.
+DEMO_TRUTH_PRESET = "demo"
 #: Largest integration step of the truth (s); the fitting default is 1 ms.
 TRUTH_STEP = 1.0e-4
 #: Integration method of the truth (fixed-step Dormand-Prince, 5th order).

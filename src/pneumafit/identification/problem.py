@@ -580,13 +580,15 @@ class Problem:
             y_range = None
         if self.max_step is None:
             step = choose_step(
-                nominal, default=DEFAULT_STEP, y_range=y_range, valve=self.structure.valve
-            )
+                nominal, default=DEFAULT_STEP, y_range=y_range, valve=self.structure.valve,
+                friction=self.structure.friction,
+            )  # fmt: skip
             idx = np.arange(n)
             return _Layout(exp, step, idx, idx, None, None)
         step = choose_step(
-            nominal, default=self.max_step, y_range=y_range, valve=self.structure.valve
-        )
+            nominal, default=self.max_step, y_range=y_range, valve=self.structure.valve,
+            friction=self.structure.friction,
+        )  # fmt: skip
         dt = float(np.median(np.diff(t)))
         k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
         # dense samples: everywhere, or for blocked tests only around the

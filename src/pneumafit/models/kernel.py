@@ -1,9 +1,9 @@
 """Compiled right-hand side of the actuator models and its integrator.
 
 State (see :mod:`pneumafit.models.layout`): x = [y, v, P_N, P_P, T_N, T_P,
-m_supply, m_exhaust, Tw_N, Tw_P, us_N, us_P, dus_N, dus_P]; a structure uses a
-subset (the polytropic model keeps T = T_w, the optional states stay constant
-unless their effect is on).
+m_supply, m_exhaust, Tw_N, Tw_P, us_N, us_P, dus_N, dus_P, z_f]; a structure
+uses a subset (the polytropic model keeps T = T_w, the optional states stay
+constant unless their effect is on, z_f unless the friction law is LuGre).
 
 Chamber balance (paper eqs. 2-5 rewritten in P and T; the paper's eq. 9 drops
 the gas constant r from the flow terms, restored here). With H = sum q_i T_i
@@ -18,10 +18,18 @@ which expands to the paper's dT/dt line of eq. 9. Polytropic model (eq. 14):
 dP/dt = k r T_0 q / V - k P dV/dt / V, T = T_0 (T_0 = wall temperature).
 
 Mechanics (eq. 1): M dv/dt = S_P P_P - S_N P_N - F_ext - F_f + F_stop, with
-F_ext = P_atm (S_P - S_N) + F_load + M g sin(angle) and the switch model of
-stick-slip (:mod:`pneumafit.physics.friction`): the piston's mode (stuck,
-sliding forwards, sliding backwards) is a discrete state kept by the
-integrator, which locates the mode changes inside the step.
+F_ext = P_atm (S_P - S_N) + F_load + M g sin(angle) and one of two friction
+laws (configuration slot C_FRICTION_LAW, :mod:`pneumafit.physics.friction`):
+
+- the switch model of stick-slip (0): the piston's mode (stuck, sliding
+  forwards, sliding backwards) is a discrete state kept by the integrator,
+  which locates the mode changes inside the step;
+- LuGre (1): the bristle deflection z_f is a continuous state, the piston
+  always obeys M dv/dt = F_d - F_f, and the integrator's mode logic and event
+  location are bypassed. The bristle relaxation rate is limited to
+  LUGRE_RATE_LIMIT / h for the step h in use (slot D_ZRATE of the derived
+  constants, set by :func:`integrate`; unlimited elsewhere, e.g. for the
+  scipy reference solver), see :func:`pneumafit.physics.friction.lugre_friction`.
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ from pneumafit.models.layout import (
     C_CHAMBER_LEAK,
     C_EXTERNAL_LEAK,
     C_FORCED_CONV,
+    C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
     C_SEAL_FRICTION,
@@ -88,6 +97,8 @@ from pneumafit.models.layout import (
     P_ROD,
     P_RSUP,
     P_SEAL,
+    P_SIG0,
+    P_SIG1,
     P_STROKE,
     P_TAMB,
     P_TW,
@@ -117,9 +128,18 @@ from pneumafit.models.layout import (
     X_UP,
     X_V,
     X_Y,
+    X_Z,
 )
 from pneumafit.physics.air import G0, GAMMA, R_AIR, RHO0, T_REF, conductivity, viscosity
-from pneumafit.physics.friction import FASTMATH, end_stop_force, next_mode, sliding_friction
+from pneumafit.physics.friction import (
+    FASTMATH,
+    LUGRE_MIN_LEVEL,
+    LUGRE_RATE_LIMIT,
+    end_stop_force,
+    lugre_friction,
+    next_mode,
+    sliding_friction,
+)
 from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
 from pneumafit.physics.valve import NVC, VC_RTA, flows_core, laminar_tail, valve_constants
@@ -136,13 +156,18 @@ from pneumafit.physics.valve_map import (
 # Derived per-simulation constants (array d), computed once by derive()
 D_SP, D_SN, D_FEXT, D_MU, D_KAIR, D_LAMC, D_GRC, D_RTA = 0, 1, 2, 3, 4, 5, 6, 7
 D_A0P, D_A0N, D_CAP, D_CAN, D_IPS, D_IM = 8, 9, 10, 11, 12, 13
-D_VC = 14  # valve constants (physics.valve.valve_constants), NVC of them
+D_ZRATE = 14  # largest LuGre bristle relaxation rate (1/s): inf, or LUGRE_RATE_LIMIT / h
+D_VC = 15  # valve constants (physics.valve.valve_constants), NVC of them
 D_VM = D_VC + NVC  # valve-map constants (physics.valve_map.map_constants), NVM of them
 ND = D_VM + NVM
 
 # Valve laws (configuration slot C_VALVE_LAW; layout.VALVE_LAWS)
 VALVE_ISO6358 = 0
 VALVE_MAP = 1
+
+# Friction laws (configuration slot C_FRICTION_LAW; layout.FRICTION_LAWS)
+FRICTION_SWITCH = 0
+FRICTION_LUGRE = 1
 
 # Auxiliary outputs of one right-hand-side evaluation (array aux)
 A_QN, A_QP, A_UN, A_UP, A_LAMN, A_LAMP, A_FF, A_FD, A_FS = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -185,6 +210,8 @@ def check_parameters(p: np.ndarray) -> bool:
     if p[P_LEN] <= 0.0 or p[P_GCL] < 0.0 or p[P_GEL] < 0.0 or p[P_VTAU] < 0.0:
         return False
     if p[P_WCAP] <= 0.0 or p[P_KSTOP] < 0.0 or p[P_CSTOP] < 0.0:
+        return False
+    if p[P_SIG0] <= 0.0 or p[P_SIG1] < 0.0:
         return False
     # valve map (checked whatever the law: the defaults are admissible)
     for i in range(N_MAP_KNOTS):
@@ -238,6 +265,7 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     d[D_CAN] = math.pi * (bore + rod)
     d[D_IPS] = 1.0 / p[P_PS]
     d[D_IM] = 1.0 / p[P_MASS]
+    d[D_ZRATE] = math.inf  # exact LuGre law unless integrate() limits it to its step
     valve_arrays(p, d[D_VC:D_VM], d[D_VM:])
 
 
@@ -361,7 +389,8 @@ def rhs(
     x : ndarray, shape (NX,)
         State (SI units, layout in :mod:`pneumafit.models.layout`).
     mode : {-1, 0, 1}
-        Friction mode: 0 stuck (v = 0, no motion), +-1 sliding direction.
+        Friction mode of the switch model: 0 stuck (v = 0, no motion), +-1
+        sliding direction. Not used by the LuGre law.
     u_p_cmd, u_n_cmd : float
         Commands sent to the valves of chambers P and N (V).
     p : ndarray, shape (NP,)
@@ -533,6 +562,7 @@ def rhs(
             dx[X_PP] = 0.0
             dx[X_TP] = 0.0
             dx[X_TWP] = 0.0
+        dx[X_Z] = 0.0  # bristles frozen with the piston
         aux[A_FF] = 0.0
         aux[A_FD] = 0.0
         aux[A_FS] = 0.0
@@ -550,14 +580,23 @@ def rhs(
             if extra > 0.0:
                 f_s += extra
                 f_c += extra
-        if mode == 0:
+        if cfg[C_FRICTION_LAW] == FRICTION_LUGRE:
+            # LuGre: no stuck mode, the bristle state carries the pre-sliding
+            dz, f_f = lugre_friction(v, x[X_Z], f_s, f_c, p[P_FV], p[P_VST], p[P_SIG0],
+                                     p[P_SIG1], d[D_ZRATE])  # fmt: skip
+            dx[X_Y] = v
+            dx[X_V] = (f_drive - f_f) * d[D_IM]
+            dx[X_Z] = dz
+        elif mode == 0:
             f_f = f_drive  # stuck: friction balances the drive, v stays 0
             dx[X_Y] = 0.0
             dx[X_V] = 0.0
+            dx[X_Z] = 0.0
         else:
             f_f = sliding_friction(v, mode, f_s, f_c, p[P_FV], p[P_VST])
             dx[X_Y] = v
             dx[X_V] = (f_drive - f_f) * d[D_IM]
+            dx[X_Z] = 0.0
         aux[A_FF] = f_f
         aux[A_FD] = f_drive
         aux[A_FS] = f_s
@@ -603,8 +642,9 @@ def commands(
 @njit(cache=True)
 def active_states(cfg: np.ndarray) -> int:
     """Number of leading state slots that can change: 8 (y, v, P, T, air
-    accounts) unless an effect adds wall-temperature or spool states."""
-    if cfg[C_WALL_MASS] == 1 or cfg[C_VALVE_ORDER] > 0:
+    accounts) unless an effect adds wall-temperature or spool states or the
+    LuGre law its bristle state."""
+    if cfg[C_WALL_MASS] == 1 or cfg[C_VALVE_ORDER] > 0 or cfg[C_FRICTION_LAW] == FRICTION_LUGRE:
         return NX
     return 8
 
@@ -814,6 +854,36 @@ def _initial_state(x0: np.ndarray, p: np.ndarray, cfg: np.ndarray, x: np.ndarray
     x[X_TWP] = t_w
     x[X_DUN] = 0.0
     x[X_DUP] = 0.0
+    if not math.isfinite(x[X_Z]) and (cfg[C_FRICTION_LAW] != FRICTION_LUGRE or cfg[C_BLOCKED] == 1):
+        x[X_Z] = 0.0  # unused (switch model) or frozen (blocked piston)
+
+
+@njit(cache=True, fastmath=_FM)
+def initial_deflection(x: np.ndarray, p: np.ndarray, cfg: np.ndarray, f_drive: float) -> float:
+    """Initial LuGre bristle deflection z_f (m) of a moving-piston test.
+
+    A piston at rest (v = 0) starts in static equilibrium if the bristles can
+    hold it, z = clip(F_d / sigma0, -g(0) / sigma0, g(0) / sigma0) (the
+    pre-sliding force sigma0 z balances the driving force F_d up to the
+    static level g(0) = F_s); a moving one on its steady sliding deflection
+    z = sign(v) g(v) / sigma0. Levels with the seal-friction effect if on.
+    """
+    f_s = p[P_FS]
+    f_c = p[P_FC]
+    if cfg[C_SEAL_FRICTION] == 1:
+        extra = p[P_SEAL] * (x[X_PP] + x[X_PN] - 2.0 * p[P_PE])
+        if extra > 0.0:
+            f_s += extra
+            f_c += extra
+    v = x[X_V]
+    r = v / p[P_VST]
+    g = max(f_c + (f_s - f_c) * math.exp(-r * r), LUGRE_MIN_LEVEL)
+    z_max = g / p[P_SIG0]
+    if v > 0.0:
+        return z_max
+    if v < 0.0:
+        return -z_max
+    return min(max(f_drive / p[P_SIG0], -z_max), z_max)
 
 
 @njit(cache=True)
@@ -844,9 +914,13 @@ def integrate(
     :func:`pneumafit.simulation.simulator.substeps`), so uneven sampling is
     followed exactly and the steps never depend on the parameters (a smooth
     log-likelihood; physics notes).
-    Friction mode changes (stick, slip, reversal) are located inside the step
-    by :func:`locate_event` (v = 0 while sliding, |F_d| = F_s while stuck) and
-    the step is split there.
+    Friction mode changes of the switch model (stick, slip, reversal) are
+    located inside the step by :func:`locate_event` (v = 0 while sliding,
+    |F_d| = F_s while stuck) and the step is split there. The LuGre law has
+    no modes: its steps are plain Runge-Kutta steps, with the bristle
+    relaxation rate limited to LUGRE_RATE_LIMIT / h (h the step of the
+    sample interval), and a NaN initial z_f is replaced by
+    :func:`initial_deflection`.
 
     Parameters
     ----------
@@ -913,14 +987,23 @@ def integrate(
         return STATUS_OK
 
     blocked = cfg[C_BLOCKED] == 1
+    # LuGre: no friction modes (the stuck mode and event location are bypassed)
+    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
     u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
     if cfg[C_VALVE_ORDER] > 0:
         x[X_UP] = u_p
         x[X_UN] = u_n
     # initial friction mode
     mode = 0
+    if lugre:
+        h0 = (t[1] - t[0]) / (nsub[0] if nsub[0] > 0 else 1)
+        d[D_ZRATE] = LUGRE_RATE_LIMIT / h0
+        if not math.isfinite(x[X_Z]):
+            x[X_Z] = 0.0
+            rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
+            x[X_Z] = initial_deflection(x, p, cfg, aux[A_FD])
     rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
-    if not blocked:
+    if not blocked and not lugre:
         if x[X_V] > 0.0:
             mode = 1
         elif x[X_V] < 0.0:
@@ -938,11 +1021,13 @@ def integrate(
         n_sub = nsub[k] if nsub[k] > 0 else 1
         h = dt / n_sub
         dw = 1.0 / n_sub
+        if lugre:
+            d[D_ZRATE] = LUGRE_RATE_LIMIT / h
         for j in range(n_sub):
             w0 = j * dw
             rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
                     kk, xs, dx, aux, xn)  # fmt: skip
-            if blocked:
+            if blocked or lugre:
                 pass
             elif mode != 0:
                 if xn[X_V] * mode <= 0.0:
@@ -1092,7 +1177,9 @@ def integrate_many_serial(
 
 
 @njit(cache=True)
-def stiffness_bound(p: np.ndarray, y_min: float, y_max: float, valve_law: int = 0) -> float:
+def stiffness_bound(
+    p: np.ndarray, y_min: float, y_max: float, valve_law: int = 0, friction_law: int = 0
+) -> float:
     """Upper bound of the fastest rate of the model (1/s) over [y_min, y_max].
 
     The fastest pressure mode is a fully open valve near pressure equality,
@@ -1103,6 +1190,13 @@ def stiffness_bound(p: np.ndarray, y_min: float, y_max: float, valve_law: int = 
     ``valve_law`` 1 (measured map) takes the largest map conductance (at
     +-u_sat: the map is monotone and does not overshoot its knots) and the
     steepest tail over the map's critical ratios; 0 (default) the ISO law.
+    ``friction_law`` 1 (LuGre) adds the bristle mode of a piston in
+    pre-sliding, M z'' = -sigma0 z - (sigma1 + b) z': its damping rate
+    (sigma1 + b) / M plus 1.5 times its natural frequency sqrt(sigma0 / M)
+    (1.5: an explicit method's stability interval on the imaginary axis is
+    shorter than on the real one, sqrt(3) against 2.51 for Kutta's RK3). The
+    bristle relaxation rate sigma0 |v| / g(v) is not bounded here: the
+    kernel limits it to LUGRE_RATE_LIMIT / h, inside every method's interval.
     """
     d = np.empty(ND)
     derive(p, d)
@@ -1137,4 +1231,7 @@ def stiffness_bound(p: np.ndarray, y_min: float, y_max: float, valve_law: int = 
     m = p[P_MASS]
     rate_stop = p[P_CSTOP] / m + math.sqrt(p[P_KSTOP] / m)
     rate_visc = p[P_FV] / m
-    return max(rate_p, rate_stop, rate_visc)
+    rate = max(rate_p, rate_stop, rate_visc)
+    if friction_law == FRICTION_LUGRE:
+        rate = max(rate, (p[P_SIG1] + p[P_FV]) / m + 1.5 * math.sqrt(p[P_SIG0] / m))
+    return rate

@@ -28,12 +28,15 @@ X_MS, X_ME = 6, 7  # accumulated mass drawn from supply / sent to exhaust (kg)
 X_TWN, X_TWP = 8, 9  # wall temperatures (effect wall_thermal_mass)
 X_UN, X_UP = 10, 11  # effective spool commands (effect valve_dynamics)
 X_DUN, X_DUP = 12, 13  # their rates (second-order valve dynamics)
-NX = 14
+X_Z = 14  # bristle deflection z (m) of the LuGre friction law
+NX = 15
 STATE_NAMES = (
     "y", "v", "p_N", "p_P", "T_N", "T_P", "m_supply", "m_exhaust",
-    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P",
+    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P", "z_f",
 )  # fmt: skip
-STATE_UNITS = ("m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s")
+STATE_UNITS = (
+    "m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s", "m",
+)  # fmt: skip
 
 # ----------------------------------------------------------------------------
 # Output channels (simulated, at the recording's sample times)
@@ -66,10 +69,12 @@ C_SUPPLY_DROP = 10  # effect supply_pressure_drop on/off
 C_STATIC_FLOW = 11  # 1: no ODE, static valve flow at measured p, u (flow tests)
 C_SEAL_FRICTION = 12  # effect pressure-dependent seal friction on/off
 C_VALVE_LAW = 13  # servo-valve law: 0 ISO 6358 (parametric), 1 measured map
-NCFG = 14
+C_FRICTION_LAW = 14  # friction law: 0 switch model (stick-slip modes), 1 LuGre (bristle z)
+NCFG = 15
 
 HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
 VALVE_LAWS = {"iso6358": 0, "map": 1}
+FRICTION_LAWS = {"switch": 0, "lugre": 1}
 
 # ----------------------------------------------------------------------------
 # Controller vector (float64): pd law [kp, kd, u0, umax, 0...]; state feedback
@@ -187,6 +192,11 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
     # --- numerics (end stops) ---
     ParameterSpec("stop_stiffness", "N/m", 1.0e6, 1.0, 1e10, "numerics", "end-stop stiffness"),
     ParameterSpec("stop_damping", "N s/m", 6.0e3, 0.0, 1e8, "numerics", "end-stop damping"),
+    # --- friction, LuGre law only (appended: the indices before them did not move)
+    ParameterSpec("friction_stiffness", "N/m", 3.0e5, 1e3, 1e8, "friction",
+                  "bristle stiffness sigma0 (LuGre)"),
+    ParameterSpec("friction_damping", "N s/m", 1.0e3, 0.0, 1e5, "friction",
+                  "bristle damping sigma1 (LuGre)"),
 )  # fmt: skip
 
 
@@ -218,8 +228,9 @@ def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
     return tuple(specs)
 
 
-#: Every model parameter. The valve-map parameters come last so that the
-#: indices of the others did not move when they were added.
+#: Every model parameter. The valve-map parameters come last, after the base
+#: block; every index is taken by name (P, P_* below, and the map's contiguous
+#: blocks P_MAP_*), so appending to the base block only shifts the map block.
 PARAMETER_SPECS: tuple[ParameterSpec, ...] = _BASE_SPECS + _map_specs(_BASE_SPECS)
 
 PARAMETER_NAMES: tuple[str, ...] = tuple(s.name for s in PARAMETER_SPECS)
@@ -273,6 +284,8 @@ P_RSUP = P["supply_line_resistance"]
 P_SEAL = P["seal_friction_coefficient"]
 P_KSTOP = P["stop_stiffness"]
 P_CSTOP = P["stop_damping"]
+P_SIG0 = P["friction_stiffness"]
+P_SIG1 = P["friction_damping"]
 # valve map: contiguous blocks (physics.valve_map.map_constants reads slices)
 N_MAP_KNOTS = len(MAP_KNOTS)
 P_MAP_CS = P[MAP_CS_NAMES[0]]

@@ -1,8 +1,10 @@
-"""Model structures: which heat law, which effects, chosen by configuration.
+"""Model structures: which heat, valve and friction law, which effects, chosen by configuration.
 
 A :class:`ModelStructure` is turned into the integer configuration vector the
 compiled kernel reads. The three structures of the paper are registered in
-:data:`MODELS`; optional effects are switched on by name.
+:data:`MODELS`; optional effects are switched on by name; the valve law
+(:data:`VALVE_PARAMETERS`) and the friction law (:data:`FRICTION_PARAMETERS`)
+are fields of the structure.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pneumafit.models.layout import (
     C_CHAMBER_LEAK,
     C_EXTERNAL_LEAK,
     C_FORCED_CONV,
+    C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
     C_SEAL_FRICTION,
@@ -27,6 +30,7 @@ from pneumafit.models.layout import (
     C_VALVE_LAW,
     C_VALVE_ORDER,
     C_WALL_MASS,
+    FRICTION_LAWS,
     HEAT_LAWS,
     NCFG,
     VALVE_LAWS,
@@ -90,6 +94,16 @@ VALVE_PARAMETERS: dict[str, tuple[str, ...]] = {
     "map": ("valve_m", "valve_x_laminar", "valve_u_sat", *MAP_PARAMETER_NAMES),
 }  # fmt: skip
 
+_SWITCH_FRICTION = ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity")
+
+#: Friction parameters that each friction law uses: the switch model of
+#: stick-slip (:mod:`pneumafit.physics.friction`) and LuGre, which adds the
+#: bristle stiffness sigma0 and damping sigma1 to the same Stribeck curve.
+FRICTION_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "switch": _SWITCH_FRICTION,
+    "lugre": (*_SWITCH_FRICTION, "friction_stiffness", "friction_damping"),
+}
+
 
 @dataclass(frozen=True)
 class ModelStructure:
@@ -112,6 +126,11 @@ class ModelStructure:
         Servo-valve law: the parametric ISO 6358 law
         (:mod:`pneumafit.physics.valve`) or the measured valve map
         (:mod:`pneumafit.physics.valve_map`).
+    friction : {"switch", "lugre"}
+        Friction law: the switch model of stick-slip (modes stuck/+1/-1,
+        :mod:`pneumafit.physics.friction`) or LuGre (Canudas de Wit et al.
+        1995, a bristle state z_f; :func:`pneumafit.physics.friction.lugre_friction`).
+        Like ``valve``, it does not change ``name``.
     """
 
     heat: str
@@ -119,6 +138,7 @@ class ModelStructure:
     effects: Mapping[str, int] = field(default_factory=dict)
     name: str = ""
     valve: str = "iso6358"
+    friction: str = "switch"
 
     def __post_init__(self) -> None:
         if self.heat not in HEAT_LAWS:
@@ -135,6 +155,11 @@ class ModelStructure:
             raise ValueError(
                 f"model structure: valve: expected one of {sorted(VALVE_LAWS)}, "
                 f"found {self.valve!r}"
+            )
+        if self.friction not in FRICTION_LAWS:
+            raise ValueError(
+                f"model structure: friction: expected one of {sorted(FRICTION_LAWS)}, "
+                f"found {self.friction!r}"
             )
         for name, value in self.effects.items():
             if name not in EFFECT_SLOTS:
@@ -171,6 +196,8 @@ class ModelStructure:
             names += ["us_N", "us_P"]
         if order == 2:
             names += ["dus_N", "dus_P"]
+        if self.friction == "lugre":
+            names += ["z_f"]
         return tuple(names)
 
     @property
@@ -188,6 +215,11 @@ class ModelStructure:
     def valve_parameter_names(self) -> tuple[str, ...]:
         """Valve parameters used by this structure's valve law."""
         return VALVE_PARAMETERS[self.valve]
+
+    @property
+    def friction_parameter_names(self) -> tuple[str, ...]:
+        """Friction parameters used by this structure's friction law."""
+        return FRICTION_PARAMETERS[self.friction]
 
     def config(
         self,
@@ -219,6 +251,7 @@ class ModelStructure:
         cfg[C_INPUT] = int(closed_loop)
         cfg[C_STATIC_FLOW] = int(static_flow)
         cfg[C_VALVE_LAW] = VALVE_LAWS[self.valve]
+        cfg[C_FRICTION_LAW] = FRICTION_LAWS[self.friction]
         for name, value in self.effects.items():
             cfg[EFFECT_SLOTS[name][0]] = value
         return cfg

@@ -20,6 +20,7 @@ from pneumafit.models.layout import (
     X_TP,
     X_V,
     X_Y,
+    X_Z,
 )
 
 if TYPE_CHECKING:
@@ -139,8 +140,10 @@ class Experiment:
     p_chamber : ndarray, optional
         Held chamber pressure (Pa) of a flow test.
     initial : dict, optional
-        Initial values by state name (y, v, p_P, p_N, T_P, T_N); pressures
-        default to exhaust, temperatures to the wall, v to 0, y to 0.
+        Initial values by state name (y, v, p_P, p_N, T_P, T_N, z_f);
+        pressures default to exhaust, temperatures to the wall, v to 0, y to
+        0, the LuGre bristle deflection z_f (m) to static equilibrium (or
+        steady sliding) at the initial state.
     name : str
         For messages and reports.
     """
@@ -236,6 +239,8 @@ class Experiment:
             if name in self.initial:
                 x0[idx] = self.initial[name]
         x0[10:] = 0.0
+        # NaN: the kernel starts the LuGre bristles in equilibrium (kernel.initial_deflection)
+        x0[X_Z] = self.initial.get("z_f", np.nan)
         return x0
 
     @classmethod

@@ -4,7 +4,9 @@ Independent of the compiled integrator: scipy chooses the steps (Radau,
 LSODA, ...) and locates the friction mode changes with its own event finder
 (v = 0 while sliding; |F_d| = F_s while stuck), restarting the solver at each
 event and at each kink of the inputs (sample times where the interpolated
-commands or reference change slope).
+commands or reference change slope). The LuGre friction law has no modes and
+no events; here its bristle relaxation rate is not limited (the compiled
+integrator limits it to its step), so this is the exact LuGre model.
 
 The right-hand side is the model's own :func:`pneumafit.models.kernel.rhs`,
 either compiled or as pure Python (:func:`pure_python`, used by the
@@ -21,7 +23,7 @@ from numba.core.dispatcher import Dispatcher
 from scipy.integrate import solve_ivp
 
 from pneumafit.models import kernel
-from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V
+from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation.experiment import Experiment
@@ -92,7 +94,8 @@ def solve_reference(
     Returns
     -------
     dict of str to ndarray
-        y, v, p_N, p_P, T_N, T_P, m_supply, m_exhaust at the sample times.
+        y, v, p_N, p_P, T_N, T_P, m_supply, m_exhaust and the LuGre bristle
+        deflection z_f (0 for the switch model) at the sample times.
     """
     structure = get_structure(model)
     p = (
@@ -118,7 +121,9 @@ def solve_reference(
     dx = np.empty(NX)
     aux = np.empty(kernel.NAUX)
     if atol is None:
-        scale = np.array([0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3])
+        scale = np.array(
+            [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4]
+        )
         atol_v = rtol * scale
     else:
         atol_v = np.full(NX, atol)
@@ -130,9 +135,14 @@ def solve_reference(
         rhs(xx, mode, u_p, u_n, p, d, cfg, dx, aux)
 
     blocked = experiment.blocked
+    lugre = structure.friction == "lugre" and not blocked
+    if lugre and not np.isfinite(x[X_Z]):
+        x[X_Z] = 0.0
+        evaluate(t[0], x, 0)
+        x[X_Z] = kernel.initial_deflection(x, p, cfg, aux[kernel.A_FD])
     evaluate(t[0], x, 0)
     mode = 0
-    if not blocked:
+    if not blocked and not lugre:
         if x[X_V] != 0.0:
             mode = 1 if x[X_V] > 0 else -1
         else:
@@ -152,7 +162,7 @@ def solve_reference(
                 return dx.copy()
 
             events = []
-            if not blocked:
+            if not blocked and not lugre:
                 if current != 0:
 
                     def stop(tt, xx):
@@ -193,7 +203,9 @@ def solve_reference(
                     out[np.flatnonzero(sel)[-1], X_V] = 0.0
             t_now = t_stop
     names = ("y", "v", "p_N", "p_P", "T_N", "T_P", "m_supply", "m_exhaust")
-    return {name: out[:, i] for i, name in enumerate(names)}
+    result = {name: out[:, i] for i, name in enumerate(names)}
+    result["z_f"] = out[:, X_Z]
+    return result
 
 
 __all__ = ["pure_python", "solve_reference"]

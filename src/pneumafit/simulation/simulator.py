@@ -18,7 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from pneumafit.models import kernel
-from pneumafit.models.layout import CHANNEL_UNITS, CHANNELS, NCTRL, NP, NX, VALVE_LAWS, P
+from pneumafit.models.layout import (
+    CHANNEL_UNITS,
+    CHANNELS,
+    FRICTION_LAWS,
+    NCTRL,
+    NP,
+    NX,
+    VALVE_LAWS,
+    P,
+)
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation.experiment import Experiment
@@ -352,6 +361,7 @@ def choose_step(
     y_range: tuple[float, float] | None = None,
     method: str | Tableau = DEFAULT_METHOD,
     valve: str = "iso6358",
+    friction: str = "switch",
 ) -> float:
     """Largest fixed step (s) that is stable for a parameter set.
 
@@ -375,10 +385,16 @@ def choose_step(
     valve : {"iso6358", "map"}
         Valve law of the model (:attr:`ModelStructure.valve`): the rate
         bound takes that law's largest conductance.
+    friction : {"switch", "lugre"}
+        Friction law of the model (:attr:`ModelStructure.friction`): LuGre
+        adds its bristle mode (stiffness and damping over the moving mass).
     """
     if valve not in VALVE_LAWS:
         raise ValueError(f"choose_step: valve: expected one of {sorted(VALVE_LAWS)}, "
                          f"found {valve!r}")  # fmt: skip
+    if friction not in FRICTION_LAWS:
+        raise ValueError(f"choose_step: friction: expected one of {sorted(FRICTION_LAWS)}, "
+                         f"found {friction!r}")  # fmt: skip
     tableau = TABLEAUS[method] if isinstance(method, str) else method
     vec = (
         np.asarray(parameters, dtype=float)
@@ -387,5 +403,7 @@ def choose_step(
     )
     stroke = vec[P["stroke"]]
     lo, hi = y_range if y_range is not None else (0.0, stroke)
-    rate = kernel.stiffness_bound(vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve])
+    rate = kernel.stiffness_bound(
+        vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve], FRICTION_LAWS[friction]
+    )
     return float(min(default, STABILITY_MARGIN * tableau.stability / rate))

@@ -3,12 +3,18 @@
 Format (JSON)::
 
     {"model": "convection",
+     "friction": "lugre",
      "parameters": {"xi": 0.4, "bore": "32 mm", "supply_pressure": "7 bar"}}
+
+``friction`` (optional) is the friction law of the structure, ``"switch"``
+(the default when absent) or ``"lugre"``.
 
 A value is a bare number in the parameter's SI unit (see
 :data:`pneumafit.models.PARAMETER_SPECS`) or a string with a unit, converted
 by pint. A fit result (``fit.json``, ``{"format": "pneumafit-fit", ...}``)
-whose parameters are ``{NAME: {"value": ..., "unit": ...}}`` is read too.
+whose parameters are ``{NAME: {"value": ..., "unit": ...}}`` is read too;
+its friction law is ``structure.friction`` (absent in fits written before
+the LuGre law: ``"switch"``).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ import pint
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import ureg
-from pneumafit.models.layout import SPECS
+from pneumafit.models.layout import FRICTION_LAWS, SPECS
 from pneumafit.models.structure import MODELS
 
 
@@ -91,6 +97,7 @@ def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tup
         raise PneumafitInputError(
             f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
+    parse_friction_law(document, where)  # a wrong law is an error wherever the file is read
     params = document.get("parameters", {})
     if not isinstance(params, dict):
         raise PneumafitInputError(
@@ -146,6 +153,56 @@ def read_valve_law(path: str | os.PathLike[str]) -> str:
     structure = document.get("structure") if isinstance(document, dict) else None
     valve = structure.get("valve") if isinstance(structure, dict) else None
     return str(valve) if valve in ("iso6358", "map") else "iso6358"
+
+
+def parse_friction_law(document: dict[str, Any], where: str = "parameters") -> str:
+    """Friction law of a parsed parameter document or fit.json.
+
+    A parameter file's top-level ``friction`` key, else a fit.json's
+    ``structure.friction``; ``"switch"`` when neither is present (files
+    written before the LuGre law read unchanged).
+
+    Raises
+    ------
+    PneumafitInputError
+        A value that is not a friction law, naming the key.
+    """
+    if not isinstance(document, dict):
+        return "switch"
+    law: Any = "switch"
+    key = "friction"
+    structure = document.get("structure")
+    if isinstance(structure, dict) and "friction" in structure:
+        law, key = structure["friction"], "structure.friction"
+    if "friction" in document:
+        law, key = document["friction"], "friction"
+    if not isinstance(law, str) or law not in FRICTION_LAWS:
+        raise PneumafitInputError(
+            f"{where}: {key}: expected one of {', '.join(FRICTION_LAWS)}, found {law!r}"
+        )
+    return law
+
+
+def read_friction_law(path: str | os.PathLike[str]) -> str:
+    """Friction law of a parameter file or fit.json (see :func:`parse_friction_law`).
+
+    Raises
+    ------
+    PneumafitInputError
+        Missing file, invalid JSON or a wrong friction law.
+    """
+    file = Path(path)
+    try:
+        document = json.loads(file.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise PneumafitInputError(f"{file}: expected a parameter file, found none") from None
+    except OSError as exc:
+        raise PneumafitInputError(f"{file}: cannot be read: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise PneumafitInputError(
+            f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"
+        ) from None
+    return parse_friction_law(document, str(file))
 
 
 def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str, dict]]:

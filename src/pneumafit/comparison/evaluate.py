@@ -259,6 +259,9 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
             structure = dataclasses.replace(
                 structure, effects={k: int(v) for k, v in effects.items()}
             )
+        friction = str(described.get("friction") or "switch")
+        if friction != structure.friction:  # a fit with the LuGre law is replayed with it
+            structure = dataclasses.replace(structure, friction=friction)
     except (ValueError, TypeError) as exc:
         raise PneumafitInputError(f"{where}: structure: {exc}") from None
     initial = (document.get("nuisance") or {}).get("initial_states") or {}

@@ -155,6 +155,7 @@ class BaseFit:
         structure = ModelStructure(
             st["heat"], air_properties=st.get("air_properties", "wall"),
             effects=dict(st.get("effects") or {}), valve=st.get("valve", "iso6358"),
+            friction=st.get("friction", "switch"),
         )  # fmt: skip
         values = {n: float(p["value"]) for n, p in doc["parameters"].items()}
         nuisance = doc.get("nuisance") or {}

@@ -2,8 +2,9 @@
 
 Keys (version 1; keys are only ever added):
 
-- ``format``, ``version``, ``model``; ``structure`` (heat law, air
-  properties, effects);
+- ``format``, ``version``, ``model``; ``structure`` (name, heat law, air
+  properties, valve law, friction law, effects; ``friction`` was added with
+  the LuGre law, a reader takes its absence as ``"switch"``);
 - ``campaign``: ``name``, ``path``, ``sha256`` (file -> hash, as read);
 - ``parameters``: every model parameter by canonical name, SI:
   ``value`` (joint least-squares estimate), ``unit``, ``std``,
@@ -169,6 +170,7 @@ def fit_document(
             "heat": result.structure.heat,
             "air_properties": result.structure.air_properties,
             "valve": result.structure.valve,
+            "friction": result.structure.friction,
             "effects": dict(result.structure.effects),
         },
         "campaign": {

@@ -729,7 +729,12 @@ class ParameterSet:
         ``xi``, ``lambda``, the Stribeck velocity and friction coefficients
         are sampled in log scale; ``beta``, ``k``, critical ratios, the
         subsonic index and the overlap in linear scale. Effect parameters of
-        the structure are included, fixed at their defaults.
+        the structure are included, fixed at their defaults. Friction
+        parameters are those of the structure's friction law
+        (:attr:`ModelStructure.friction_parameter_names`); the LuGre bristle
+        stiffness (log scale) and damping (linear) are included fixed at
+        their defaults (the staged fit does not estimate them; pass them in
+        ``free`` to fit them).
 
         Values start at the :data:`PARAMETER_SPECS` defaults; the staged fit
         replaces them by data-driven starts (:mod:`.staged`).
@@ -759,6 +764,7 @@ class ParameterSet:
             values["characteristic_length"] = rig["bore"]
         plist: list[Parameter] = []
         valve_used = set(structure.valve_parameter_names)
+        friction_used = set(structure.friction_parameter_names)
         if structure.valve == "map" and free is None:
             free_set = (free_set - set(_DEFAULT_FREE_VALVE)) | set(_map_free())
         for name in PARAMETER_NAMES:
@@ -768,6 +774,8 @@ class ParameterSet:
             if spec.group == "effect" and name not in heat_used:
                 continue
             if spec.group in ("valve", "valve_map") and name not in valve_used:
+                continue
+            if spec.group == "friction" and name not in friction_used:
                 continue
             scale = "log" if name in _LOG_SCALE or name.startswith(_MAP_C_PREFIX) else "linear"
             lower, upper = _FIT_BOUNDS.get(name, (spec.lower, spec.upper))
@@ -823,6 +831,7 @@ def _map_free() -> tuple[str, ...]:
 _LOG_SCALE = {
     "valve_C_supply", "valve_C_exhaust", "valve_C_leak", "valve_leak_width", "xi", "lambda",
     "friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity",
+    "friction_stiffness",
 }  # fmt: skip
 #: Fit bounds narrower than the physical bounds of PARAMETER_SPECS where the
 #: latter are open-ended or zero (log scale needs a positive lower bound).

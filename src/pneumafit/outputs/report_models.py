@@ -148,6 +148,7 @@ def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str
             effects=dict(spec.get("effects") or {}),
             name=str(spec.get("name") or ""),
             valve=str(spec.get("valve") or "iso6358"),
+            friction=str(spec.get("friction") or "switch"),
         )
     elif name in MODELS:
         structure = MODELS[name]

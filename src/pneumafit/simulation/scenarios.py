@@ -11,6 +11,7 @@ import numpy as np
 
 from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.structure import ModelStructure
 from pneumafit.simulation.experiment import PD, Experiment
 from pneumafit.simulation.simulator import Simulator
 
@@ -63,7 +64,7 @@ def blocked_test(
 
 
 def step_test(
-    model: str,
+    model: str | ModelStructure,
     parameters: Mapping[str, float],
     *,
     y0: float = 0.25,
@@ -83,6 +84,9 @@ def step_test(
     both chambers at the mean of supply and exhaust pressure); the test
     starts from that state, steps the reference to ``y_ref`` at ``step_time``
     and lasts ``duration`` (s). Positions in m, gains in V/m and V s/m.
+    ``model`` is a model name or a structure (the settling uses its laws; with
+    LuGre friction the test starts from bristle equilibrium at the settled
+    state, the deflection the settled piston holds).
     """
     vec = parameter_vector(parameters)
     controller = PD(kp=kp, kd=kd, u0=u0, umax=umax)

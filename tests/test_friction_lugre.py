@@ -503,3 +503,25 @@ def test_step_test_converges_with_the_step(step_experiment) -> None:
     # the test is not vacuous: fast sliding (limit active) and pre-sliding phases
     assert np.abs(ref["v"]).max() > 0.5
     assert np.abs(ref["z_f"]).max() > 0.9 * 30.0 / 3e5  # sliding: |z| = g / sigma0 >= F_c / sigma0
+
+
+def test_lugre_fit_frees_the_bristles_from_physical_starts() -> None:
+    """The fit of a LuGre structure frees sigma0 and sigma1 with the other
+    friction parameters (stage c and the joint), from starts whose damping
+    is 2 zeta sqrt(sigma0 M), zeta = 0.3; the switch model's starts and
+    parameters are unchanged."""
+    from pneumafit.identification.staged import FRICTION_PARAMETERS, FitOptions, fit_structure
+    from pneumafit.identification.starts import friction_starts
+
+    lugre = fit_structure("convection", friction=FitOptions(friction="lugre").friction)
+    assert lugre.friction == "lugre"
+    assert set(lugre.friction_parameter_names) == {
+        *FRICTION_PARAMETERS,
+        "friction_stiffness",
+        "friction_damping",
+    }
+    rig = {"bore": 0.032, "rod": 0.02, "moving_mass": 17.0, "exhaust_pressure": 1.013e5}
+    (generic,) = friction_starts([], rig, "lugre")
+    assert generic["friction_stiffness"] == 1.0e6
+    assert generic["friction_damping"] == pytest.approx(0.6 * math.sqrt(1.0e6 * 17.0), rel=1e-12)
+    assert set(friction_starts([], rig)[0]) == set(FRICTION_PARAMETERS)

@@ -114,6 +114,13 @@ def fit(
             "ratio tables over the command, started from the ISO fit).",
         ),
     ] = "iso6358",
+    friction: Annotated[
+        str,
+        typer.Option(
+            help="Friction law: switch (stick-slip, the piston sticks exactly) or lugre "
+            "(pre-sliding bristles; their stiffness and damping are fitted too).",
+        ),
+    ] = "switch",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -123,9 +130,10 @@ def fit(
     """
     from pneumafit.identification.command import fit_command
 
-    raise typer.Exit(
-        fit_command(campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve)
+    code = fit_command(
+        campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve, friction
     )
+    raise typer.Exit(code)
 
 
 @app.command()

@@ -22,7 +22,8 @@ def _run(folder: Path, out: Path, console: Console, **kw: object) -> int:
     args = {"model": "convection", "walkers": WALKERS, "steps": STEPS, "seed": 7, "mcmc": True}
     args.update(kw)
     return fit_command(folder, args["model"], out, args["walkers"], args["steps"],
-                       args["seed"], args["mcmc"], console)  # fmt: skip
+                       args["seed"], args["mcmc"], console,
+                       friction=args.get("friction", "switch"))  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -32,6 +33,7 @@ def _run(folder: Path, out: Path, console: Console, **kw: object) -> int:
         ({"walkers": 3}, "option --walkers: expected an integer >= 8"),
         ({"steps": 0}, "option --steps: expected an integer >= 1"),
         ({"seed": -1}, "option --seed: expected an integer >= 0"),
+        ({"friction": "karnopp"}, "option --friction: expected one of switch, lugre"),
     ],
 )
 def test_bad_options_exit_2_with_a_message(

@@ -49,7 +49,7 @@ from pneumafit.identification.staged import (
     FitResult,
     identify,
 )
-from pneumafit.models.layout import VALVE_LAWS
+from pneumafit.models.layout import FRICTION_LAWS, VALVE_LAWS
 from pneumafit.models.structure import MODELS
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
@@ -106,6 +106,7 @@ def fit_command(
     console: Console,
     strict: bool = False,
     valve: str = "iso6358",
+    friction: str = "switch",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -127,6 +128,8 @@ def fit_command(
         Return 3 when the fit is not trustworthy (:class:`FitQuality`).
     valve : {"iso6358", "map"}
         Valve law (:class:`FitOptions`).
+    friction : {"switch", "lugre"}
+        Friction law (:class:`FitOptions`).
 
     Returns
     -------
@@ -145,6 +148,10 @@ def fit_command(
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
     if valve not in VALVE_LAWS:
         problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
+    if friction not in FRICTION_LAWS:
+        problems.append(
+            f"option --friction: expected one of {', '.join(FRICTION_LAWS)}, found {friction!r}"
+        )
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -162,10 +169,12 @@ def fit_command(
         + ("" if mcmc else " --no-mcmc")
         + (" --strict" if strict else "")
         + (f" --valve {valve}" if valve != "iso6358" else "")
+        + (f" --friction {friction}" if friction != "switch" else "")
     )
     options = FitOptions(
-        mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve
-    )
+        mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
+        friction=friction,
+    )  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -176,8 +185,10 @@ def fit_command(
     partial = out / PARTIAL_FILE
     chains_path: Path | None = None
     if mcmc:
-        fingerprint = _fingerprint(camp.sha256, model + ("" if valve == "iso6358" else "+" + valve),
-                                   seed, walkers, steps)  # fmt: skip
+        variant = ("" if valve == "iso6358" else "+" + valve) + (
+            "" if friction == "switch" else "+friction-" + friction
+        )
+        fingerprint = _fingerprint(camp.sha256, model + variant, seed, walkers, steps)
         _prepare_partial(partial, fingerprint, console)
         _stamp(partial, fingerprint)
         chains_path = partial

@@ -89,6 +89,8 @@ VALVE_PARAMETERS: tuple[str, ...] = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
     "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
 )  # fmt: skip
+#: Friction parameters of the switch model (a structure's own list:
+#: :attr:`ModelStructure.friction_parameter_names`).
 FRICTION_PARAMETERS: tuple[str, ...] = (
     "friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity",
 )  # fmt: skip
@@ -268,7 +270,10 @@ def default_walkers(n_free: int) -> int:
 
 
 def fit_structure(
-    model: str | ModelStructure, air_properties: str = "sutherland", valve: str = "iso6358"
+    model: str | ModelStructure,
+    air_properties: str = "sutherland",
+    valve: str = "iso6358",
+    friction: str = "switch",
 ) -> ModelStructure:
     """The structure fitted for a model name.
 
@@ -282,7 +287,7 @@ def fit_structure(
     """
     if isinstance(model, ModelStructure):
         return model
-    base = replace(MODELS[model], valve=valve)
+    base = replace(MODELS[model], valve=valve, friction=friction)
     if base.heat == "convection":
         return replace(base, air_properties=air_properties)
     return base
@@ -300,6 +305,11 @@ class FitOptions:
         Valve law: the parametric ISO 6358 characteristic, or the measured
         map (:mod:`pneumafit.physics.valve_map`), started from the ISO fit of
         the flow tests.
+    friction : {"switch", "lugre"}
+        Friction law of the fitted model (:mod:`pneumafit.physics.friction`):
+        the switch model of stick-slip, or LuGre with pre-sliding, whose
+        bristle stiffness sigma0 and damping sigma1 are then fitted with the
+        other friction parameters in stages (c) and (d).
     walkers : int or None
         Walkers of every sampled stage (default :func:`default_walkers`).
     steps : int or None
@@ -339,6 +349,7 @@ class FitOptions:
 
     mcmc: bool = True
     valve: str = "iso6358"
+    friction: str = "switch"
     walkers: int | None = None
     steps: int | None = None
     sample: tuple[str, ...] = DEFAULT_SAMPLE
@@ -590,8 +601,9 @@ def identify(
     say = log or (lambda _msg: None)
     t_start = time.perf_counter()
     name = model if isinstance(model, str) else model.name
-    structure = fit_structure(model, opts.air_properties, opts.valve)
+    structure = fit_structure(model, opts.air_properties, opts.valve, opts.friction)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
+    friction_names = tuple(structure.friction_parameter_names)
     rig = campaign.rig.as_parameters()
     nuisance = ["temperature_sensor_lag"] if {"T_P", "T_N"} & set(opts.channels) else []
     params = ParameterSet.for_model(structure, rig, nuisance=nuisance)
@@ -734,11 +746,12 @@ def identify(
     stages.append(stage)
 
     # ---------------------------------------------------------- (c) friction
-    stage = StageResult("friction", [r.file for r in steps], FRICTION_PARAMETERS)
+    stage = StageResult("friction", [r.file for r in steps], friction_names)
     if steps:
-        run_stage(stage, steps, FRICTION_PARAMETERS, friction_starts(steps, rig), seeds[2],
+        run_stage(stage, steps, friction_names,
+                  friction_starts(steps, rig, structure.friction), seeds[2],
                   opts.random_starts)  # fmt: skip
-        say(f"friction: {stage.seconds:.1f} s, " + _brief(stage.estimate, FRICTION_PARAMETERS))
+        say(f"friction: {stage.seconds:.1f} s, " + _brief(stage.estimate, friction_names))
     else:
         stage.note = "no fit step test: friction parameters held at their defaults"
         warns.append(f"friction: {stage.note}")
@@ -747,7 +760,7 @@ def identify(
     # ------------------------------------------------------------- (d) joint
     joint_free = tuple(
         [*(valve_free if flows else ()), *(heat_names if (blocked or steps) else ()),
-         *(FRICTION_PARAMETERS if steps else ()), *nuisance]
+         *(friction_names if steps else ()), *nuisance]
     )  # fmt: skip
     all_fit = flows + blocked + steps
     stage = StageResult("joint", [r.file for r in all_fit], joint_free)
@@ -819,7 +832,7 @@ def identify(
         groups = {
             "valve": (flows + blocked, valve_free),
             "heat": (blocked + steps, heat_names + tuple(nuisance)),
-            "friction": (steps, FRICTION_PARAMETERS),
+            "friction": (steps, friction_names),
         }
         for k, stage_name in enumerate(("valve", "heat", "friction")):
             recs, free = groups[stage_name]

@@ -76,8 +76,16 @@ def heat_starts(heat: str) -> list[dict[str, float]]:
     return [{"k": 1.05}, {"k": 1.2}, {"k": 1.35}]
 
 
-def friction_starts(steps: Sequence[Recording], rig: Mapping[str, float]) -> list[dict[str, float]]:
+def friction_starts(
+    steps: Sequence[Recording], rig: Mapping[str, float], law: str = "switch"
+) -> list[dict[str, float]]:
     """Friction starts from the force balance of step tests, plus a generic one.
+
+    For the LuGre law (``law="lugre"``) each start also gets a bristle
+    stiffness sigma0 (N/m; 2e5 for the data start, 1e6 for the generic one:
+    seals hold 0.05-0.5 mm of pre-sliding at breakaway) and a bristle damping
+    sigma1 = 2 zeta sqrt(sigma0 M) with zeta = 0.3 (N s/m; LuGre's
+    pre-sliding oscillation lightly damped, Canudas de Wit et al. 1995).
 
     Drive force F_d = S_P P_P - S_N P_N - P_atm (S_P - S_N) - F_ext - M g
     sin(angle); velocity and acceleration from a Savitzky-Golay filter of
@@ -111,6 +119,8 @@ def friction_starts(steps: Sequence[Recording], rig: Mapping[str, float]) -> lis
         stuck.append(np.abs(f_d[np.abs(v) < 1e-4]))
     generic = {"friction_static": 40.0, "friction_coulomb": 20.0, "friction_viscous": 50.0,
                "stribeck_velocity": 0.01}  # fmt: skip
+    if law == "lugre":
+        generic |= _bristles(1.0e6, m)
     if not rows_v:
         return [generic]
     v = np.concatenate(rows_v)
@@ -126,4 +136,11 @@ def friction_starts(steps: Sequence[Recording], rig: Mapping[str, float]) -> lis
     f_s = max(f_s, 1.1 * f_c)
     data = {"friction_static": f_s, "friction_coulomb": f_c, "friction_viscous": b,
             "stribeck_velocity": 0.01}  # fmt: skip
+    if law == "lugre":
+        data |= _bristles(2.0e5, m)
     return [data, generic]
+
+
+def _bristles(sigma0: float, mass: float, zeta: float = 0.3) -> dict[str, float]:
+    """LuGre bristle start: stiffness sigma0 (N/m) and damping 2 zeta sqrt(sigma0 M) (N s/m)."""
+    return {"friction_stiffness": sigma0, "friction_damping": 2.0 * zeta * math.sqrt(sigma0 * mass)}

@@ -117,10 +117,11 @@ def fit(
     friction: Annotated[
         str,
         typer.Option(
-            help="Friction law: switch (stick-slip, the piston sticks exactly) or lugre "
-            "(pre-sliding bristles; their stiffness and damping are fitted too).",
+            help="Friction law: auto (both fitted to the step tests, LuGre kept when BIC "
+            "prefers it), switch (stick-slip, the piston sticks exactly) or lugre (pre-sliding "
+            "bristles; their stiffness and damping are fitted too).",
         ),
-    ] = "switch",
+    ] = "auto",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 

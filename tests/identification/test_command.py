@@ -23,7 +23,7 @@ def _run(folder: Path, out: Path, console: Console, **kw: object) -> int:
     args.update(kw)
     return fit_command(folder, args["model"], out, args["walkers"], args["steps"],
                        args["seed"], args["mcmc"], console,
-                       friction=args.get("friction", "switch"))  # fmt: skip
+                       friction=args.get("friction", "auto"))  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -33,7 +33,7 @@ def _run(folder: Path, out: Path, console: Console, **kw: object) -> int:
         ({"walkers": 3}, "option --walkers: expected an integer >= 8"),
         ({"steps": 0}, "option --steps: expected an integer >= 1"),
         ({"seed": -1}, "option --seed: expected an integer >= 0"),
-        ({"friction": "karnopp"}, "option --friction: expected one of switch, lugre"),
+        ({"friction": "karnopp"}, "option --friction: expected one of auto, switch, lugre"),
     ],
 )
 def test_bad_options_exit_2_with_a_message(

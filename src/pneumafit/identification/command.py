@@ -106,7 +106,7 @@ def fit_command(
     console: Console,
     strict: bool = False,
     valve: str = "iso6358",
-    friction: str = "switch",
+    friction: str = "auto",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -128,7 +128,7 @@ def fit_command(
         Return 3 when the fit is not trustworthy (:class:`FitQuality`).
     valve : {"iso6358", "map"}
         Valve law (:class:`FitOptions`).
-    friction : {"switch", "lugre"}
+    friction : {"auto", "switch", "lugre"}
         Friction law (:class:`FitOptions`).
 
     Returns
@@ -148,9 +148,10 @@ def fit_command(
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
     if valve not in VALVE_LAWS:
         problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
-    if friction not in FRICTION_LAWS:
+    if friction not in ("auto", *FRICTION_LAWS):
         problems.append(
-            f"option --friction: expected one of {', '.join(FRICTION_LAWS)}, found {friction!r}"
+            f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "
+            f"found {friction!r}"
         )
     out = Path(out)
     problems.append(folder_problem(out))
@@ -169,7 +170,7 @@ def fit_command(
         + ("" if mcmc else " --no-mcmc")
         + (" --strict" if strict else "")
         + (f" --valve {valve}" if valve != "iso6358" else "")
-        + (f" --friction {friction}" if friction != "switch" else "")
+        + (f" --friction {friction}" if friction != "auto" else "")
     )
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
@@ -186,7 +187,7 @@ def fit_command(
     chains_path: Path | None = None
     if mcmc:
         variant = ("" if valve == "iso6358" else "+" + valve) + (
-            "" if friction == "switch" else "+friction-" + friction
+            "" if friction == "auto" else "+friction-" + friction
         )
         fingerprint = _fingerprint(camp.sha256, model + variant, seed, walkers, steps)
         _prepare_partial(partial, fingerprint, console)

@@ -63,7 +63,7 @@ from pneumafit.identification.quality import (
 from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import friction_starts, heat_starts, valve_starts
-from pneumafit.models.layout import PARAMETER_SPECS
+from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS
 from pneumafit.models.structure import HEAT_PARAMETERS, MODELS, ModelStructure
 from pneumafit.physics.valve_map import (
     CENTRE_KNOT,
@@ -272,6 +272,21 @@ def default_walkers(n_free: int) -> int:
     return max(8, 3 * n_free)
 
 
+def _with_law(
+    params: ParameterSet,
+    structure: ModelStructure,
+    rig: Mapping[str, float],
+    nuisance: Sequence[str],
+) -> ParameterSet:
+    """The fit's parameters for another friction law of ``structure``: those
+    of :meth:`ParameterSet.for_model`, plus the initial-state parameters the
+    stages already added to ``params``."""
+    fresh = ParameterSet.for_model(structure, rig, nuisance=nuisance)
+    known = {p.name for p in fresh}
+    initial = [p for p in params if p.group == "initial" and p.name not in known]
+    return ParameterSet([*fresh, *initial])
+
+
 def fit_structure(
     model: str | ModelStructure,
     air_properties: str = "sutherland",
@@ -308,11 +323,14 @@ class FitOptions:
         Valve law: the parametric ISO 6358 characteristic, or the measured
         map (:mod:`pneumafit.physics.valve_map`), started from the ISO fit of
         the flow tests.
-    friction : {"switch", "lugre"}
+    friction : {"auto", "switch", "lugre"}
         Friction law of the fitted model (:mod:`pneumafit.physics.friction`):
         the switch model of stick-slip, or LuGre with pre-sliding, whose
         bristle stiffness sigma0 and damping sigma1 are then fitted with the
-        other friction parameters in stages (c) and (d).
+        other friction parameters in stages (c) and (d). ``auto`` (default)
+        fits both in stage (c) and keeps LuGre when its log-likelihood gain
+        on the step tests exceeds ln n (BIC for its two extra parameters);
+        a structure passed as ``model`` keeps its own law.
     walkers : int or None
         Walkers of every sampled stage (default :func:`default_walkers`).
     steps : int or None
@@ -352,7 +370,7 @@ class FitOptions:
 
     mcmc: bool = True
     valve: str = "iso6358"
-    friction: str = "switch"
+    friction: str = "auto"
     walkers: int | None = None
     steps: int | None = None
     sample: tuple[str, ...] = DEFAULT_SAMPLE
@@ -604,7 +622,13 @@ def identify(
     say = log or (lambda _msg: None)
     t_start = time.perf_counter()
     name = model if isinstance(model, str) else model.name
-    structure = fit_structure(model, opts.air_properties, opts.valve, opts.friction)
+    if opts.friction not in (*FRICTION_LAWS, "auto"):
+        raise ValueError(
+            f"friction: expected one of {', '.join((*FRICTION_LAWS, 'auto'))}, "
+            f"found {opts.friction!r}"
+        )
+    law = "switch" if opts.friction == "auto" else opts.friction
+    structure = fit_structure(model, opts.air_properties, opts.valve, law)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
     friction_names = tuple(structure.friction_parameter_names)
     rig = campaign.rig.as_parameters()
@@ -750,7 +774,41 @@ def identify(
 
     # ---------------------------------------------------------- (c) friction
     stage = StageResult("friction", [r.file for r in steps], friction_names)
-    if steps:
+    if steps and opts.friction == "auto" and not isinstance(model, ModelStructure):
+        # both laws on the step tests, the better by BIC (the chamber tests do
+        # not see friction): LuGre's two bristle parameters must buy more than
+        # ln(n) in log-likelihood
+        before, tried = dict(values), {}
+        for cand in FRICTION_LAWS:
+            structure = replace(structure, friction=cand)
+            params = _with_law(params, structure, rig, nuisance)
+            names = tuple(structure.friction_parameter_names)
+            trial = StageResult("friction", [r.file for r in steps], names)
+            prob = run_stage(trial, steps, names, friction_starts(steps, rig, cand), seeds[2],
+                             opts.random_starts)  # fmt: skip
+            tried[cand] = (trial, dict(values), prob.n_data)
+            say(
+                f"friction ({cand}): {trial.seconds:.1f} s, log-likelihood "
+                f"{trial.estimate.log_likelihood:.1f}, " + _brief(trial.estimate, names)
+            )
+            values.clear()
+            values.update(before)
+        lls = {k: t[0].estimate.log_likelihood for k, t in tried.items()}
+        gain = lls["lugre"] - lls["switch"]
+        penalty = math.log(max(tried["lugre"][2], 2))
+        law = "lugre" if math.isfinite(gain) and gain > penalty else "switch"
+        stage, chosen, _ = tried[law]
+        stage.seconds = sum(t[0].seconds for t in tried.values())
+        stage.note = (
+            f"friction law {law}: LuGre log-likelihood gain {gain:.1f} over the switch model "
+            f"(BIC threshold ln n = {penalty:.1f})"
+        )
+        say(f"friction: {stage.note}")
+        values.update(chosen)
+        structure = replace(structure, friction=law)
+        params = _with_law(params, structure, rig, nuisance)
+        friction_names = tuple(structure.friction_parameter_names)
+    elif steps:
         run_stage(stage, steps, friction_names,
                   friction_starts(steps, rig, structure.friction), seeds[2],
                   opts.random_starts)  # fmt: skip

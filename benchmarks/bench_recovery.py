@@ -20,7 +20,8 @@ booleans) and, with ``--table FILE``, writes the case x figure table in
 Markdown.
 
     python benchmarks/bench_recovery.py [--seeds 1 2 3] [--cases NAME ...]
-           [--valve iso6358|map] [--mcmc] [--table docs/recovery-table.md]
+           [--valve iso6358|map] [--friction auto|switch|lugre] [--mcmc]
+           [--table docs/recovery-table.md]
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ CASES: tuple[tuple[str, str], ...] = (
     ("dahl-bump-leak", "sparse"),
     ("mixed", "sparse"),
     ("mixed", "demo"),
+    ("demo", "demo"),
 )
 #: The control case: truth laws the fit shares (not counted in the targets).
 CONTROL = "fit-laws"
@@ -66,7 +68,9 @@ def _interval(p: Any) -> tuple[float, float] | None:
     return (float(iv[0]), float(iv[1])) if iv is not None else None
 
 
-def run_case(preset: str, protocol: str, seed: int, *, valve: str, mcmc: bool) -> dict[str, Any]:
+def run_case(
+    preset: str, protocol: str, seed: int, *, valve: str, mcmc: bool, friction: str = "auto"
+) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.rig.truth import reference_quantities
 
@@ -78,8 +82,8 @@ def run_case(preset: str, protocol: str, seed: int, *, valve: str, mcmc: bool) -
         truth_ref = reference_quantities(rig.truth, rig.parameters)
         camp = read_campaign(folder)
         t_rec = time.perf_counter() - t0
-        kw = {"valve": valve} if valve != "iso6358" else {}
-        result = identify(camp, "convection", options=FitOptions(mcmc=mcmc, **kw), seed=seed)
+        options = FitOptions(mcmc=mcmc, valve=valve, friction=friction)
+        result = identify(camp, "convection", options=options, seed=seed)
     p = result.parameters
     q = result.quality
     lam = result.metrics.get("lambda_reference") or {}
@@ -110,6 +114,7 @@ def run_case(preset: str, protocol: str, seed: int, *, valve: str, mcmc: bool) -
     }  # fmt: skip
     return {
         "case": preset, "protocol": protocol, "seed": seed, "valve": valve,
+        "friction_law": result.structure.friction,
         "record_s": round(t_rec, 1), "fit_s": round(result.seconds, 1),
         "pressure_ratio_fit": ratios["fit"], "pressure_ratio_validate": ratios["validate"],
         "recordings": [c.as_dict() for c in q.channels],
@@ -127,14 +132,17 @@ def _short(item: str) -> str:
 
 def table(rows: list[dict[str, Any]]) -> str:
     """Case x figure table in Markdown."""
-    head = ("| case | protocol | seed | p RMS/noise fit | p RMS/noise held-out | lambda_ref err "
-            "| F_s err | F_c err | truth in 90 % (of 3) | at bound | verdict |")  # fmt: skip
-    lines = [head, "|" + "---|" * 11]
+    head = (
+        "| case | protocol | seed | friction law | p RMS/noise fit | p RMS/noise held-out "
+        "| lambda_ref err | F_s err | F_c err | truth in 90 % (of 3) | at bound | verdict |"
+    )
+    lines = [head, "|" + "---|" * 12]
     for r in rows:
         f = r["figures"]
         inside = sum(bool(v["contains_truth"]) for v in f.values())
         lines.append(
-            f"| {r['case']} | {r['protocol']} | {r['seed']} | {r['pressure_ratio_fit']:.1f} | "
+            f"| {r['case']} | {r['protocol']} | {r['seed']} | {r.get('friction_law', '-')} | "
+            f"{r['pressure_ratio_fit']:.1f} | "
             f"{r['pressure_ratio_validate']:.1f} | "
             + " | ".join(f"{100 * f[k]['rel_error']:+.0f} %" for k in
                          ("lambda_reference", "friction_static", "friction_coulomb"))
@@ -151,6 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         "--cases", nargs="+", default=None, help="truth presets or PRESET/PROTOCOL (default: all)"
     )
     ap.add_argument("--valve", default="iso6358", choices=("iso6358", "map"))
+    ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")
@@ -162,7 +171,8 @@ def main(argv: list[str] | None = None) -> int:
     for preset, protocol in cases:
         for seed in args.seeds:
             print(f"{preset}/{protocol}/seed {seed}: recording and fitting ...", file=sys.stderr)
-            row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc)
+            row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
+                           friction=args.friction)  # fmt: skip
             rows.append(row)
             fit_r, val_r = row["pressure_ratio_fit"], row["pressure_ratio_validate"]
             print(f"{preset}/{protocol}/seed {seed}: p RMS/noise fit {fit_r:.1f}, "
@@ -178,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         "control_cases": len(control),
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
+        "friction": args.friction,
         "mcmc": args.mcmc,
         "worst_pressure_ratio": max(ratios, default=math.nan),
         "median_pressure_ratio": float(np.median(ratios)) if ratios else math.nan,

@@ -125,6 +125,13 @@ def run_case(
     }  # fmt: skip
 
 
+def _write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename."""
+    tmp = path.with_name(path.name + ".partial")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
 def _short(item: str) -> str:
     """An at-bound item without its explanation (the table cell stays short)."""
     return item.split(":")[0] + ")" if ":" in item else item
@@ -174,6 +181,8 @@ def main(argv: list[str] | None = None) -> int:
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
                            friction=args.friction)  # fmt: skip
             rows.append(row)
+            if args.json is not None:  # every finished case kept, also if interrupted
+                _write_atomic(args.json, json.dumps(rows, indent=1, default=float))
             fit_r, val_r = row["pressure_ratio_fit"], row["pressure_ratio_validate"]
             print(f"{preset}/{protocol}/seed {seed}: p RMS/noise fit {fit_r:.1f}, "
                   f"held-out {val_r:.1f}; {row['fit_s']:.0f} s", file=sys.stderr)  # fmt: skip
@@ -206,8 +215,6 @@ def main(argv: list[str] | None = None) -> int:
     }  # fmt: skip
     if args.table is not None:
         args.table.write_text(table(rows))
-    if args.json is not None:
-        args.json.write_text(json.dumps(rows, indent=1, default=float))
     print(json.dumps(summary))
     return 0
 

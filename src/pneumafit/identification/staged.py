@@ -784,8 +784,8 @@ def identify(
             params = _with_law(params, structure, rig, nuisance)
             names = tuple(structure.friction_parameter_names)
             trial = StageResult("friction", [r.file for r in steps], names)
-            prob = run_stage(trial, steps, names, friction_starts(steps, rig, cand), seeds[2],
-                             opts.random_starts)  # fmt: skip
+            starts = friction_starts(steps, rig, cand)
+            prob = run_stage(trial, steps, names, starts, seeds[2], opts.random_starts)
             tried[cand] = (trial, dict(values), prob.n_data)
             say(
                 f"friction ({cand}): {trial.seconds:.1f} s, log-likelihood "

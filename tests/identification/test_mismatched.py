@@ -104,3 +104,52 @@ def test_what_the_fit_reaches_on_a_mismatched_truth(mismatched: tuple) -> None:
     f_c = result.parameters["friction_coulomb"].value
     assert f_c == pytest.approx(truth["friction_coulomb"], rel=0.25)
     assert np.isfinite(result.stage("joint").estimate.log_likelihood)
+
+
+# ----------------------------------------------------------------------------
+# The friction law chosen by the data (--friction auto)
+# ----------------------------------------------------------------------------
+#: Seed of the pre-sliding campaign (not one of the benchmark's seeds 1-3).
+SEED_LUGRE = 11
+
+
+@pytest.fixture(scope="module")
+def pre_sliding(tmp_path_factory: pytest.TempPathFactory) -> tuple:
+    """Truth ``lugre-pressure`` on the sparse plan: LuGre friction whose levels
+    grow with the chamber pressures (x (1 + 4.2e-7 Delta)), linear valve ramps
+    with a Gaussian centre leak, LSODA, sensor noise. The fitted LuGre law has
+    constant levels and the kernel's own valve and leak laws: the structure
+    still differs from the truth's."""
+    folder = tmp_path_factory.mktemp("pre_sliding") / "lugre"
+    rig = VirtualRig(truth="lugre-pressure", seed=SEED_LUGRE)
+    rig.write(folder, "sparse")
+    campaign = read_campaign(folder)
+    result = identify(campaign, "convection", options=FitOptions(mcmc=False), seed=SEED_LUGRE)
+    truth = reference_quantities(rig.truth, rig.parameters)
+    return rig, result, truth
+
+
+def test_auto_friction_chooses_pre_sliding_where_the_rig_has_it(pre_sliding: tuple) -> None:
+    """On a pre-sliding rig ``auto`` keeps LuGre, and says so.
+
+    Tolerances are from the benchmark's seeds 1-3 on this truth (docs/
+    identification.md), with room for another seed: fit recordings' pressures
+    1.7-1.8x the noise (asserted <= 3x, the issue's target), lambda -2 %
+    and the Coulomb friction +0 % (asserted within 10 %; the switch model got
+    within 2 % too, so this guards the choice, not the law). The static
+    friction is not asserted: its levels grow with pressure in the truth
+    (+32..+35 % against the 4-bar reference), which no fitted law has.
+    """
+    rig, result, truth = pre_sliding
+    assert result.structure.friction == "lugre"
+    friction = next(s for s in result.stages if s.name == "friction")
+    assert "friction law lugre" in friction.note
+    true = rig.sensors.pressure_noise
+    fit_p = [c for c in result.quality.channels if c.role == "fit" and c.channel.startswith("p_")]
+    assert fit_p
+    for c in fit_p:
+        assert c.rms / true <= 3.0, (c.recording, c.channel, c.rms / true)
+    lam = result.metrics["lambda_reference"]["value"]
+    assert lam == pytest.approx(truth["lambda_full_area_equivalent"], rel=0.10)
+    f_c = result.parameters["friction_coulomb"].value
+    assert f_c == pytest.approx(truth["friction_coulomb"], rel=0.10)

@@ -150,12 +150,9 @@ class _Cached:
     Also keeps the best point seen and applies the stall rule: with
     ``stall`` = (window, gain), the solve is stopped when the cost (half the
     sum of squared whitened residuals, a log-likelihood difference at the
-    held noise state) has fallen by less than ``gain`` times the reduced
-    chi-square max(1, 2 cost / n) over the last ``window`` evaluated points.
-    The factor is the quasi-likelihood correction: where the residual is k
-    times the noise, the curvature of the cost overstates the information
-    k^2-fold, so a move of one (honest) standard deviation gains k^2 / 2.
-    ``progress`` receives a line at most every ``every`` seconds.
+    held noise state) has fallen by less than ``gain`` over the last
+    ``window`` evaluated points. ``progress`` receives a line at most every
+    ``every`` seconds.
     """
 
     def __init__(
@@ -199,13 +196,7 @@ class _Cached:
             )
         if self.stall is not None:
             window, gain = self.stall
-            # a model that does not follow its data (residual k x the noise)
-            # has its log-likelihood curvature inflated by k^2 (the reduced
-            # chi-square 2 cost / n): a one-sigma move is worth that much more
-            assert self.value is not None
-            inflation = max(1.0, 2.0 * self.best[0] / max(self.value[0].size, 1))
-            if (len(self.history) > window
-                    and self.history[-window - 1] - self.best[0] < gain * inflation):  # fmt: skip
+            if len(self.history) > window and self.history[-window - 1] - self.best[0] < gain:
                 raise _Stalled
 
     def fun(self, x: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -255,15 +255,12 @@ def _distinct_optima(
 #: demo's fits converge in under 60.
 JOINT_NFEV = 500
 #: Stall rule of the joint stage (:func:`fit_least_squares`): stop a round
-#: when its log-likelihood gained less than 0.5 (times the reduced
-#: chi-square, where the model does not reach the noise) over the last 10
-#: evaluated points. 0.5 is the gain of a one-sigma move of one parameter; a
-#: model that cannot follow its data creeps at such gains for hundreds of
-#: points: on a demo-plan campaign of an independently written rig (LuGre
-#: friction against the switch model) the joint stage took 1066 s and 78790
-#: simulations, most of them gaining less than that; on the re-recorded
-#: demo the polytropic joint crept at +2 per 10 points for over 10 minutes
-#: with pressures 3-25x the noise, before the chi-square factor.
+#: when its log-likelihood gained less than 0.5 over the last 10 evaluated
+#: points. 0.5 is the gain of a one-sigma move of one parameter; a model
+#: that cannot follow its data creeps at such gains for hundreds of points:
+#: on a demo-plan campaign of an independently written rig (LuGre friction
+#: against the switch model) the joint stage took 1066 s and 78790
+#: simulations, most of them gaining less than that.
 JOINT_STALL = (10, 0.5)
 
 

@@ -14,7 +14,9 @@ Stages, in order, each writing into ``OUT``:
    and ``design``).
 6. ``closed_loop``: both controllers on the nonlinear model, air and exergy
    per step (``pneumafit closed-loop``); the plant is the campaign's
-   ``truth.json`` where it has one, else the convection fit.
+   ``truth.json`` where it has one that the compiled model can run (a rig
+   recorded with the fitted laws), else the convection fit (also for an
+   independent truth such as the bundled demo's).
 7. ``export``: the convection fit for controllers, as JSON, YAML, a C
    header and a MATLAB file (``pneumafit export``).
 8. ``report.html``: the self-contained validation report.
@@ -294,10 +296,14 @@ def _analyses(
     stage("linear", [conv, lambda_file], [out / "linear" / "linear.json"], linear)
 
     truth = path / "truth.json"
-    plant = truth if truth.exists() else None
+    plant = truth if _runnable_truth(truth) else None
 
     def closed_loop() -> int:
         from pneumafit.outputs.closed_loop_report import run_closed_loop
+
+        if plant is None and truth.exists():
+            console.print(f"closed loop: {truth} is an independent truth the compiled model "
+                          "cannot run; the plant is the convection fit")  # fmt: skip
 
         results = run_closed_loop(conv, out / "closed_loop", plant=plant,
                                   lambda_e=_lambda_e(lambda_file), console=console)  # fmt: skip
@@ -312,6 +318,17 @@ def _analyses(
 
     stage("export", [conv, lambda_file],
           [out / "export" / f for f in EXPORT_FORMATS.values()], export)  # fmt: skip
+
+
+def _runnable_truth(truth: Path) -> bool:
+    """True for a virtual rig's truth.json that the compiled model can run as
+    a plant: one recorded with the fitted models' laws, not an independent
+    truth (key ``truth_model``, :mod:`pneumafit.rig.truth`)."""
+    try:
+        doc = json.loads(truth.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and "truth_model" not in doc
 
 
 def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,

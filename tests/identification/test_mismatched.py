@@ -22,6 +22,8 @@ cannot follow it to the noise; what is tested is what must hold anyway:
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -36,15 +38,19 @@ pytestmark = pytest.mark.slow
 SEED = 7
 
 
-@pytest.fixture(scope="module")
-def mismatched(tmp_path_factory: pytest.TempPathFactory) -> tuple:
-    folder = tmp_path_factory.mktemp("mismatched") / "mixed"
-    rig = VirtualRig(truth="mixed", seed=SEED)
+def _record_and_fit(folder: Path, preset: str, seed: int) -> tuple:
+    """A sparse-plan campaign of truth ``preset``, fitted as a user would (no MCMC)."""
+    rig = VirtualRig(truth=preset, seed=seed)
     rig.write(folder, "sparse")
     campaign = read_campaign(folder)
-    result = identify(campaign, "convection", options=FitOptions(mcmc=False), seed=SEED)
+    result = identify(campaign, "convection", options=FitOptions(mcmc=False), seed=seed)
     truth = reference_quantities(rig.truth, rig.parameters)
     return rig, campaign, result, truth
+
+
+@pytest.fixture(scope="module")
+def mismatched(tmp_path_factory: pytest.TempPathFactory) -> tuple:
+    return _record_and_fit(tmp_path_factory.mktemp("mismatched") / "mixed", "mixed", SEED)
 
 
 def test_the_noise_is_the_sensors(mismatched: tuple) -> None:
@@ -121,11 +127,7 @@ def pre_sliding(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     constant levels and the kernel's own valve and leak laws: the structure
     still differs from the truth's."""
     folder = tmp_path_factory.mktemp("pre_sliding") / "lugre"
-    rig = VirtualRig(truth="lugre-pressure", seed=SEED_LUGRE)
-    rig.write(folder, "sparse")
-    campaign = read_campaign(folder)
-    result = identify(campaign, "convection", options=FitOptions(mcmc=False), seed=SEED_LUGRE)
-    truth = reference_quantities(rig.truth, rig.parameters)
+    rig, _, result, truth = _record_and_fit(folder, "lugre-pressure", SEED_LUGRE)
     return rig, result, truth
 
 

@@ -546,5 +546,7 @@ def test_auto_friction_keeps_the_switch_model_on_a_stick_slip_rig(tmp_path: Path
     friction = next(s for s in result.stages if s.name == "friction")
     assert "friction law switch" in friction.note
     for name in ("friction_static", "friction_coulomb"):
-        # 2 %: ten times the error measured, still far inside the 25 % target
+        # 2 %: measured 0.01 % (static) and 0.03 % (Coulomb); 2 % leaves room
+        # for another platform's rounding and still fails a LuGre fit of these
+        # data (its stage-(c) static friction was 54.0 N, +8 %)
         assert result.parameters[name].value == pytest.approx(rig.parameters[name], rel=0.02)

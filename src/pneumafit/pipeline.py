@@ -324,11 +324,13 @@ def _runnable_truth(truth: Path) -> bool:
     """True for a virtual rig's truth.json that the compiled model can run as
     a plant: one recorded with the fitted models' laws, not an independent
     truth (key ``truth_model``, :mod:`pneumafit.rig.truth`)."""
+    from pneumafit.analysis.closed_loop import independent_truth
+
     try:
         doc = json.loads(truth.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
-    return isinstance(doc, dict) and "truth_model" not in doc
+    return isinstance(doc, dict) and independent_truth(doc) is None
 
 
 def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,

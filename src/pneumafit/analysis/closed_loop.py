@@ -581,6 +581,17 @@ def result_document(result: ClosedLoopResult) -> dict:
     return doc
 
 
+def independent_truth(document: object) -> str | None:
+    """Name of the independent truth a virtual rig's truth.json describes
+    (key ``truth_model``, :mod:`pneumafit.rig.truth`: laws the compiled model
+    does not have, so it cannot run it as a plant), or None."""
+    if not isinstance(document, dict) or "truth_model" not in document:
+        return None
+    model = document["truth_model"]
+    config = model.get("config") if isinstance(model, dict) else None
+    return str((config or {}).get("name", "?"))
+
+
 def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]:
     """Structure and SI parameters of a plant: a parameter file, a fit.json,
     or a virtual rig's ``truth.json`` (its structure, e.g. Sutherland air).
@@ -603,8 +614,8 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
         model, values = read_parameter_file(file)  # raises the readable message
         return get_structure(model), values
     if isinstance(document, dict) and document.get("format") == "pneumafit-truth":
-        if "truth_model" in document:
-            name = (document["truth_model"].get("config") or {}).get("name", "?")
+        name = independent_truth(document)
+        if name is not None:
             raise PneumafitInputError(
                 f"{file}: expected the truth of a rig simulated with the fitted models' laws, "
                 f"found an independent truth ({name!r}: its own valve, friction and heat laws, "

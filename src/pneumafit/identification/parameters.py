@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import PARAMETER_NAMES, SPECS
-from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.models.structure import FRICTION_PARAMETERS, ModelStructure, get_structure
 
 __all__ = [
     "FORMAT",
@@ -733,8 +733,8 @@ class ParameterSet:
         parameters are those of the structure's friction law
         (:attr:`ModelStructure.friction_parameter_names`); the LuGre bristle
         stiffness (log scale) and damping (linear) are included fixed at
-        their defaults (the staged fit does not estimate them; pass them in
-        ``free`` to fit them).
+        their defaults (pass them in ``free`` to fit them; the staged fit
+        frees them in its friction and joint stages).
 
         Values start at the :data:`PARAMETER_SPECS` defaults; the staged fit
         replaces them by data-driven starts (:mod:`.staged`).
@@ -804,7 +804,7 @@ _DEFAULT_FREE_VALVE = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
     "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
 )  # fmt: skip
-_FRICTION = ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity")
+_FRICTION = FRICTION_PARAMETERS["switch"]
 #: Prefix of the valve map's knot conductances (log scale).
 _MAP_C_PREFIX = ("valve_map_CS_", "valve_map_CE_")
 

@@ -64,6 +64,7 @@ from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import friction_starts, heat_starts, valve_starts
 from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS
+from pneumafit.models.structure import FRICTION_PARAMETERS as STRUCTURE_FRICTION
 from pneumafit.models.structure import HEAT_PARAMETERS, MODELS, ModelStructure
 from pneumafit.physics.valve_map import (
     CENTRE_KNOT,
@@ -91,9 +92,7 @@ VALVE_PARAMETERS: tuple[str, ...] = (
 )  # fmt: skip
 #: Friction parameters of the switch model (a structure's own list:
 #: :attr:`ModelStructure.friction_parameter_names`).
-FRICTION_PARAMETERS: tuple[str, ...] = (
-    "friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity",
-)  # fmt: skip
+FRICTION_PARAMETERS: tuple[str, ...] = STRUCTURE_FRICTION["switch"]
 
 #: Channels compared by default. Gas temperatures are left out of the
 #: likelihood: their sensors' dynamics decide them as much as the gas does

@@ -19,7 +19,7 @@ from pneumafit.campaign.model import Recording
 from pneumafit.physics.air import G0, RHO0, T_REF
 from pneumafit.physics.geometry import piston_areas
 
-__all__ = ["bristle_start", "friction_starts", "heat_starts", "valve_starts"]
+__all__ = ["friction_starts", "heat_starts", "valve_starts"]
 
 
 def valve_starts(flows: Sequence[Recording], rig: Mapping[str, float]) -> list[dict[str, float]]:
@@ -120,7 +120,7 @@ def friction_starts(
     generic = {"friction_static": 40.0, "friction_coulomb": 20.0, "friction_viscous": 50.0,
                "stribeck_velocity": 0.01}  # fmt: skip
     if law == "lugre":
-        generic |= bristle_start(1.0e6, m)
+        generic |= _bristle_start(1.0e6, m)
     if not rows_v:
         return [generic]
     v = np.concatenate(rows_v)
@@ -137,10 +137,10 @@ def friction_starts(
     data = {"friction_static": f_s, "friction_coulomb": f_c, "friction_viscous": b,
             "stribeck_velocity": 0.01}  # fmt: skip
     if law == "lugre":
-        data |= bristle_start(2.0e5, m)
+        data |= _bristle_start(2.0e5, m)
     return [data, generic]
 
 
-def bristle_start(sigma0: float, mass: float, zeta: float = 0.3) -> dict[str, float]:
+def _bristle_start(sigma0: float, mass: float, zeta: float = 0.3) -> dict[str, float]:
     """LuGre bristle start: stiffness sigma0 (N/m) and damping 2 zeta sqrt(sigma0 M) (N s/m)."""
     return {"friction_stiffness": sigma0, "friction_damping": 2.0 * zeta * math.sqrt(sigma0 * mass)}

@@ -146,7 +146,7 @@ def pointwise_log_likelihood(
             )
         if obs.weight is not None:
             ll = ll + np.log(obs.weight)[None, :]
-        columns.append(ll)
+        columns.append(ll * problem.tempering[len(columns)])
     out = np.concatenate(columns, axis=1)
     out[~pred.ok] = -np.inf
     return out
@@ -216,6 +216,16 @@ def posterior_criteria(
         )  # fmt: skip
     except ValueError as exc:
         return _unavailable(f"cannot set up the likelihood of the fit recordings: {exc}")
+    # the fit's posterior counted each block's residuals as n / tau samples
+    # (LogLikelihood.temper): its pointwise terms carry the same power, or
+    # WAIC's effective parameter count grows by ~tau
+    taus = {
+        (b.get("recording"), b.get("channel")): float(b.get("correlation_time") or 1.0)
+        for b in document.get("noise") or [] if isinstance(b, dict)
+    }  # fmt: skip
+    problem.tempering = np.array(
+        [1.0 / max(taus.get((o.recording, o.channel), 1.0), 1.0) for o in problem.observations]
+    )
     point = dict(values)
     problem.linearize(point)
     problem.correct_solver(point)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from pneumafit.identification.noise import correlation_time
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import Prediction, Problem
 
@@ -119,7 +120,9 @@ class LogLikelihood:
         for j, (obs, r) in enumerate(zip(self.problem.observations, residuals, strict=True)):
             r_ok = np.where(ok[:, None], r, 0.0)
             est = obs.noise.estimate(r_ok, obs.floor)
-            blocks[:, j] = obs.noise.logpdf(r_ok, **est) + self.problem.log_weight(j)
+            blocks[:, j] = self.problem.tempering[j] * (
+                obs.noise.logpdf(r_ok, **est) + self.problem.log_weight(j)
+            )
             noise.append(est)
         with np.errstate(invalid="ignore"):
             total = np.sum(blocks, axis=1)
@@ -127,6 +130,45 @@ class LogLikelihood:
         total = np.where(ok, total, -np.inf)
         blocks[~ok] = -np.inf
         return Evaluation(total, blocks, residuals, noise, ok, pred)
+
+    def correlation_times(self, z: ArrayLike) -> NDArray[np.float64]:
+        """Correlation time (samples) of each block's whitened residuals at one set.
+
+        See :func:`~pneumafit.identification.noise.correlation_time`; NaN
+        for every block when the simulation fails.
+        """
+        ev = self.evaluate(np.atleast_2d(np.asarray(z, dtype=float))[:1])
+        out = np.full(len(ev.residuals), np.nan)
+        if not ev.ok[0]:
+            return out
+        for j, (obs, r) in enumerate(zip(self.problem.observations, ev.residuals, strict=True)):
+            state = obs.noise.whitening_state(r[0], obs.floor)
+            out[j] = correlation_time(obs.noise.whiten(r[0], **state))
+        return out
+
+    def temper(self, z: ArrayLike) -> NDArray[np.float64]:
+        """Count each block's residuals as n / tau independent samples.
+
+        A model simpler than the rig leaves residuals that are smooth, not
+        white; the iid likelihood then counts thousands of correlated
+        samples as independent and its curvature (Laplace, MCMC) gives
+        intervals that are too narrow by ~sqrt(tau). Raising each block's
+        likelihood to the power 1 / tau, tau the correlation time of its
+        whitened residuals at ``z``, gives the curvature of the sandwich
+        (misspecification-robust) covariance when the sensitivities vary
+        slowly on the scale of tau, and leaves a block whose residuals are
+        white (a model that reaches the noise) as it was. The powers are set
+        on the problem (:attr:`Problem.tempering`) and apply to every later
+        evaluation, also of other likelihoods of the same problem.
+
+        Returns
+        -------
+        ndarray (n_blocks,)
+            tau of each block (1 where the simulation failed).
+        """
+        taus = np.nan_to_num(self.correlation_times(z), nan=1.0)
+        self.problem.tempering = 1.0 / taus
+        return taus
 
     def __call__(self, z: ArrayLike) -> NDArray[np.float64]:
         """Log-likelihood (n_sets,) of internal vectors (n_sets, n_free); -inf on failure."""

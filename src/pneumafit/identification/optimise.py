@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.parameters import ParameterSet
 
-__all__ = ["PointEstimate", "fit_least_squares", "laplace_summary"]
+__all__ = ["PointEstimate", "fit_least_squares", "laplace_covariance", "laplace_summary"]
 
 #: Whitened residual given to every sample of a failed simulation: large, so
 #: that the trust region retreats, finite, so that least_squares carries on.
@@ -113,9 +113,12 @@ class _Whitened:
         """Whitened residual vectors (n_sets, n_res) of a batch."""
         ev = self.like.evaluate(zz)
         parts = []
-        for o, r, st in zip(self.like.problem.observations, ev.residuals, self.states, strict=True):
+        power = np.sqrt(self.like.problem.tempering)
+        for j, (o, r, st) in enumerate(
+            zip(self.like.problem.observations, ev.residuals, self.states, strict=True)
+        ):
             w = o.noise.whiten(np.nan_to_num(r, nan=0.0), **st)
-            parts.append(w)
+            parts.append(w * power[j])
         res = np.concatenate(parts, axis=1)
         res[~ev.ok] = FAILED_RESIDUAL
         prior = np.array([self.like.parameters.prior_residuals(z) for z in zz])
@@ -351,6 +354,22 @@ def equilibrated_pinv(matrix: NDArray[np.float64], rcond: float = 1e-12) -> NDAr
     d = np.where(diag > 0.0, 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0)), 0.0)
     inner = np.linalg.pinv(d[:, None] * m * d[None, :], rcond=rcond, hermitian=True)
     return d[:, None] * inner * d[None, :]
+
+
+def laplace_covariance(
+    likelihood: LogLikelihood, z: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """Laplace covariance of the internal coordinates at ``z``.
+
+    The pseudo-inverse of J^T J of the whitened residuals (noise state held
+    at ``z``, priors included), as :func:`fit_least_squares` gives at its
+    estimate; None when the Jacobian is not finite.
+    """
+    wh = _Whitened(likelihood)
+    zz = np.asarray(z, dtype=float)
+    wh.set_state(zz)
+    _, jac = wh.fun_and_jac(zz)
+    return _laplace(jac)
 
 
 def _laplace(jac: NDArray[np.float64]) -> NDArray[np.float64] | None:

@@ -518,6 +518,9 @@ class Problem:
         self.corrections: list[NDArray[np.float64] | None] = [None] * len(self.observations)
         self._sensitivities: list[NDArray[np.float64] | None] = [None] * len(self.observations)
         self.bases: list[NDArray[np.float64] | None] = []
+        #: Power of each block's likelihood (1 / its residuals' correlation
+        #: time, see :meth:`LogLikelihood.temper`); ones by default.
+        self.tempering = np.ones(len(self.observations))
         self._update_bases()
         self.n_evaluations = 0
         self.lag_names = tuple(sorted({o.lag for o in self.observations if isinstance(o.lag, str)}))
@@ -991,9 +994,11 @@ class Problem:
         return int(sum(0 if q is None else q.shape[1] for q in self.bases))
 
     def describe(self) -> list[dict[str, object]]:
-        """One entry per block: recording, channel, samples, noise model, lag, step."""
+        """One entry per block: recording, channel, samples, noise model, lag, step,
+        and the correlation time (samples) its likelihood is tempered by (1 when
+        not tempered, :meth:`LogLikelihood.temper`)."""
         out = []
-        for o in self.observations:
+        for j, o in enumerate(self.observations):
             out.append(
                 {
                     "recording": o.recording,
@@ -1003,6 +1008,7 @@ class Problem:
                     "noise": o.noise.describe(),
                     "lag": o.lag,
                     "step": self.steps[o.index],
+                    "correlation_time": float(1.0 / self.tempering[j]),
                 }
             )
         return out

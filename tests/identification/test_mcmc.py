@@ -163,3 +163,40 @@ def test_short_chain_is_extended_until_50_tau_and_resumes(tmp_path: Path) -> Non
 def test_without_a_limit_the_chain_has_exactly_its_steps() -> None:
     run = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3)
     assert run.n_steps == 30
+
+
+def test_early_stop_at_the_first_converged_check_and_resumes(tmp_path: Path) -> None:
+    """With ``min_steps`` the chain is checked every 200 steps and stops at the
+    first check where it is >= 50 tau long with R-hat <= 1.01, well before its
+    3000 steps (the analytic Gaussian needs a few hundred); the checks see
+    only the stored chain, so an interrupted run resumes to the same stop."""
+    full = run_mcmc(
+        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=3000, seed=6, min_steps=200,
+        backend=tmp_path / "full.h5", name="stage",
+    )  # fmt: skip
+    assert full.n_steps % 200 == 0 and full.n_steps < 3000
+    assert full.tau_multiple >= 50 and max(full.rhat.values()) <= 1.01
+    # one check earlier it was not converged (or it would have stopped there)
+    if full.n_steps > 200:
+        shorter = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8,
+                           n_steps=full.n_steps - 200, seed=6)  # fmt: skip
+        assert shorter.tau_multiple < 50 or max(shorter.rhat.values()) > 1.01
+    calls = 0
+
+    def flaky(z: np.ndarray) -> np.ndarray:
+        nonlocal calls
+        calls += 1
+        if calls == full.n_steps - 50:  # inside the last check's stretch
+            raise Interrupt
+        return gaussian(z)
+
+    path = tmp_path / "cut.h5"
+    with pytest.raises(Interrupt):
+        run_mcmc(flaky, params(), MEAN, COV, n_walkers=8, n_steps=3000, seed=6, min_steps=200,
+                 backend=path, name="stage")  # fmt: skip
+    resumed = run_mcmc(
+        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=3000, seed=6, min_steps=200,
+        backend=path, name="stage",
+    )  # fmt: skip
+    assert resumed.n_steps == full.n_steps
+    assert np.array_equal(resumed.chain, full.chain)

@@ -210,6 +210,7 @@ def run_mcmc(
     moves: Any = None,
     max_steps: int | None = None,
     log: Callable[[str], None] | None = None,
+    min_steps: int | None = None,
 ) -> MCMCResult:
     """Sample a log posterior with emcee; resume a stored run when possible.
 
@@ -249,6 +250,14 @@ def run_mcmc(
         interrupted extension resumes to the same chain.
     log : callable, optional
         Receives one line per extension.
+    min_steps : int, optional
+        Stop early: the chain is first run to ``min_steps`` and checked
+        there and every ``min_steps`` steps after; it stops at the first
+        check where it is at least :data:`MIN_TAU_MULTIPLE` tau long and
+        every R-hat is at most :data:`MAX_RHAT`, else at ``n_steps`` (or,
+        with ``max_steps``, extends as above). None: no check before
+        ``n_steps``. The checks see the stored chain only, so an
+        interrupted run resumes to the same chain and the same stop.
 
     Returns
     -------
@@ -293,7 +302,8 @@ def run_mcmc(
         n_walkers, n_free, counted, vectorize=True, backend=store,
         moves=default_moves() if moves is None else moves,
     )  # fmt: skip
-    target = n_steps
+    check = int(min_steps) if min_steps else 0
+    target = min(check, n_steps) if check > 0 else n_steps
     limit = max(n_steps, int(max_steps or n_steps))
     while True:
         have = int(store.iteration) if store.initialized else 0
@@ -322,6 +332,9 @@ def run_mcmc(
         )
         if converged or target >= limit:
             break
+        if target < n_steps:  # early checks, then the extension rounds
+            target = min(n_steps, target + check)
+            continue
         target = min(limit, target + max(n_steps // 2, 1))
         if log is not None:
             log(

@@ -163,6 +163,31 @@ def test_fit_json_round_trip(tmp_path: Path, law: str) -> None:
     assert BaseFit.from_document(doc).structure.friction == "switch"
 
 
+def test_fit_json_effects_are_read_by_every_reader(tmp_path: Path) -> None:
+    """A fit that kept the pressure-dependent seal friction (``--seal-friction``)
+    is simulated with it by every reader of fit.json, and a bad entry is named."""
+    from pneumafit.analysis.closed_loop import read_plant_file
+    from pneumafit.comparison.evaluate import fit_values
+    from pneumafit.discovery.refit import BaseFit
+    from pneumafit.parameters_io import parse_effects, read_effects
+
+    structure = ModelStructure("convection", air_properties="sutherland", friction="lugre")
+    doc = _fit_document(structure.with_effects(seal_friction=1))
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(doc))
+    assert read_effects(path) == {"seal_friction": 1}
+    assert fit_values(doc, "fit.json")[1].effects == {"seal_friction": 1}
+    assert BaseFit.from_document(doc).structure.effects == {"seal_friction": 1}
+    assert read_plant_file(path)[0].effects == {"seal_friction": 1}
+    assert parse_effects({"parameters": {}}) == {}
+    with pytest.raises(PneumafitInputError, match=r"fit\.json: structure\.effects\.seal: "
+                       r"expected one of .*seal_friction.*, found 'seal'"):  # fmt: skip
+        parse_effects({"structure": {"effects": {"seal": 1}}}, "fit.json")
+    with pytest.raises(PneumafitInputError, match=r"effects\.seal_friction: expected a "
+                       r"non-negative integer, found 'yes'"):  # fmt: skip
+        parse_effects({"effects": {"seal_friction": "yes"}})
+
+
 def test_parameter_file_friction_key(tmp_path: Path) -> None:
     """A parameter file's ``friction`` key: absent = switch, lugre, or a clear error."""
     from pneumafit.parameters_io import parse_friction_law, read_parameter_file

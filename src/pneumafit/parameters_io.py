@@ -30,7 +30,7 @@ import pint
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import ureg
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
-from pneumafit.models.structure import MODELS
+from pneumafit.models.structure import EFFECT_SLOTS, MODELS
 
 
 def _to_si(value: Any, name: str, where: str) -> float:
@@ -183,17 +183,50 @@ def parse_friction_law(document: dict[str, Any], where: str = "parameters") -> s
     return law
 
 
-def read_friction_law(path: str | os.PathLike[str]) -> str:
-    """Friction law of a parameter file or fit.json (see :func:`parse_friction_law`).
+def parse_effects(document: dict[str, Any], where: str = "parameters") -> dict[str, int]:
+    """Optional effects of a parsed parameter document or fit.json.
+
+    A parameter file's top-level ``effects`` table, else a fit.json's
+    ``structure.effects`` (a fit that kept the pressure-dependent seal
+    friction, or a refit of discovery); empty when neither is present.
 
     Raises
     ------
     PneumafitInputError
-        Missing file, invalid JSON or a wrong friction law.
+        An unknown effect or a value that is not a non-negative integer,
+        naming the key.
     """
+    if not isinstance(document, dict):
+        return {}
+    effects: Any = {}
+    key = "effects"
+    structure = document.get("structure")
+    if isinstance(structure, dict) and "effects" in structure:
+        effects, key = structure["effects"] or {}, "structure.effects"
+    if "effects" in document:
+        effects, key = document["effects"] or {}, "effects"
+    if not isinstance(effects, dict):
+        raise PneumafitInputError(
+            f"{where}: {key}: expected a table of effect = option, found {effects!r}"
+        )
+    out: dict[str, int] = {}
+    for name, value in effects.items():
+        if name not in EFFECT_SLOTS:
+            raise PneumafitInputError(
+                f"{where}: {key}.{name}: expected one of {', '.join(EFFECT_SLOTS)}, found {name!r}"
+            )
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise PneumafitInputError(
+                f"{where}: {key}.{name}: expected a non-negative integer, found {value!r}"
+            )
+        out[name] = value
+    return out
+
+
+def _read_document(path: str | os.PathLike[str]) -> Any:
     file = Path(path)
     try:
-        document = json.loads(file.read_text(encoding="utf-8"))
+        return json.loads(file.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise PneumafitInputError(f"{file}: expected a parameter file, found none") from None
     except OSError as exc:
@@ -202,7 +235,28 @@ def read_friction_law(path: str | os.PathLike[str]) -> str:
         raise PneumafitInputError(
             f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"
         ) from None
-    return parse_friction_law(document, str(file))
+
+
+def read_friction_law(path: str | os.PathLike[str]) -> str:
+    """Friction law of a parameter file or fit.json (see :func:`parse_friction_law`).
+
+    Raises
+    ------
+    PneumafitInputError
+        Missing file, invalid JSON or a wrong friction law.
+    """
+    return parse_friction_law(_read_document(path), os.fspath(path))
+
+
+def read_effects(path: str | os.PathLike[str]) -> dict[str, int]:
+    """Optional effects of a parameter file or fit.json (see :func:`parse_effects`).
+
+    Raises
+    ------
+    PneumafitInputError
+        Missing file, invalid JSON or a wrong effect entry.
+    """
+    return parse_effects(_read_document(path), os.fspath(path))
 
 
 def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str, dict]]:

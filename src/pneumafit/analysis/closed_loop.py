@@ -602,6 +602,7 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
         Unreadable file or bad entries.
     """
     from pneumafit.parameters_io import (
+        parse_effects,
         parse_friction_law,
         parse_parameters,
         read_parameter_file,
@@ -644,4 +645,7 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
     friction = parse_friction_law(document, str(file))  # "switch" unless the file says
     if friction != structure.friction:
         structure = dataclasses.replace(structure, friction=friction)
+    effects = parse_effects(document, str(file))  # a fit that kept an effect
+    if effects:
+        structure = structure.with_effects(**effects)
     return structure, values

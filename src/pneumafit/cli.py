@@ -122,6 +122,15 @@ def fit(
             "bristles; their stiffness and damping are fitted too).",
         ),
     ] = "auto",
+    seal_friction: Annotated[
+        str,
+        typer.Option(
+            "--seal-friction",
+            help="Friction that grows with the chamber pressures (seal preload): off, auto "
+            "(fitted after the friction law, kept when BIC in effective samples prefers it) or "
+            "on.",
+        ),
+    ] = "off",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -132,8 +141,9 @@ def fit(
     from pneumafit.identification.command import fit_command
 
     code = fit_command(
-        campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve, friction
-    )
+        campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve,
+        friction, seal_friction,
+    )  # fmt: skip
     raise typer.Exit(code)
 
 
@@ -285,19 +295,23 @@ def simulate(
     """Simulate a test and write it as a campaign-format HDF5 recording.
 
     The parameter file's ``friction`` key (a fit.json's ``structure.friction``)
-    chooses the friction law: ``switch`` (default) or ``lugre``.
+    chooses the friction law: ``switch`` (default) or ``lugre``; its
+    ``effects`` (a fit.json's ``structure.effects``) switch optional effects on.
     """
     import dataclasses
 
     from pneumafit.campaign import Recording, write_recording_h5
     from pneumafit.models import get_structure
-    from pneumafit.parameters_io import read_friction_law, read_parameter_file
+    from pneumafit.parameters_io import read_effects, read_friction_law, read_parameter_file
     from pneumafit.simulation import Simulator
     from pneumafit.simulation.scenarios import blocked_test, step_test
 
     file_model, values = read_parameter_file(params)
     model = model or file_model
     structure = dataclasses.replace(get_structure(model), friction=read_friction_law(params))
+    effects = read_effects(params)
+    if effects:  # a fit that kept an effect (seal friction, discovery's refits)
+        structure = structure.with_effects(**effects)
     if kind not in ("charge", "discharge", "step"):
         raise PneumafitInputError(
             f"option --kind: expected charge, discharge or step, found {kind!r}"

@@ -107,6 +107,7 @@ def fit_command(
     strict: bool = False,
     valve: str = "iso6358",
     friction: str = "auto",
+    seal: str = "off",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -130,6 +131,8 @@ def fit_command(
         Valve law (:class:`FitOptions`).
     friction : {"auto", "switch", "lugre"}
         Friction law (:class:`FitOptions`).
+    seal : {"auto", "on", "off"}
+        Pressure-dependent seal friction (:class:`FitOptions`).
 
     Returns
     -------
@@ -153,6 +156,8 @@ def fit_command(
             f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "
             f"found {friction!r}"
         )
+    if seal not in ("auto", "on", "off"):
+        problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -171,10 +176,11 @@ def fit_command(
         + (" --strict" if strict else "")
         + (f" --valve {valve}" if valve != "iso6358" else "")
         + (f" --friction {friction}" if friction != "auto" else "")
+        + (f" --seal-friction {seal}" if seal != "off" else "")
     )
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
-        friction=friction,
+        friction=friction, seal=seal,
     )  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -186,8 +192,10 @@ def fit_command(
     partial = out / PARTIAL_FILE
     chains_path: Path | None = None
     if mcmc:
-        variant = ("" if valve == "iso6358" else "+" + valve) + (
-            "" if friction == "auto" else "+friction-" + friction
+        variant = (
+            ("" if valve == "iso6358" else "+" + valve)
+            + ("" if friction == "auto" else "+friction-" + friction)
+            + ("" if seal == "auto" else "+seal-" + seal)
         )
         fingerprint = _fingerprint(camp.sha256, model + variant, seed, walkers, steps)
         _prepare_partial(partial, fingerprint, console)

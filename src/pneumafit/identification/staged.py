@@ -25,6 +25,7 @@ separately keeps each chain low-dimensional, which is what makes chains of
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -45,7 +46,12 @@ from pneumafit.identification.coverage import (
 )
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
-from pneumafit.identification.optimise import PointEstimate, fit_least_squares
+from pneumafit.identification.optimise import (
+    PointEstimate,
+    fit_least_squares,
+    laplace_covariance,
+    laplace_summary,
+)
 from pneumafit.identification.parameters import Parameter, ParameterSet
 from pneumafit.identification.problem import (
     MAX_STEP,
@@ -62,10 +68,15 @@ from pneumafit.identification.quality import (
 )
 from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
-from pneumafit.identification.starts import friction_starts, heat_starts, valve_starts
+from pneumafit.identification.starts import (
+    friction_starts,
+    heat_starts,
+    seal_start,
+    valve_starts,
+)
 from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS
+from pneumafit.models.structure import EFFECT_SLOTS, HEAT_PARAMETERS, MODELS, ModelStructure
 from pneumafit.models.structure import FRICTION_PARAMETERS as STRUCTURE_FRICTION
-from pneumafit.models.structure import HEAT_PARAMETERS, MODELS, ModelStructure
 from pneumafit.physics.valve_map import (
     CENTRE_KNOT,
     MAP_CE_NAMES,
@@ -107,6 +118,11 @@ DEFAULT_CHANNELS: tuple[str, ...] = ("p_P", "p_N", "y", "qm_P", "qm_N")
 #: differential-evolution moves tau is ~10 steps (heat) and ~30 (friction,
 #: from a wide start) on the demo, so these are 50 tau plus burn-in.
 DEFAULT_STEPS = {"valve": 2500, "heat": 1000, "friction": 2000}
+#: With ``FitOptions.early_stop``, a chain is checked this many times before
+#: its default length (every DEFAULT_STEPS / MCMC_CHECKS steps) and stops at
+#: the first check where it is >= 50 tau long with every R-hat <= 1.01 (on
+#: the demo the heat chain was 215 tau long at 1000 steps).
+MCMC_CHECKS = 4
 #: Stages sampled by default. The valve is not: its eight parameters need
 #: long chains on the charge/discharge tests (the flow tests alone leave the
 #: centre leakage, which the blocked tests measure, ten times less certain
@@ -117,6 +133,8 @@ DEFAULT_SAMPLE = ("heat", "friction")
 
 #: Centre-leakage parameters, fitted with the heat law in stage (b).
 LEAK_PARAMETERS: tuple[str, ...] = ("valve_C_leak",)
+#: The seal-friction coefficient (N/Pa) of the ``seal_friction`` effect.
+SEAL = EFFECT_SLOTS["seal_friction"][1][0]
 #: Starts of the joint stage: stage (b)'s best heat-law optimum and up to
 #: ``JOINT_STARTS - 1`` other distinct ones.
 JOINT_STARTS = 3
@@ -255,7 +273,8 @@ def _distinct_optima(
 JOINT_NFEV = 500
 #: Stall rule of the joint stage (:func:`fit_least_squares`): stop a round
 #: when its log-likelihood gained less than 0.5 over the last 10 evaluated
-#: points. 0.5 is the gain of a one-sigma move of one parameter; a model
+#: points (the gain scaled by the residuals' correlation, :func:`_joint_stall`).
+#: 0.5 is the gain of a one-sigma move of one parameter; a model
 #: that cannot follow its data creeps at such gains for hundreds of points:
 #: on a demo-plan campaign of an independently written rig (LuGre friction
 #: against the switch model) the joint stage took 1066 s and 78790
@@ -358,6 +377,28 @@ class FitOptions:
         Chains shorter than 50 tau or with R-hat > 1.01 are extended up to
         this many times their default length (:data:`DEFAULT_STEPS`); with
         ``steps`` given, chains are exactly that long (and flagged when short).
+    seal : {"auto", "on", "off"}
+        Friction that grows with the chamber pressures (the
+        ``seal_friction`` effect: c (P_P + P_N - 2 P_atm) added to the
+        friction levels). ``off`` (default) never tries it; ``auto`` fits c
+        in stage (c) after the friction law and keeps it when its
+        log-likelihood gain on the step tests, counted in effective samples,
+        exceeds ln(n_eff) / 2 (BIC for one parameter); ``on`` always keeps
+        it. Off by default: on a sparse plan with one fit step test the
+        coefficient trades with the static friction (docs/identification.md);
+        ``pneumafit discover`` validates an effect on held-out recordings
+        before it keeps one. A structure passed as ``model`` keeps its own
+        effects.
+    early_stop : bool
+        Stop a chain at the first of :data:`MCMC_CHECKS` checks where it is
+        at least 50 tau long with every R-hat <= 1.01 (ignored with
+        ``steps``, which gives chains of exactly that length).
+    temper : bool
+        Count each block's residuals as n / tau independent samples in the
+        Laplace covariance and the MCMC, tau their correlation time at the
+        joint estimate (:meth:`LogLikelihood.temper`): the intervals of a
+        model that does not reach the noise widen by ~sqrt(tau); those of
+        one that does are unchanged. False: every sample independent.
     joint_iterations : int
         Limit of the joint least squares (function evaluations per start,
         :data:`JOINT_NFEV`); a joint stage stopped by it is reported as
@@ -380,6 +421,9 @@ class FitOptions:
     correct_solver: bool = True
     progress: bool = False
     extend: float = 2.0
+    seal: str = "off"
+    temper: bool = True
+    early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
 
 
@@ -559,6 +603,89 @@ def with_initial_states(
     return out
 
 
+def _joint_stall(
+    problem: Problem, parameters: ParameterSet, start: Mapping[str, float], temper: bool
+) -> tuple[int, float]:
+    """The joint stage's stall rule, in units of the data's effective information.
+
+    :data:`JOINT_STALL`'s gain is a one-sigma move of one parameter when
+    every sample is independent. With residuals correlated over tau samples
+    (a model that does not follow its data), the log-likelihood overcounts
+    the information by ~tau (see :meth:`LogLikelihood.temper`), and the
+    same move gains ~tau times more: the gain is scaled by sum(n) /
+    sum(n / tau) over the blocks, at the start. Unscaled when ``temper`` is
+    False or the residuals are white.
+    """
+    if not temper:
+        return JOINT_STALL
+    return JOINT_STALL[0], JOINT_STALL[1] * _overcount(problem, parameters, start)
+
+
+#: Valve stages of earlier fits in this process, by :func:`_valve_key`
+#: (the main job fits three heat laws to one campaign: the flow tests, and so
+#: the valve stage, are the same for all three). Oldest dropped first.
+_VALVE_STAGES: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+#: Largest number of cached valve stages.
+VALVE_CACHE_SIZE = 8
+
+
+def _valve_key(
+    campaign: Campaign, structure: ModelStructure, seed: int, opts: FitOptions
+) -> tuple[Any, ...] | None:
+    """What the valve stage depends on: the campaign's files (hashes), its
+    recordings' kinds and roles and rig parameters, the valve law, the stage's
+    seed and the options the flow problem uses. None for a campaign without
+    file hashes (built in memory): such a stage is not cached."""
+    if not campaign.sha256:
+        return None
+    return (
+        tuple(sorted(campaign.sha256.items())),
+        tuple((r.file, r.kind, r.role) for r in campaign.recordings),
+        tuple(sorted(campaign.rig.as_parameters().items())),
+        structure.valve,
+        int(seed),
+        repr((opts.valve, opts.max_step, opts.noise, opts.channels, opts.offsets,
+              opts.initial_nuisance, opts.random_starts)),
+    )  # fmt: skip
+
+
+def _pressure_rms(
+    recordings: Sequence[Recording],
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    opts: FitOptions,
+) -> float | None:
+    """RMS (Pa) of the pressure residuals of ``recordings`` simulated at
+    ``values`` (initial states from the data, a sensor offset per recording
+    removed); None without recordings or when the simulation fails."""
+    if not recordings:
+        return None
+    try:
+        prob = Problem(
+            list(recordings), structure, values, channels=("p_P", "p_N"),
+            max_step=opts.max_step, initial_nuisance=False, offsets=("pressure",),
+        )  # fmt: skip
+    except ValueError:
+        return None
+    pred = prob.predict({}, 1)
+    if not pred.ok[0]:
+        return None
+    res = np.concatenate([r[0] for r in prob.residuals(pred)])
+    return float(np.sqrt(np.mean(res * res))) if res.size else None
+
+
+def _overcount(problem: Problem, parameters: ParameterSet, start: Mapping[str, float]) -> float:
+    """sum(n) / sum(n / tau) over the blocks at ``start``: by how much the iid
+    log-likelihood overcounts the data's information (1 for white residuals,
+    or when the simulation fails); see :meth:`LogLikelihood.temper`."""
+    like = LogLikelihood(problem, parameters)
+    taus = like.correlation_times(parameters.to_internal(dict(start)))
+    if not np.all(np.isfinite(taus)):
+        return 1.0
+    n = np.array([o.n for o in problem.observations], dtype=float)
+    return max(float(np.sum(n) / np.sum(n / taus)), 1.0)
+
+
 def _least_squares(
     problem: Problem,
     parameters: ParameterSet,
@@ -623,6 +750,8 @@ def identify(
             f"friction: expected one of {', '.join((*FRICTION_LAWS, 'auto'))}, "
             f"found {opts.friction!r}"
         )
+    if opts.seal not in ("auto", "on", "off"):
+        raise ValueError(f"seal: expected one of auto, on, off, found {opts.seal!r}")
     law = "switch" if opts.friction == "auto" else opts.friction
     structure = fit_structure(model, opts.air_properties, opts.valve, law)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
@@ -647,6 +776,8 @@ def identify(
         warns.append(line)
         say(f"warning: {line}")
 
+    joint_stall = JOINT_STALL
+
     def run_stage(
         stage: StageResult,
         recs: list[Recording],
@@ -658,7 +789,7 @@ def identify(
     ) -> Problem:
         # stages a-c profile the initial-state errors (cheap, linearised at the
         # first start); the joint stage fits the initial states as parameters
-        nonlocal params, evaluations
+        nonlocal params, evaluations, joint_stall
         t0 = time.perf_counter()
         prob = _problem(recs, structure, values, opts, initial_nuisance=not explicit_initial)
         params = with_initial_states(params, prob, values, free=False)
@@ -667,6 +798,15 @@ def identify(
         )
         if not explicit_initial:
             prob.linearize({**ps.values(), **(starts[0] if starts else {})})
+        stall = None
+        if explicit_initial:
+            joint_stall = _joint_stall(prob, ps, starts[0] if starts else {}, opts.temper)
+            if joint_stall[1] > JOINT_STALL[1]:
+                say(
+                    f"{stage.name}: residuals correlated at the start; a round stops when it "
+                    f"gains less than {joint_stall[1]:.3g} in {joint_stall[0]} points"
+                )
+            stall = joint_stall
         est = _least_squares(
             prob,
             ps,
@@ -674,7 +814,7 @@ def identify(
             stage_seed,
             random_starts,
             opts.joint_iterations if explicit_initial else 60,
-            JOINT_STALL if explicit_initial else None,
+            stall,
             (lambda line: say(f"{stage.name}: {line}")) if explicit_initial else None,
         )
         stage.estimate, stage.seconds = est, time.perf_counter() - t0
@@ -689,7 +829,10 @@ def identify(
         [n for n in params.free_names if SPECS_GROUP.get(n) in _VALVE_GROUPS],
     )  # fmt: skip
     leak_names = LEAK_PARAMETERS if structure.valve == "iso6358" else MAP_LEAK_PARAMETERS
-    if structure.valve == "map" and flows:
+    valve_key = _valve_key(campaign, structure, seeds[0], opts)
+    cached = _VALVE_STAGES.get(valve_key) if valve_key is not None and flows else None
+    valve_before, warns_before = dict(values), len(warns)
+    if structure.valve == "map" and flows and cached is None:
         # the map starts from the ISO 6358 fit of the same flow tests, sampled
         # at its knots; knots no flow level informs stay at that start
         iso = _iso_valve(campaign, flows, structure, values, opts, seeds[0])
@@ -704,7 +847,19 @@ def identify(
         valve_free = tuple(n for n in valve_free if n not in held)
         say(f"valve: ISO 6358 start {_brief_values(iso, VALVE_PARAMETERS)}")
     stage = StageResult("valve", [r.file for r in flows], valve_free)
-    if flows:
+    if cached is not None:
+        # the flow tests see the valve only: the stage of an earlier fit of the
+        # same campaign, valve law, seed and options is this one
+        stage, delta, valve_free, new_warns = copy.deepcopy(cached)
+        # counted as the fit's own: the same seed gives the same fit.json
+        evaluations += stage.estimate.n_evaluations if stage.estimate is not None else 0
+        values.update(delta)
+        warns.extend(new_warns)
+        say(
+            f"valve: the stage of an earlier fit of this campaign reused (same flow tests, "
+            f"valve law, seed and options; it took {stage.seconds:.1f} s)"
+        )
+    elif flows:
         starts = valve_starts(flows, rig) if structure.valve == "iso6358" else [{}]
         values.update(starts[0])
         shapes = tuple(n for n in valve_free if n in SHAPE_PARAMETERS.values())
@@ -731,6 +886,13 @@ def identify(
                 stage.free = linear
             say(f"valve: {stage.note}")
         say(f"valve: {stage.seconds:.1f} s, log-likelihood {stage.estimate.log_likelihood:.1f}")
+        if valve_key is not None:
+            delta = {k: v for k, v in values.items() if valve_before.get(k) != v}
+            _VALVE_STAGES[valve_key] = copy.deepcopy(
+                (stage, delta, valve_free, warns[warns_before:])
+            )
+            while len(_VALVE_STAGES) > VALVE_CACHE_SIZE:
+                _VALVE_STAGES.pop(next(iter(_VALVE_STAGES)))
     else:
         stage.note = "no fit flow test: valve parameters held at their defaults"
         warns.append(f"valve: {stage.note}")
@@ -812,6 +974,53 @@ def identify(
     else:
         stage.note = "no fit step test: friction parameters held at their defaults"
         warns.append(f"friction: {stage.note}")
+    if (
+        steps and opts.seal != "off" and stage.estimate is not None
+        and not isinstance(model, ModelStructure)
+    ):  # fmt: skip
+        # friction that grows with the chamber pressures (seal preload):
+        # kept when its one parameter buys more than ln(n) / 2 (BIC) in the
+        # data's effective information (gain and n divided by the residuals'
+        # overcount) and does not worsen the held-out step tests (on a sparse
+        # plan whose one fit step test could not tell it from the static
+        # friction, BIC kept it and the held-out step went from 3.6x to 27x
+        # the noise)
+        before, plain = dict(values), (structure, params, friction_names)
+        structure = structure.with_effects(seal_friction=1)
+        params = _with_law(params, structure, rig, nuisance)
+        names = (*friction_names, SEAL)
+        trial = StageResult("friction", [r.file for r in steps], names)
+        c0 = seal_start(steps, rig)
+        prob = run_stage(trial, steps, names, [{**values, SEAL: c0}], seeds[2])
+        gain = trial.estimate.log_likelihood - stage.estimate.log_likelihood
+        over = _overcount(prob, trial.estimate.parameters, trial.estimate.parameters.values())
+        penalty = 0.5 * math.log(max(prob.n_data / over, 2.0))
+        held = [r for r in campaign.by_role("validate") if r.kind in ("step", "free")]
+        rms_without = _pressure_rms(held, plain[0], before, opts)
+        rms_with = _pressure_rms(held, structure, values, opts)
+        validated = rms_with is None or rms_without is None or rms_with <= rms_without
+        keep = opts.seal == "on" or (math.isfinite(gain) and gain / over > penalty and validated)
+        line = (
+            f"pressure-dependent seal friction {'kept' if keep else 'not kept'}: "
+            f"log-likelihood gain {gain:.1f} / {over:.3g} (residual correlation) = "
+            f"{gain / over:.1f} against BIC's ln(n_eff)/2 = {penalty:.1f}"
+            + (
+                f", held-out steps' pressure RMS {rms_without:.0f} -> {rms_with:.0f} Pa"
+                if rms_with is not None and rms_without is not None else ""
+            )
+            + f", {SEAL} {trial.estimate.parameters[SEAL].value:.3g} N/Pa"
+        )  # fmt: skip
+        say(f"friction: {line}")
+        if keep:
+            trial.seconds += stage.seconds
+            trial.note = "; ".join(x for x in (stage.note, line) if x)
+            stage, friction_names = trial, names
+        else:
+            stage.note = "; ".join(x for x in (stage.note, line) if x)
+            stage.seconds += trial.seconds
+            structure, params, friction_names = plain
+            values.clear()
+            values.update(before)
     stages.append(stage)
 
     # ------------------------------------------------------------- (d) joint
@@ -863,7 +1072,7 @@ def identify(
             params.with_values(values).only_free(joint_free), joint_problem, values, True
         )
         est2 = _least_squares(joint_problem, ps, [dict(values)], seeds[3], 0,
-                              opts.joint_iterations, JOINT_STALL,
+                              opts.joint_iterations, joint_stall,
                               lambda line: say(f"joint (corrected): {line}"))  # fmt: skip
         evaluations += est2.n_evaluations
         if math.isfinite(est2.log_likelihood):
@@ -878,13 +1087,24 @@ def identify(
             "joint refinement: every simulation failed at the staged estimates; "
             "check the campaign's rig parameters"
         )
-    laplace = est.parameters
     say(f"joint: {stage.seconds:.1f} s, log-likelihood {est.log_likelihood:.1f}")
+    if opts.temper:
+        # intervals from the data's effective information: each block's
+        # likelihood counts its correlated residuals as n / tau samples
+        like = LogLikelihood(joint_problem, est.parameters)
+        taus = like.temper(est.z)
+        cov = laplace_covariance(like, est.z)
+        if cov is not None:
+            est.covariance = cov
+            est.parameters = laplace_summary(est.parameters, est.z, cov)
+        say(f"joint: {_tempering_line(joint_problem, taus)}")
+    laplace = est.parameters
     final = laplace.with_fixed([p.name for p in laplace if p.group == "initial"], fixed=True)
     final.correlation = laplace.correlation
 
     # -------------------------------------------------------------- MCMC
     heat_draws: dict[str, NDArray[np.float64]] | None = None
+    friction_draws: dict[str, NDArray[np.float64]] | None = None
     if opts.mcmc:
         groups = {
             "valve": (flows + blocked, valve_free),
@@ -901,16 +1121,25 @@ def identify(
                 prob.correct_solver(values)
             held = laplace.with_values(values).only_free(free)
             ps = with_initial_states(held, prob, values, False)
-            post = LogPosterior(LogLikelihood(prob, ps))
+            like = LogLikelihood(prob, ps)
+            if opts.temper:
+                like.temper(ps.to_internal())
+            post = LogPosterior(like)
             # a wide initial ensemble, not the Laplace ellipse (see run_mcmc)
             cov = None
             n_walkers = opts.walkers or default_walkers(ps.n_free)
             n_steps = opts.steps or DEFAULT_STEPS[stage_name]
-            say(f"mcmc {stage_name}: {n_walkers} walkers x {n_steps} steps")
+            check = None if opts.steps or not opts.early_stop else n_steps // MCMC_CHECKS
+            say(
+                f"mcmc {stage_name}: {n_walkers} walkers x "
+                + (f"up to {n_steps} steps, stopped when converged (checked every {check})"
+                   if check else f"{n_steps} steps")
+            )  # fmt: skip
             res = run_mcmc(
                 post, ps, ps.to_internal(), cov, n_walkers=n_walkers, n_steps=n_steps,
                 seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
                 max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
+                min_steps=check,
             )  # fmt: skip
             evaluations += res.evaluations
             stage_obj = next(s for s in stages if s.name == stage_name)
@@ -921,6 +1150,8 @@ def identify(
             stage_obj.propagated = summary
             if stage_name == "heat":
                 heat_draws = {n: v for n, v in res.parameters.to_values(draws).items()}
+            if stage_name == "friction":
+                friction_draws = {n: v for n, v in res.parameters.to_values(draws).items()}
             for p in summary.free:
                 # the reported estimate and its interval come from the same
                 # posterior: the median of the propagated draws (the joint
@@ -942,6 +1173,10 @@ def identify(
     metrics["lambda_reference"] = _lambda_reference(
         structure, values, laplace, est, heat_draws, seeds[7]
     )
+    if steps:
+        metrics["friction_reference"] = _friction_reference(
+            structure, values, rig, laplace, est, friction_draws, seeds[7]
+        )
     runs = [s.mcmc for s in stages if s.mcmc is not None]
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels)
     quality.unconverged = [
@@ -955,6 +1190,18 @@ def identify(
         metrics=metrics, warnings=warns, seconds=time.perf_counter() - t_start,
         evaluations=evaluations, blocks=joint_problem.describe(), quality=quality,
     )  # fmt: skip
+
+
+def _tempering_line(problem: Problem, taus: NDArray[np.float64]) -> str:
+    """One console line on the residuals' correlation times (see LogLikelihood.temper)."""
+    n = np.array([o.n for o in problem.observations], dtype=float)
+    worst = int(np.argmax(taus))
+    o = problem.observations[worst]
+    return (
+        f"residuals correlated over {np.median(taus):.3g} samples (median of "
+        f"{taus.size} blocks; longest {taus[worst]:.3g} in {o.recording} {o.channel}): "
+        f"the intervals count {np.sum(n / taus):.0f} effective samples of {np.sum(n):.0f}"
+    )
 
 
 def _brief(est: PointEstimate, names: Sequence[str]) -> str:
@@ -1141,12 +1388,8 @@ def _lambda_reference(
     if structure.heat == "polytropic":
         return None
     names = HEAT_PARAMETERS[structure.heat]
-    if draws is None and est.covariance is not None:
-        rng = np.random.default_rng(seed)
-        cov = 0.5 * (est.covariance + est.covariance.T)
-        z = rng.multivariate_normal(est.z, cov, size=4000, method="eigh")
-        lo, hi = laplace.internal_bounds()
-        draws = laplace.to_values(np.clip(z, lo, hi))
+    if draws is None:
+        draws = _laplace_draws(laplace, est, seed)
     point = reference_lambda(values, structure.heat, structure.air_properties)
     out: dict[str, Any] = {"state": dict(REFERENCE_STATE), "value": point, "interval_90": None}
     if draws is not None and all(n in draws for n in names):
@@ -1156,6 +1399,59 @@ def _lambda_reference(
         if lam.size:
             out["interval_90"] = [float(np.quantile(lam, 0.05)), float(np.quantile(lam, 0.95))]
             out["value"] = float(np.median(lam))
+    return out
+
+
+def _laplace_draws(
+    laplace: ParameterSet, est: PointEstimate, seed: int, n: int = 4000
+) -> dict[str, NDArray[np.float64]] | None:
+    """``n`` draws (values by name) of the joint Laplace approximation; None without one."""
+    if est.covariance is None:
+        return None
+    rng = np.random.default_rng(seed)
+    cov = 0.5 * (est.covariance + est.covariance.T)
+    z = rng.multivariate_normal(est.z, cov, size=n, method="eigh")
+    lo, hi = laplace.internal_bounds()
+    return laplace.to_values(np.clip(z, lo, hi))
+
+
+def _friction_reference(
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    rig: Mapping[str, float],
+    laplace: ParameterSet,
+    est: PointEstimate,
+    draws: Mapping[str, NDArray[np.float64]] | None,
+    seed: int,
+) -> dict[str, Any]:
+    """Static and Coulomb friction with both chambers at mid pressure (metrics.friction_reference).
+
+    With the ``seal_friction`` effect the levels grow by c (P_P + P_N -
+    2 P_atm); at P_P = P_N = (P_S + P_atm) / 2 that is c (P_S - P_atm),
+    the state at which a rig's friction is usually quoted. Without it the
+    levels are the parameters themselves. Values are the medians of the
+    friction stage's propagated MCMC draws when sampled, else of 4000
+    draws of the joint Laplace approximation, with their 90 % intervals.
+    """
+    delta = float(rig["supply_pressure"] - rig["exhaust_pressure"])
+    seal = SEAL if structure.effects.get("seal_friction") else None
+    out: dict[str, Any] = {"pressure_sum": delta, "seal_friction": seal is not None}
+    if draws is None or not all(n in draws for n in ("friction_static", "friction_coulomb")):
+        draws = _laplace_draws(laplace, est, seed)
+    for key, name in (("static", "friction_static"), ("coulomb", "friction_coulomb")):
+        c = float(values.get(seal, 0.0)) if seal else 0.0
+        entry: dict[str, Any] = {"value": float(values[name]) + c * delta, "interval_90": None}
+        if draws is not None and name in draws:
+            level = np.asarray(draws[name], dtype=float)
+            if seal:
+                level = level + np.asarray(draws.get(seal, c), dtype=float) * delta
+            level = level[np.isfinite(level)]
+            if level.size:
+                entry["value"] = float(np.median(level))
+                entry["interval_90"] = [
+                    float(np.quantile(level, 0.05)), float(np.quantile(level, 0.95))
+                ]  # fmt: skip
+        out[key] = entry
     return out
 
 

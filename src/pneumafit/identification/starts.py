@@ -13,13 +13,14 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Recording
 from pneumafit.physics.air import G0, RHO0, T_REF
 from pneumafit.physics.geometry import piston_areas
 
-__all__ = ["friction_starts", "heat_starts", "valve_starts"]
+__all__ = ["friction_starts", "heat_starts", "seal_start", "valve_starts"]
 
 
 def valve_starts(flows: Sequence[Recording], rig: Mapping[str, float]) -> list[dict[str, float]]:
@@ -139,6 +140,50 @@ def friction_starts(
     if law == "lugre":
         data |= _bristle_start(2.0e5, m)
     return [data, generic]
+
+
+def seal_start(steps: Sequence[Recording], rig: Mapping[str, float]) -> float:
+    """Start of the seal-friction coefficient (N/Pa) from the force balance of step tests.
+
+    The seal friction of :data:`~pneumafit.models.structure.EFFECT_SLOTS`
+    ``seal_friction`` adds c (P_P + P_N - 2 P_atm) to the friction levels.
+    On sliding samples (as in :func:`friction_starts`) sign(v) (F_d - M a) =
+    F_c + c (P_P + P_N - 2 P_atm) + b |v| gives c by linear least squares
+    with F_c and b; clipped to [0, 1e-4] (at 1e-4 N/Pa a 25-mm piston would
+    double its friction every 0.1 bar). 0.0 without sliding samples.
+    """
+    s_p, s_n = piston_areas(rig["bore"], rig["rod"])
+    m = rig["moving_mass"]
+    p_e = rig["exhaust_pressure"]
+    f_ext = (
+        p_e * (s_p - s_n)
+        + rig.get("external_force", 0.0)
+        + m * G0 * math.sin(rig.get("mounting_angle", 0.0))
+    )
+    rows: list[NDArray[np.float64]] = []
+    for rec in steps:
+        ch = rec.channels
+        if not all(k in ch for k in ("y", "p_P", "p_N")):
+            continue
+        dt = float(np.median(np.diff(rec.time)))
+        win = max(5, round(0.021 / dt) | 1)
+        if rec.n_samples <= win:
+            continue
+        v = savgol_filter(ch["y"], win, 2, deriv=1, delta=dt)
+        a = savgol_filter(ch["y"], win, 2, deriv=2, delta=dt)
+        f_d = s_p * ch["p_P"] - s_n * ch["p_N"] - f_ext
+        slide = np.abs(v) > 0.02
+        dp = ch["p_P"] + ch["p_N"] - 2.0 * p_e
+        rows.append(
+            np.stack([np.sign(v) * (f_d - m * a), np.ones(v.size), dp, np.abs(v)], axis=1)[slide]
+        )
+    if not rows:
+        return 0.0
+    x = np.concatenate(rows)
+    if x.shape[0] < 10:
+        return 0.0
+    coef, *_ = np.linalg.lstsq(x[:, 1:], x[:, 0], rcond=None)
+    return float(np.clip(coef[1], 0.0, 1e-4))
 
 
 def _bristle_start(sigma0: float, mass: float, zeta: float = 0.3) -> dict[str, float]:

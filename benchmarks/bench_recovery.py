@@ -69,7 +69,14 @@ def _interval(p: Any) -> tuple[float, float] | None:
 
 
 def run_case(
-    preset: str, protocol: str, seed: int, *, valve: str, mcmc: bool, friction: str = "auto"
+    preset: str,
+    protocol: str,
+    seed: int,
+    *,
+    valve: str,
+    mcmc: bool,
+    friction: str = "auto",
+    seal: str = "off",
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.rig.truth import reference_quantities
@@ -82,7 +89,7 @@ def run_case(
         truth_ref = reference_quantities(rig.truth, rig.parameters)
         camp = read_campaign(folder)
         t_rec = time.perf_counter() - t0
-        options = FitOptions(mcmc=mcmc, valve=valve, friction=friction)
+        options = FitOptions(mcmc=mcmc, valve=valve, friction=friction, seal=seal)
         result = identify(camp, "convection", options=options, seed=seed)
     p = result.parameters
     q = result.quality
@@ -95,11 +102,21 @@ def run_case(
         "friction_static": float(truth_ref["friction_static"]),
         "friction_coulomb": float(truth_ref["friction_coulomb"]),
     }
+    # friction with both chambers at mid pressure, as the truth's reference
+    # (metrics.friction_reference: with the seal-friction effect the levels
+    # grow with the pressures; without it they are the parameters)
+    fr = result.metrics.get("friction_reference") or {}
     est = {
         "lambda_reference": (lam.get("value"), lam.get("interval_90")),
-        "friction_static": (p["friction_static"].value, _interval(p["friction_static"])),
-        "friction_coulomb": (p["friction_coulomb"].value, _interval(p["friction_coulomb"])),
-    }
+        "friction_static": (
+            (fr["static"]["value"], fr["static"]["interval_90"]) if fr
+            else (p["friction_static"].value, _interval(p["friction_static"]))
+        ),
+        "friction_coulomb": (
+            (fr["coulomb"]["value"], fr["coulomb"]["interval_90"]) if fr
+            else (p["friction_coulomb"].value, _interval(p["friction_coulomb"]))
+        ),
+    }  # fmt: skip
     figures: dict[str, Any] = {}
     for name, (value, iv) in est.items():
         true = truths[name]
@@ -114,7 +131,8 @@ def run_case(
     }  # fmt: skip
     return {
         "case": preset, "protocol": protocol, "seed": seed, "valve": valve,
-        "friction_law": result.structure.friction,
+        "friction_law": result.structure.friction
+        + ("+seal" if result.structure.effects.get("seal_friction") else ""),
         "record_s": round(t_rec, 1), "fit_s": round(result.seconds, 1),
         "pressure_ratio_fit": ratios["fit"], "pressure_ratio_validate": ratios["validate"],
         "recordings": [c.as_dict() for c in q.channels],
@@ -167,6 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--valve", default="iso6358", choices=("iso6358", "map"))
     ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
+    ap.add_argument("--seal", default="off", choices=("off", "auto", "on"))
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")
@@ -179,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             print(f"{preset}/{protocol}/seed {seed}: recording and fitting ...", file=sys.stderr)
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
-                           friction=args.friction)  # fmt: skip
+                           friction=args.friction, seal=args.seal)  # fmt: skip
             rows.append(row)
             if args.json is not None:  # every finished case kept, also if interrupted
                 _write_atomic(args.json, json.dumps(rows, indent=1, default=float))
@@ -197,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         "control_cases": len(control),
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
-        "friction": args.friction,
+        "friction": args.friction, "seal": args.seal,
         "mcmc": args.mcmc,
         "worst_pressure_ratio": max(ratios, default=math.nan),
         "median_pressure_ratio": float(np.median(ratios)) if ratios else math.nan,

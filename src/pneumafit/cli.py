@@ -502,33 +502,57 @@ def closed_loop(
 @app.command()
 def export(
     fit: Annotated[Path, typer.Argument(help="fit.json or a parameter file.")],
-    format: Annotated[str, typer.Option("--format", help="json, yaml, c or mat.")],
-    out: Annotated[Path, typer.Option("--out", help="File to write.")],
+    format: Annotated[str, typer.Option("--format", help="json, yaml, c, mat, csv or fmu.")],
+    out: Annotated[Path, typer.Option("--out", help="File to write (c: the header, .h).")],
     order: Annotated[int, typer.Option(help="Design model: 4 or 6.")] = 6,
-    w0: Annotated[float, typer.Option(help="ITAE frequency scale (rad/s).")] = 15.0,
+    placement: Annotated[
+        str | None, typer.Option(help="dominant (validated default) or itae.")
+    ] = None,
+    w0: Annotated[
+        float | None,
+        typer.Option(help="ITAE frequency scale (rad/s); default closed-loop's (largest_w0)."),
+    ] = None,
+    compensate: Annotated[
+        bool | None,
+        typer.Option("--compensate/--no-compensate", help="Dead-band compensation (default on)."),
+    ] = None,
+    closed_loop: Annotated[
+        Path | None,
+        typer.Option("--closed-loop", help="closed_loop.json whose design to export."),
+    ] = None,
     positions: PositionsOption = None,
     lambda_e: LambdaOption = None,
 ) -> None:
-    """Export parameters, linear models and the gain schedule for a controller."""
+    """Export the validated controller: parameters, linear models, gain schedule, C code."""
     from pneumafit.models.layout import P
-    from pneumafit.outputs.export import FORMATS, build_export, write_export
-    from pneumafit.parameters_io import read_parameter_details
+    from pneumafit.outputs.export import FORMATS, export_document, write_export
 
+    if format == "fmu":
+        try:
+            from pneumafit.outputs.fmu import build_fmu
+        except ImportError as exc:
+            err_console.print(
+                f"[bold red]error:[/bold red] --format fmu: the FMU exporter "
+                f"(pneumafit.outputs.fmu) is not available in this installation ({exc})"
+            )
+            raise typer.Exit(2) from None
+        written = build_fmu(fit, out)
+        console.print(f"wrote {written}")
+        return
     if format not in FORMATS:
         raise PneumafitInputError(
-            f"option --format: expected one of {', '.join(FORMATS)}, found {format!r}"
+            f"option --format: expected one of {', '.join((*FORMATS, 'fmu'))}, found {format!r}"
         )
-    if order not in (4, 6):
-        raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
-    params, nominal, model, valve = _fit_parameters(fit)
-    _, details = read_parameter_details(fit)
-    ys = _positions(positions, params[P["stroke"]])
-    doc = build_export(details, model=model, source=fit.name, positions=ys, order=order, w0=w0,
-                       lambda_e=lambda_e or nominal, valve=valve)  # fmt: skip
+    params, _, _, _ = _fit_parameters(fit)
+    ys = None if positions is None else _positions(positions, params[P["stroke"]])
+    doc = export_document(fit, order=order, placement=placement, w0=w0, compensate=compensate,
+                          positions=ys, lambda_e=lambda_e, closed_loop=closed_loop)  # fmt: skip
     write_export(doc, out, format)
+    extra = " and " + str(out.with_suffix(".c")) if format == "c" else ""
     console.print(
-        f"wrote {out}: {len(doc['grid']['positions'])} positions, order {order}"
-        + (f" ({len(doc['skipped'])} positions without equilibrium)" if doc["skipped"] else "")
+        f"wrote {out}{extra}: {doc['design']['description']}; "
+        f"{len(doc['grid']['positions'])} breakpoints"
+        + (f" ({len(doc['skipped'])} positions left out)" if doc["skipped"] else "")
     )
 
 

@@ -48,7 +48,7 @@ def compile_controller(source: str | os.PathLike[str], library: str | os.PathLik
     cc = compiler or find_compiler()
     if cc is None:
         raise RuntimeError("no C compiler found (set CC, or install cc/gcc/clang)")
-    src, lib = Path(source), Path(library)
+    src, lib = Path(source).resolve(), Path(library).resolve()
     cmd = [cc, *C_FLAGS, "-o", str(lib), str(src), "-lm"]
     res = subprocess.run(cmd, capture_output=True, text=True, cwd=src.parent)
     if res.returncode != 0:
@@ -167,3 +167,35 @@ def software_in_the_loop(
         "steps_m": [float(s) for s in steps],
         "hold_s": hold,
     }
+
+
+def sil_from_closed_loop(
+    document: Mapping, header: str | os.PathLike[str], closed_loop: str | os.PathLike[str]
+) -> dict:
+    """:func:`software_in_the_loop` on the plant and step test of a closed-loop run.
+
+    ``closed_loop`` is the run's ``closed_loop.json``: its inputs name the
+    plant file (a plant whose heat law is not convection runs as the
+    convection model with its values, as the closed-loop stage does), the
+    position, the steps and the hold. Returns the SIL document (format
+    ``pneumafit-sil`` version 1) with those inputs.
+    """
+    import dataclasses
+    import json
+
+    from pneumafit.analysis.closed_loop import read_plant_file
+    from pneumafit.models import parameter_vector
+    from pneumafit.models.structure import get_structure
+
+    inputs = json.loads(Path(closed_loop).read_text(encoding="utf-8"))["inputs"]
+    structure, values = read_plant_file(inputs["plant"])
+    if structure.heat != "convection":
+        structure = dataclasses.replace(get_structure("convection"), valve=structure.valve)
+    result = software_in_the_loop(
+        document, header, parameter_vector(values), plant=structure,
+        y_mid=float(inputs["position_m"]), steps=[float(s) for s in inputs["steps_m"]],
+        hold=float(inputs["hold_s"]),
+    )  # fmt: skip
+    return {"format": "pneumafit-sil", "version": 1, "run": True,
+            "plant": str(inputs["plant"]), "design": document["design"]["description"],
+            **result}  # fmt: skip

@@ -223,6 +223,99 @@ def build_export(
     )
 
 
+def export_document(
+    fit: str | os.PathLike[str],
+    *,
+    order: int = 6,
+    placement: str | None = None,
+    w0: float | None = None,
+    compensate: bool | None = None,
+    positions: Sequence[float] | None = None,
+    lambda_e: float | None = None,
+    umax: float | None = None,
+    position: float | None = None,
+    step: float = 0.03,
+    closed_loop: str | os.PathLike[str] | None = None,
+) -> dict:
+    """The export document of a fit.json or parameter file.
+
+    By default the design is the one ``pneumafit closed-loop`` runs with its
+    defaults: dominant placement, dead-band compensation, w0 from
+    :func:`pneumafit.analysis.closed_loop.largest_w0` (orders 4 and 6, a
+    ``step`` m step within 90 % of ``umax``), at half stroke. ``closed_loop``
+    (a ``closed_loop.json``) takes w0, placement, compensation, lambda_e,
+    umax and the position from what that run used. Any option given
+    explicitly overrides; the document's ``design.validated`` says whether
+    the result is still the closed-loop stage's design.
+
+    Raises
+    ------
+    PneumafitInputError
+        Bad option values or an unreadable closed_loop.json.
+    """
+    from pneumafit.analysis.closed_loop import PLACEMENTS, largest_w0
+    from pneumafit.campaign.errors import PneumafitInputError
+    from pneumafit.models.layout import P
+    from pneumafit.parameters_io import read_parameter_details, read_valve_law
+
+    if order not in (4, 6):
+        raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
+    if placement is not None and placement not in PLACEMENTS:
+        raise PneumafitInputError(
+            f"option --placement: expected one of {', '.join(PLACEMENTS)}, found {placement!r}"
+        )
+    if w0 is not None and not w0 > 0:
+        raise PneumafitInputError(f"option --w0: expected a positive frequency, found {w0}")
+    model, details = read_parameter_details(fit)
+    valve = read_valve_law(fit)
+    vec = parameter_vector({k: v["value"] for k, v in details.items()})
+    stroke = float(vec[P["stroke"]])
+    nominal = details["lambda"]["value"] if model == "constant-lambda" and "lambda" in details \
+        else 15.0  # fmt: skip
+    ran: dict = {}
+    if closed_loop is not None:
+        try:
+            ran = json.loads(Path(closed_loop).read_text(encoding="utf-8"))["inputs"]
+            ran_w0 = float(ran["w0_rad_s"])
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise PneumafitInputError(
+                f"{closed_loop}: expected a closed_loop.json with inputs.w0_rad_s, found {exc}"
+            ) from None
+    defaults = {"placement": ran.get("placement", "dominant"),
+                "compensate": ran.get("compensate", True),
+                "lambda_e": ran.get("lambda_e", nominal), "umax": ran.get("umax_V", 10.0),
+                "position": ran.get("position_m", 0.5 * stroke)}  # fmt: skip
+    placement = defaults["placement"] if placement is None else placement
+    compensate = defaults["compensate"] if compensate is None else compensate
+    umax = defaults["umax"] if umax is None else umax
+    lam = lambda_e if lambda_e is not None else defaults["lambda_e"]
+    y_mid = position if position is not None else defaults["position"]
+    grid = np.linspace(0.02, 0.98, 25) * stroke if positions is None else positions
+    if w0 is None and ran:
+        w0, rule = ran_w0, f"the closed-loop run's ({closed_loop})"
+    elif w0 is None:
+        w0 = largest_w0(vec, y_mid, step, umax=umax, lambda_e=lam, compensate=compensate,
+                        placement=placement, valve=valve)  # fmt: skip
+        rule = (
+            f"largest_w0: the largest w0 whose order-4 and order-6 designs keep a "
+            f"{step * 1e3:g} mm step within 90 % of {umax:g} V, as pneumafit closed-loop"
+        )
+    else:
+        rule = "given (--w0)"
+    reference_w0 = ran_w0 if ran else (w0 if rule.startswith("largest_w0") else None)
+    validated = (
+        reference_w0 is not None and w0 == reference_w0 and placement == defaults["placement"]
+        and compensate == defaults["compensate"] and lam == defaults["lambda_e"]
+        and umax == defaults["umax"] and y_mid == defaults["position"]
+    )  # fmt: skip
+    return build_export(
+        details, model=model, source=Path(fit).name, positions=np.asarray(grid, dtype=float),
+        order=order, w0=float(w0), lambda_e=lam, valve=valve, placement=placement,
+        compensate=compensate, umax=umax, operating_position=y_mid, w0_rule=rule,
+        validated=validated,
+    )  # fmt: skip
+
+
 def _plain(value):
     """Plain Python values (no numpy scalars), so every encoder accepts them."""
     if isinstance(value, dict):
@@ -524,5 +617,5 @@ def read_export(path: str | os.PathLike[str]) -> dict:
     return doc
 
 
-__all__ = ["FORMATS", "VERSION", "build_export", "c_source_path", "mat_variables",
-           "read_export", "with_operating_position", "write_export"]  # fmt: skip
+__all__ = ["FORMATS", "VERSION", "build_export", "c_source_path", "export_document",
+           "mat_variables", "read_export", "with_operating_position", "write_export"]  # fmt: skip

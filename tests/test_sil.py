@@ -136,3 +136,22 @@ def test_sampled_run_of_the_law_reports_figures(exported):
     i = 700
     state = [run.channels[c][i] for c in ("y", "v", "p_N", "p_P", "T_N", "T_P")]
     assert run.channels["u_P"][i] == law(state, run.y_ref[i])
+
+
+@needs_cc
+def test_export_command_runs_the_c_code_in_the_loop(tmp_path):
+    """``pneumafit export --format c --sil``: compiled, run, sil.json written."""
+    import json
+    import subprocess
+    import sys
+
+    params = tmp_path / "p.json"
+    params.write_text('{"model": "convection", "parameters": {"rod": "20 mm"}}')
+    res = subprocess.run([sys.executable, "-m", "pneumafit.cli", "export", str(params), "--format",
+                          "c", "--out", str(tmp_path / "controller.h"), "--w0", "15",
+                          "--positions", "100,400 mm", "--sil"],
+                         capture_output=True, text=True)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    sil = json.loads((tmp_path / "sil.json").read_text())
+    assert sil["max_command_difference_V"] <= 1e-9 and sil["identical_figures"]
+    assert len(sil["c"]["steps"]) == 4 and "largest command difference" in res.stdout

@@ -522,6 +522,10 @@ def export(
     ] = None,
     positions: PositionsOption = None,
     lambda_e: LambdaOption = None,
+    sil: Annotated[
+        bool,
+        typer.Option("--sil", help="c: compile controller.c and run it in the loop (sil.json)."),
+    ] = False,
 ) -> None:
     """Export the validated controller: parameters, linear models, gain schedule, C code."""
     from pneumafit.models.layout import P
@@ -554,6 +558,44 @@ def export(
         f"{len(doc['grid']['positions'])} breakpoints"
         + (f" ({len(doc['skipped'])} positions left out)" if doc["skipped"] else "")
     )
+    if not sil:
+        return
+    if format != "c":
+        raise PneumafitInputError("option --sil: runs the C controller; use it with --format c")
+    import json
+
+    from pneumafit.fileio import write_text_atomic
+    from pneumafit.outputs.c_controller import sil_for_fit
+
+    try:
+        result = sil_for_fit(doc, out, fit, closed_loop=closed_loop)
+    except RuntimeError as exc:  # no compiler, or the code does not compile
+        err_console.print(f"[bold red]error:[/bold red] --sil: {exc}")
+        raise typer.Exit(1) from None
+    write_text_atomic(out.with_name("sil.json"), json.dumps(result, indent=2) + "\n")
+    table = Table(title="software in the loop: Python law / compiled controller.c")
+    for column in ("step", "overshoot", "settling", "final error", "air"):
+        table.add_column(column, justify="right")
+
+    def pair(p: dict, c: dict, key: str, scale: float, spec: str, unit: str) -> str:
+        both = [("-" if r.get(key) is None else f"{r[key] * scale:{spec}}") for r in (p, c)]
+        return f"{both[0]} / {both[1]} {unit}"
+
+    for p, c in zip(result["python"]["steps"], result["c"]["steps"], strict=True):
+        table.add_row(
+            f"{p['size_m'] * 1e3:+.1f} mm", pair(p, c, "overshoot_m", 1e3, ".2f", "mm"),
+            pair(p, c, "settling_time_s", 1.0, ".3f", "s"),
+            pair(p, c, "final_error_m", 1e3, "+.3f", "mm"),
+            pair(p, c, "air_mass_kg", 1e6, ".1f", "mg"),
+        )  # fmt: skip
+    console.print(table)
+    console.print(
+        f"largest command difference {result['max_command_difference_V']} V over "
+        f"{result['samples']} samples; figures identical: {result['identical_figures']}; "
+        f"wrote {out.with_name('sil.json')}"
+    )
+    if not result["identical_figures"]:
+        raise typer.Exit(1)
 
 
 def main() -> None:

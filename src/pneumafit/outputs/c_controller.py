@@ -199,3 +199,38 @@ def sil_from_closed_loop(
     return {"format": "pneumafit-sil", "version": 1, "run": True,
             "plant": str(inputs["plant"]), "design": document["design"]["description"],
             **result}  # fmt: skip
+
+
+def sil_for_fit(
+    document: Mapping,
+    header: str | os.PathLike[str],
+    fit: str | os.PathLike[str],
+    *,
+    closed_loop: str | os.PathLike[str] | None = None,
+    steps: Sequence[float] = (0.03, 0.0, -0.03, 0.0),
+    hold: float = 2.5,
+) -> dict:
+    """Software in the loop for ``pneumafit export --sil``.
+
+    With ``closed_loop`` (a ``closed_loop.json``), that run's plant and steps
+    (:func:`sil_from_closed_loop`); otherwise the fit itself as the plant (as
+    ``pneumafit closed-loop`` without ``--plant``) and the closed-loop
+    stage's default steps from the export's design position.
+    """
+    import dataclasses
+
+    from pneumafit.analysis.closed_loop import read_plant_file
+    from pneumafit.models import parameter_vector
+    from pneumafit.models.structure import get_structure
+
+    if closed_loop is not None:
+        return sil_from_closed_loop(document, header, closed_loop)
+    structure, values = read_plant_file(fit)
+    if structure.heat != "convection":
+        structure = dataclasses.replace(get_structure("convection"), valve=structure.valve)
+    result = software_in_the_loop(
+        document, header, parameter_vector(values), plant=structure,
+        y_mid=float(document["design"]["operating_position"]), steps=steps, hold=hold,
+    )  # fmt: skip
+    return {"format": "pneumafit-sil", "version": 1, "run": True, "plant": str(fit),
+            "design": document["design"]["description"], **result}  # fmt: skip

@@ -12,6 +12,7 @@ integration step from choose_step), largest differences over the 4 s:
     convection-lugre       0.458 ms  0.0030 Pa  0.00031 um  6e-7 K
     polytropic-switch      0.585 ms  0.0065 Pa  0.00039 um
     constant-lambda-lugre  0.585 ms  0.0084 Pa  0.00047 um  1.4e-6 K
+    convection-effects     0.585 ms  0.0038 Pa  0.00036 um  7.1e-7 K  (all seven effects)
 
 (the C code is the kernel's arithmetic; what is left is rounding, numba
 fusing multiply-adds where gcc does not); 0.0005 Pa with Sutherland air.
@@ -77,6 +78,27 @@ PLANTS = {
         "model": "constant-lambda",
         "friction": "lugre",
         "parameters": {"lambda": "20 W/m^2/K"},
+    },
+    "convection-effects": {
+        "model": "convection",
+        "effects": {
+            "chamber_leakage": 1,
+            "external_leakage": 1,
+            "valve_dynamics": 1,
+            "wall_thermal_mass": 1,
+            "forced_convection": 1,
+            "supply_pressure_drop": 1,
+            "seal_friction": 1,
+        },
+        "parameters": {
+            "chamber_leak_conductance": 2e-10,
+            "external_leak_conductance": 1e-10,
+            "valve_time_constant": "5 ms",
+            "wall_heat_capacity": 2000.0,
+            "forced_convection_gain": 2000.0,
+            "supply_line_resistance": 2e7,
+            "seal_friction_coefficient": 2e-5,
+        },
     },
 }
 
@@ -271,16 +293,15 @@ def test_model_description_carries_fitted_values_and_units(plants):
     _, poly = plants["polytropic-switch"]
     names = {v.name for v in fmpy.read_model_description(str(poly)).modelVariables}
     assert "k" in names and "xi" not in names and "T_P_start" not in names
-    assert "z_f" not in names
+    assert "z_f" not in names and "Tw_P" not in names
+
+    _, effects = plants["convection-effects"]
+    names = {v.name for v in fmpy.read_model_description(str(effects)).modelVariables}
+    assert {"Tw_N", "Tw_P", "us_N", "us_P", "seal_friction_coefficient"} <= names
+    assert "valve_time_constant" in names and "valve_natural_frequency" not in names
 
 
 def test_unsupported_structures_are_refused(tmp_path):
-    params = tmp_path / "leaky.json"
-    params.write_text(
-        json.dumps({"model": "convection", "effects": {"chamber_leakage": 1}}), encoding="utf-8"
-    )
-    with pytest.raises(PneumafitInputError, match="optional effects chamber_leakage"):
-        build_fmu(params, tmp_path / "leaky.fmu")
     fit = tmp_path / "fit.json"
     fit.write_text(
         json.dumps({"format": "pneumafit-fit", "model": "convection",
@@ -307,3 +328,19 @@ def test_no_compiler_says_so(tmp_path, monkeypatch):
         build_fmu(params, tmp_path / "plant.fmu")
     assert not (tmp_path / "plant.fmu").exists()
     assert issubclass(FmuBuildError, PneumafitInputError)
+
+
+def test_fit_json_keeps_the_fitted_air_properties(tmp_path):
+    # a convection fit is made with Sutherland air (identification.staged.fit_structure)
+    fit = tmp_path / "fit.json"
+    document = {
+        "format": "pneumafit-fit",
+        "model": "convection",
+        "structure": {"heat": "convection", "air_properties": "sutherland", "valve": "iso6358",
+                      "friction": "switch", "effects": {}},
+        "parameters": {"xi": {"value": 0.38, "unit": ""}, "bore": {"value": 0.032, "unit": "m"}},
+    }  # fmt: skip
+    fit.write_text(json.dumps(document), encoding="utf-8")
+    md = fmpy.read_model_description(str(build_fmu(fit, tmp_path / "plant.fmu")))
+    assert "air properties sutherland" in md.description
+    assert float(next(v.start for v in md.modelVariables if v.name == "xi")) == 0.38

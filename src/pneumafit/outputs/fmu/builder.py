@@ -14,8 +14,10 @@ system's C compiler and ``sources/`` (a tool with a compiler can rebuild it).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import hashlib
+import json
 import math
 import os
 import shlex
@@ -46,8 +48,8 @@ from pneumafit.models.layout import (
     P,
 )
 from pneumafit.models.structure import (
+    EFFECT_SLOTS,
     FRICTION_PARAMETERS,
-    HEAT_PARAMETERS,
     VALVE_PARAMETERS,
     ModelStructure,
 )
@@ -80,7 +82,8 @@ FMU_INPUTS = (
     ("u_N", "V", "command of the servo-valve of chamber N (positive: to supply)"),
 )
 
-#: Outputs (name, unit, description); z_f only with the LuGre law.
+#: Outputs (name, unit, description); z_f only with the LuGre law, Tw_* with the
+#: wall_thermal_mass effect, us_* with valve_dynamics (value reference 10 + index).
 _OUTPUTS = (
     ("y", "m", "piston position (0 retracted, chamber P smallest)"),
     ("v", "m/s", "piston velocity"),
@@ -96,6 +99,10 @@ _OUTPUTS = (
     ("m_exhaust", "kg", "air mass sent to exhaust since the start"),
     ("F_f", "N", "friction force (positive towards smaller y)"),
     ("z_f", "m", "LuGre bristle deflection"),
+    ("Tw_N", "K", "wall temperature of chamber N"),
+    ("Tw_P", "K", "wall temperature of chamber P"),
+    ("us_N", "V", "effective spool command of the valve of chamber N"),
+    ("us_P", "V", "effective spool command of the valve of chamber P"),
 )
 
 #: States whose start value is a parameter of the FMU (T only with heat states).
@@ -145,7 +152,8 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
 
     Supported: the ISO 6358 valve law, the switch and LuGre friction laws,
     the polytropic, constant-lambda and convection heat laws (air properties
-    constant or by Sutherland's law), no optional effects.
+    constant or by Sutherland's law) and every optional effect of
+    :data:`pneumafit.models.structure.EFFECT_SLOTS`.
     """
     problems = []
     if structure.valve != "iso6358":
@@ -153,9 +161,6 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
             f"valve law {structure.valve!r} (the FMU has the ISO 6358 law only; refit with "
             "--valve iso6358)"
         )
-    if structure.effects:
-        names = ", ".join(sorted(structure.effects))
-        problems.append(f"optional effects {names} (the FMU has none of the effects yet)")
     if structure.heat not in HEAT_LAWS:
         problems.append(f"heat law {structure.heat!r}")
     if structure.friction not in FRICTION_LAWS:
@@ -165,13 +170,13 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
             f"{where}: cannot export this structure as an FMU: unsupported "
             + "; ".join(problems)
             + ". Supported: valve iso6358, friction switch or lugre, heat polytropic, "
-            "constant-lambda or convection, no effects"
+            "constant-lambda or convection, any of the optional effects"
         )
 
 
 def _exposed_parameters(structure: ModelStructure) -> list[str]:
     used = set(VALVE_PARAMETERS[structure.valve])
-    used |= set(HEAT_PARAMETERS[structure.heat])
+    used |= set(structure.parameter_names)  # the heat law's and the effects' parameters
     used |= set(FRICTION_PARAMETERS[structure.friction])
     used |= {n for n in PARAMETER_NAMES if SPECS[n].group in _ALWAYS_GROUPS}
     return [n for n in PARAMETER_NAMES if n in used]
@@ -200,9 +205,9 @@ def fmu_variables(
         FmuVariable(name, VR_INPUT[name], "input", unit, 0.0, text)
         for name, unit, text in FMU_INPUTS
     ]
-    outputs = [o for o in _OUTPUTS if o[0] != "z_f" or structure.friction == "lugre"]
-    for i, (name, unit, text) in enumerate(outputs):
-        variables.append(FmuVariable(name, VR_OUTPUT_BASE + i, "output", unit, None, text))
+    for i, (name, unit, text) in enumerate(_OUTPUTS):
+        if name in structure.state_names or name not in STATE_NAMES[8:]:
+            variables.append(FmuVariable(name, VR_OUTPUT_BASE + i, "output", unit, None, text))
     for name, value in _start_values(structure, vec).items():
         index = STATE_NAMES.index(name)
         variables.append(
@@ -286,7 +291,10 @@ def model_description(
             "guid": guid,
             "description": (
                 f"double-acting pneumatic cylinder, two ISO 6358 servo-valves, heat law "
-                f"{structure.heat}, friction law {structure.friction}; parameters from {source}"
+                f"{structure.heat} (air properties {structure.air_properties}), friction law "
+                f"{structure.friction}"
+                + (f", effects {', '.join(sorted(structure.effects))}" if structure.effects else "")
+                + f"; parameters from {source}"
             ),
             "generationTool": "pneumafit",
             "generationDateAndTime": datetime.datetime.now(datetime.UTC).strftime(
@@ -391,6 +399,10 @@ def config_header(structure: ModelStructure) -> str:
         f"#define PF_HEAT {HEAT_LAWS[structure.heat]} /* {structure.heat} */",
         f"#define PF_LUGRE {1 if structure.friction == 'lugre' else 0} /* {structure.friction} */",
         f"#define PF_SUTHERLAND {1 if structure.air_properties == 'sutherland' else 0}",
+        *(
+            f"#define PF_EFFECT_{name.upper()} {int(structure.effects.get(name, 0))}"
+            for name in EFFECT_SLOTS
+        ),
         "",
         "/* state indices (layout.STATE_NAMES) */",
     ]
@@ -515,7 +527,7 @@ def write_fmu(
     ----------
     structure : ModelStructure
         Supported: ISO 6358 valves, switch or LuGre friction, any of the
-        three heat laws, no optional effects (:func:`check_structure`).
+        three heat laws, the optional effects (:func:`check_structure`).
     values : mapping of str to float, or ndarray (NP,)
         SI parameter values by name (defaults for the rest), or a full vector.
     out : path
@@ -574,7 +586,7 @@ def write_fmu(
     identifier = _model_identifier(structure)
     variables = fmu_variables(structure, vec, float(integration_step))
     digest = hashlib.sha256()
-    digest.update(structure.name.encode() + structure.friction.encode())
+    digest.update(f"{structure!r}".encode())
     digest.update(np.ascontiguousarray(vec).tobytes())
     digest.update(repr(float(integration_step)).encode())
     guid = "{" + str(uuid.UUID(bytes=digest.digest()[:16])) + "}"
@@ -630,11 +642,27 @@ def build_fmu(fit_path: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
     ------
     PneumafitInputError
         Unreadable file, bad entries, or a structure the FMU does not support
-        (valve map, optional effects).
+        (the measured valve map).
     FmuBuildError
         "cannot build the FMU: no C compiler found (...)", or the compiler failed.
     """
     from pneumafit.analysis.closed_loop import read_plant_file
 
     structure, values = read_plant_file(fit_path)
+    air = _fitted_air_properties(fit_path)
+    if air is not None and structure.heat == "convection" and air != structure.air_properties:
+        # a convection fit is made with Sutherland air (identification.staged.fit_structure);
+        # the plant reader keeps the registered structure's constant air properties
+        structure = dataclasses.replace(structure, air_properties=air)
     return write_fmu(structure, values, out, source=str(fit_path))
+
+
+def _fitted_air_properties(path: str | os.PathLike[str]) -> str | None:
+    """``structure.air_properties`` of a fit.json (None for a parameter file)."""
+    try:
+        document = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    spec = document.get("structure") if isinstance(document, dict) else None
+    air = spec.get("air_properties") if isinstance(spec, dict) else None
+    return air if air in ("constant", "sutherland") else None

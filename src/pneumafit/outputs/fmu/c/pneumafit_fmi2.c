@@ -63,6 +63,13 @@ static void set_defaults(pf_data *d)
     d->model.heat = PF_HEAT;
     d->model.lugre = PF_LUGRE;
     d->model.sutherland = PF_SUTHERLAND;
+    d->model.chamber_leak = PF_EFFECT_CHAMBER_LEAKAGE;
+    d->model.external_leak = PF_EFFECT_EXTERNAL_LEAKAGE;
+    d->model.valve_order = PF_EFFECT_VALVE_DYNAMICS;
+    d->model.wall_mass = PF_EFFECT_WALL_THERMAL_MASS;
+    d->model.forced_conv = PF_EFFECT_FORCED_CONVECTION;
+    d->model.supply_drop = PF_EFFECT_SUPPLY_PRESSURE_DROP;
+    d->model.seal = PF_EFFECT_SEAL_FRICTION;
     for (i = 0; i < PF_NP; i++) d->model.p[i] = PF_PARAMETER_VALUES[i];
     for (i = 0; i < PF_NX; i++) d->x0[i] = NAN;
     pf_start_defaults(d->x0);
@@ -239,6 +246,10 @@ static int output_value(pf_instance *inst, fmi2ValueReference vr, double *value)
     case PF_VR_m_supply: state_index = PF_X_m_supply; break;
     case PF_VR_m_exhaust: state_index = PF_X_m_exhaust; break;
     case PF_VR_z_f: state_index = PF_X_z_f; break;
+    case PF_VR_Tw_N: state_index = PF_X_Tw_N; break;
+    case PF_VR_Tw_P: state_index = PF_X_Tw_P; break;
+    case PF_VR_us_N: state_index = PF_X_us_N; break;
+    case PF_VR_us_P: state_index = PF_X_us_P; break;
     case PF_VR_qm_N: update_aux(inst); *value = inst->aux[PF_A_QN]; return 1;
     case PF_VR_qm_P: update_aux(inst); *value = inst->aux[PF_A_QP]; return 1;
     case PF_VR_lambda_N: update_aux(inst); *value = inst->aux[PF_A_LAMN]; return 1;
@@ -254,7 +265,8 @@ static int output_value(pf_instance *inst, fmi2ValueReference vr, double *value)
         if (!isfinite(v)) {
             if (state_index == PF_X_p_N || state_index == PF_X_p_P)
                 v = inst->d.model.p[PF_P_exhaust_pressure];
-            else if (state_index == PF_X_T_N || state_index == PF_X_T_P)
+            else if (state_index == PF_X_T_N || state_index == PF_X_T_P ||
+                     state_index == PF_X_Tw_N || state_index == PF_X_Tw_P)
                 v = inst->d.model.p[PF_P_wall_temperature];
             else
                 v = 0.0;

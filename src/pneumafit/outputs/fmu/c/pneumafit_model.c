@@ -25,7 +25,7 @@ static double conductivity(double t) /* physics.air.conductivity (Sutherland) */
 
 /* --------------------------------------------------------------- checks */
 
-int pf_check_parameters(const double *p) /* kernel.check_parameters (ISO valve part) */
+int pf_check_parameters(const double *p) /* kernel.check_parameters, ISO valve part */
 {
     int i;
     for (i = 0; i < PF_NP; i++) {
@@ -54,7 +54,10 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters (ISO valve p
     if (p[PF_P_friction_static] < p[PF_P_friction_coulomb] || p[PF_P_friction_coulomb] < 0.0 ||
         p[PF_P_friction_viscous] < 0.0 || p[PF_P_stribeck_velocity] <= 0.0)
         return 0;
-    if (p[PF_P_characteristic_length] <= 0.0) return 0;
+    if (p[PF_P_characteristic_length] <= 0.0 || p[PF_P_chamber_leak_conductance] < 0.0 ||
+        p[PF_P_external_leak_conductance] < 0.0 || p[PF_P_valve_time_constant] < 0.0)
+        return 0;
+    if (p[PF_P_wall_heat_capacity] <= 0.0) return 0;
     if (p[PF_P_stop_stiffness] < 0.0 || p[PF_P_stop_damping] < 0.0) return 0;
     if (p[PF_P_friction_stiffness] <= 0.0 || p[PF_P_friction_damping] < 0.0) return 0;
     return 1;
@@ -273,56 +276,154 @@ static double end_stop_force(double y, double v, double stroke, double k, double
 
 /* ---------------------------------------------------------------- rhs */
 
-void pf_rhs(const pf_model *m, const double *x, int mode, double u_p, double u_n, double *dx,
-            double *aux)
-{ /* kernel.rhs, moving piston, no optional effects */
+void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double u_n_cmd,
+            double *dx, double *aux)
+{ /* kernel.rhs, moving piston, with the optional effects */
     const double *p = m->p;
-    int i;
+    int i, heat = m->heat, order = m->valve_order;
     double y = x[PF_X_y], v = x[PF_X_v], p_n = x[PF_X_p_N], p_p = x[PF_X_p_P];
     double t_n = x[PF_X_T_N], t_p = x[PF_X_T_P];
+    double t_amb = p[PF_P_ambient_temperature], p_e = p[PF_P_exhaust_pressure];
+    double u_p, u_n, tau, wn, z2;
     double s_p = m->s_p, s_n = m->s_n, stroke = p[PF_P_stroke];
-    double v_p = p[PF_P_dead_volume_P] + s_p * y;
-    double v_n = p[PF_P_dead_volume_N] + s_n * (stroke - y);
-    double dv_p = s_p * v, dv_n = -s_n * v;
-    double inv_pp = 1.0 / p_p, inv_pn = 1.0 / p_n;
-    double rt_p = sqrt(PF_T_REF / t_p), rt_n = sqrt(PF_T_REF / t_n);
-    double p_s = p[PF_P_supply_pressure];
-    double q_p, h_p, qs_p, q_n, h_n, qs_n, qe_total;
-    double tw = p[PF_P_wall_temperature], lam_p, lam_n, a_p, a_n, qw_p, qw_n;
-    double dp_p, dt_p, dp_n, dt_n, f_stop, f_drive, f_s, f_c, f_f, dz;
+    double v_p, v_n, dv_p, dv_n, inv_pp, inv_pn, rt_p, rt_n, p_s, inv_ps;
+    double q_p, h_p, qs_p, q_n, h_n, qs_n, qe_total, q_draw, q_l, t_l, q_l2, t_l2;
+    double tw_p, tw_n, lam_p, lam_n, a_p, a_n, qw_p, qw_n, c_w, h_o, t_0, k_poly;
+    double dp_p, dt_p, dp_n, dt_n, f_stop, f_drive, f_s, f_c, f_f, dz, extra;
 
-    for (i = 8; i < PF_NX; i++) dx[i] = 0.0;
+    if (!m->wall_mass && order == 0) {
+        for (i = 8; i < PF_NX; i++) dx[i] = 0.0;
+    }
 
-    valve_flows(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, m->inv_ps, &q_p, &h_p, &qs_p);
-    valve_flows(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, m->inv_ps, &q_n, &h_n, &qs_n);
+    /* valve commands: static, or spool dynamics (effect valve_dynamics) */
+    if (order < 2) {
+        dx[PF_X_dus_P] = 0.0;
+        dx[PF_X_dus_N] = 0.0;
+    }
+    if (order == 0) {
+        dx[PF_X_us_P] = 0.0;
+        dx[PF_X_us_N] = 0.0;
+        u_p = u_p_cmd;
+        u_n = u_n_cmd;
+    } else {
+        u_p = x[PF_X_us_P];
+        u_n = x[PF_X_us_N];
+        if (order == 1) {
+            tau = p[PF_P_valve_time_constant];
+            dx[PF_X_us_P] = (u_p_cmd - u_p) / tau;
+            dx[PF_X_us_N] = (u_n_cmd - u_n) / tau;
+        } else {
+            wn = p[PF_P_valve_natural_frequency];
+            z2 = 2.0 * p[PF_P_valve_damping_ratio] * wn;
+            dx[PF_X_us_P] = x[PF_X_dus_P];
+            dx[PF_X_us_N] = x[PF_X_dus_N];
+            dx[PF_X_dus_P] = wn * wn * (u_p_cmd - u_p) - z2 * x[PF_X_dus_P];
+            dx[PF_X_dus_N] = wn * wn * (u_n_cmd - u_n) - z2 * x[PF_X_dus_N];
+        }
+    }
+
+    /* geometry */
+    v_p = p[PF_P_dead_volume_P] + s_p * y;
+    v_n = p[PF_P_dead_volume_N] + s_n * (stroke - y);
+    dv_p = s_p * v;
+    dv_n = -s_n * v;
+
+    /* valve flows (ISO 6358), optional supply-line pressure drop */
+    inv_pp = 1.0 / p_p;
+    inv_pn = 1.0 / p_n;
+    rt_p = sqrt(PF_T_REF / t_p);
+    rt_n = sqrt(PF_T_REF / t_n);
+    p_s = p[PF_P_supply_pressure];
+    inv_ps = m->inv_ps;
+    valve_flows(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, &q_p, &h_p, &qs_p);
+    valve_flows(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, &q_n, &h_n, &qs_n);
+    if (m->supply_drop) {
+        q_draw = qs_p + qs_n;
+        if (q_draw < 0.0) q_draw = 0.0;
+        p_s = p_s - p[PF_P_supply_line_resistance] * q_draw;
+        if (p_s < p_e) p_s = p_e;
+        inv_ps = 1.0 / p_s;
+        valve_flows(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, &q_p, &h_p, &qs_p);
+        valve_flows(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, &q_n, &h_n, &qs_n);
+    }
     qe_total = (qs_p - q_p) + (qs_n - q_n);
     aux[PF_A_QN] = q_n;
     aux[PF_A_QP] = q_p;
     aux[PF_A_UN] = u_n;
     aux[PF_A_UP] = u_p;
 
-    lam_p = heat_coefficient(m, p_p, t_p, tw);
-    lam_n = heat_coefficient(m, p_n, t_n, tw);
+    /* leakages (effects) */
+    if (m->chamber_leak) {
+        q_l = p[PF_P_chamber_leak_conductance] * (p_p - p_n);
+        t_l = q_l > 0.0 ? t_p : t_n;
+        q_p -= q_l;
+        h_p -= q_l * t_l;
+        q_n += q_l;
+        h_n += q_l * t_l;
+    }
+    if (m->external_leak) {
+        q_l = p[PF_P_external_leak_conductance] * (p_p - p_e);
+        t_l = q_l > 0.0 ? t_p : t_amb;
+        q_p -= q_l;
+        h_p -= q_l * t_l;
+        q_l2 = p[PF_P_external_leak_conductance] * (p_n - p_e);
+        t_l2 = q_l2 > 0.0 ? t_n : t_amb;
+        q_n -= q_l2;
+        h_n -= q_l2 * t_l2;
+        qe_total += q_l + q_l2;
+    }
+
+    /* wall heat exchange (paper eqs. 6-8) */
+    if (m->wall_mass) {
+        tw_p = x[PF_X_Tw_P];
+        tw_n = x[PF_X_Tw_N];
+    } else {
+        tw_p = p[PF_P_wall_temperature];
+        tw_n = p[PF_P_wall_temperature];
+    }
+    lam_p = heat_coefficient(m, p_p, t_p, tw_p);
+    lam_n = heat_coefficient(m, p_n, t_n, tw_n);
+    if (m->forced_conv && heat != 0) {
+        if (qs_p > 0.0) lam_p += p[PF_P_forced_convection_gain] * qs_p;
+        if (qs_n > 0.0) lam_n += p[PF_P_forced_convection_gain] * qs_n;
+    }
     a_p = m->a0p + m->cap * y;
     a_n = m->a0n + m->can * (stroke - y);
-    qw_p = lam_p * a_p * (tw - t_p);
-    qw_n = lam_n * a_n * (tw - t_n);
+    qw_p = lam_p * a_p * (tw_p - t_p);
+    qw_n = lam_n * a_n * (tw_n - t_n);
     aux[PF_A_LAMN] = lam_n;
     aux[PF_A_LAMP] = lam_p;
+    dx[PF_X_Tw_P] = 0.0;
+    dx[PF_X_Tw_N] = 0.0;
+    if (m->wall_mass) {
+        c_w = p[PF_P_wall_heat_capacity];
+        h_o = p[PF_P_wall_outer_coefficient];
+        dx[PF_X_Tw_P] = (lam_p * (t_p - tw_p) + h_o * (t_amb - tw_p)) / c_w;
+        dx[PF_X_Tw_N] = (lam_n * (t_n - tw_n) + h_o * (t_amb - tw_n)) / c_w;
+    }
 
-    chamber_rates(m->heat, p[PF_P_k], tw, p_p, inv_pp, t_p, v_p, dv_p, q_p, h_p, qw_p, &dp_p,
-                  &dt_p);
-    chamber_rates(m->heat, p[PF_P_k], tw, p_n, inv_pn, t_n, v_n, dv_n, q_n, h_n, qw_n, &dp_n,
-                  &dt_n);
+    /* chambers */
+    t_0 = p[PF_P_wall_temperature];
+    k_poly = p[PF_P_k];
+    chamber_rates(heat, k_poly, t_0, p_p, inv_pp, t_p, v_p, dv_p, q_p, h_p, qw_p, &dp_p, &dt_p);
+    chamber_rates(heat, k_poly, t_0, p_n, inv_pn, t_n, v_n, dv_n, q_n, h_n, qw_n, &dp_n, &dt_n);
     dx[PF_X_p_P] = dp_p;
     dx[PF_X_T_P] = dt_p;
     dx[PF_X_p_N] = dp_n;
     dx[PF_X_T_N] = dt_n;
 
+    /* mechanics (eq. 1) and friction */
     f_stop = end_stop_force(y, v, stroke, p[PF_P_stop_stiffness], p[PF_P_stop_damping]);
     f_drive = s_p * p_p - s_n * p_n - m->f_ext + f_stop;
     f_s = p[PF_P_friction_static];
     f_c = p[PF_P_friction_coulomb];
+    if (m->seal) {
+        extra = p[PF_P_seal_friction_coefficient] * (p_p + p_n - 2.0 * p_e);
+        if (extra > 0.0) {
+            f_s += extra;
+            f_c += extra;
+        }
+    }
     if (m->lugre) {
         lugre_friction(v, x[PF_X_z_f], f_s, f_c, p[PF_P_friction_viscous],
                        p[PF_P_stribeck_velocity], p[PF_P_friction_stiffness],
@@ -364,7 +465,10 @@ typedef struct {
     double aux[PF_NAUX];
 } pf_work;
 
-static int active_states(const pf_model *m) { return m->lugre ? PF_NX : 8; }
+static int active_states(const pf_model *m)
+{ /* kernel.active_states */
+    return (m->wall_mass || m->valve_order > 0 || m->lugre) ? PF_NX : 8;
+}
 
 static void rk_step(const pf_model *m, const double *x, int mode, const pf_inputs *in, double w0,
                     double dw, double h, pf_work *wk, double *xn)
@@ -427,11 +531,20 @@ static double locate_event(const pf_model *m, int kind, double g0, double g1, co
 }
 
 static double initial_deflection(const pf_model *m, const double *x, double f_drive)
-{ /* kernel.initial_deflection (no seal effect) */
+{ /* kernel.initial_deflection */
     const double *p = m->p;
     double f_s = p[PF_P_friction_static], f_c = p[PF_P_friction_coulomb];
-    double v = x[PF_X_v], r = v / p[PF_P_stribeck_velocity];
-    double g = f_c + (f_s - f_c) * exp(-r * r), z_max, z;
+    double v = x[PF_X_v], r, g, z_max, z, extra;
+    if (m->seal) {
+        extra = p[PF_P_seal_friction_coefficient] *
+                (x[PF_X_p_P] + x[PF_X_p_N] - 2.0 * p[PF_P_exhaust_pressure]);
+        if (extra > 0.0) {
+            f_s += extra;
+            f_c += extra;
+        }
+    }
+    r = v / p[PF_P_stribeck_velocity];
+    g = f_c + (f_s - f_c) * exp(-r * r);
     if (g < PF_LUGRE_MIN_LEVEL) g = PF_LUGRE_MIN_LEVEL;
     z_max = g / p[PF_P_friction_stiffness];
     if (v > 0.0) return z_max;
@@ -463,6 +576,10 @@ void pf_initial_state(const pf_model *m, const double *x0, const pf_inputs *in, 
     x[PF_X_dus_N] = 0.0;
     x[PF_X_dus_P] = 0.0;
     commands(in, 0.0, &u_p, &u_n);
+    if (m->valve_order > 0) {
+        x[PF_X_us_P] = u_p;
+        x[PF_X_us_N] = u_n;
+    }
     s->mode = 0;
     if (m->lugre) {
         if (!isfinite(x[PF_X_z_f])) {

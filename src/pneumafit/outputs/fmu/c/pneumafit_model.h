@@ -3,9 +3,10 @@
  * A port of pneumafit.models.kernel (rhs, rk_step with Kutta's third-order
  * method, locate_event, the per-interval loop of integrate) restricted to the
  * structures the FMU supports: ISO 6358 valves, the switch or LuGre friction
- * law, a polytropic, constant-lambda or full-convection heat law, no optional
- * effects. Index names (PF_P_*, PF_X_*) and constants come from
- * pneumafit_config.h, generated from pneumafit.models.layout.
+ * law, a polytropic, constant-lambda or full-convection heat law, and the
+ * optional effects of pneumafit.models.structure.EFFECT_SLOTS. Index names
+ * (PF_P_*, PF_X_*) and constants come from pneumafit_config.h, generated from
+ * pneumafit.models.layout.
  */
 #ifndef PNEUMAFIT_MODEL_H
 #define PNEUMAFIT_MODEL_H
@@ -24,6 +25,8 @@ typedef struct {
     int heat;       /* 0 polytropic, 1 constant lambda, 2 convection */
     int lugre;      /* 0 switch model, 1 LuGre */
     int sutherland; /* air properties: 0 at the wall temperature, 1 Sutherland at gas T */
+    /* optional effects (pneumafit.models.structure.EFFECT_SLOTS) */
+    int chamber_leak, external_leak, valve_order, wall_mass, forced_conv, supply_drop, seal;
     /* parameters (SI, layout of pneumafit.models.layout) */
     double p[PF_NP];
     /* derived constants (kernel.derive) */

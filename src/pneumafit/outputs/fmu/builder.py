@@ -37,8 +37,11 @@ import numpy as np
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.models.layout import (
-    FRICTION_LAWS,
     HEAT_LAWS,
+    MAP_B_LOWER,
+    MAP_B_UPPER,
+    MAP_C_LOWER,
+    MAP_C_UPPER,
     NP,
     NX,
     PARAMETER_NAMES,
@@ -59,6 +62,7 @@ __all__ = [
     "FmuBuildError",
     "FmuVariable",
     "build_fmu",
+    "check_structure",
     "find_compiler",
     "fmu_variables",
     "write_fmu",
@@ -111,6 +115,16 @@ _START_STATES = ("y", "v", "p_N", "p_P", "T_N", "T_P")
 #: Parameter groups every structure exposes besides its laws' parameters.
 _ALWAYS_GROUPS = ("rig", "numerics")
 
+#: Laws and effects the C model implements (check_structure).
+SUPPORTED_VALVES = ("iso6358", "map")
+SUPPORTED_FRICTION = ("switch", "lugre")
+SUPPORTED_HEAT = ("polytropic", "constant-lambda", "convection")
+SUPPORTED_AIR = ("constant", "sutherland")
+SUPPORTED_EFFECTS = (
+    "chamber_leakage", "external_leakage", "valve_dynamics", "wall_thermal_mass",
+    "forced_convection", "supply_pressure_drop", "seal_friction",
+)  # fmt: skip
+
 #: Integration method of the FMU (the simulator's default).
 FMU_METHOD = "kutta3"
 
@@ -150,27 +164,32 @@ class FmuVariable:
 def check_structure(structure: ModelStructure, where: str = "model") -> None:
     """Raise :class:`PneumafitInputError` unless the FMU supports ``structure``.
 
-    Supported: the ISO 6358 valve law, the switch and LuGre friction laws,
+    Supported (the laws the C model was written for; a law or effect added to
+    the simulator later is refused until the C model has it): the ISO 6358
+    valve law and the measured valve map, the switch and LuGre friction laws,
     the polytropic, constant-lambda and convection heat laws (air properties
-    constant or by Sutherland's law) and every optional effect of
-    :data:`pneumafit.models.structure.EFFECT_SLOTS`.
+    constant or by Sutherland's law) and the optional effects of
+    :data:`SUPPORTED_EFFECTS`.
     """
     problems = []
-    if structure.valve != "iso6358":
-        problems.append(
-            f"valve law {structure.valve!r} (the FMU has the ISO 6358 law only; refit with "
-            "--valve iso6358)"
-        )
-    if structure.heat not in HEAT_LAWS:
+    if structure.valve not in SUPPORTED_VALVES:
+        problems.append(f"valve law {structure.valve!r}")
+    if structure.heat not in SUPPORTED_HEAT:
         problems.append(f"heat law {structure.heat!r}")
-    if structure.friction not in FRICTION_LAWS:
+    if structure.friction not in SUPPORTED_FRICTION:
         problems.append(f"friction law {structure.friction!r}")
+    if structure.air_properties not in SUPPORTED_AIR:
+        problems.append(f"air properties {structure.air_properties!r}")
+    unknown = sorted(set(structure.effects) - set(SUPPORTED_EFFECTS))
+    if unknown:
+        problems.append(f"effects {', '.join(unknown)}")
     if problems:
         raise PneumafitInputError(
             f"{where}: cannot export this structure as an FMU: unsupported "
             + "; ".join(problems)
-            + ". Supported: valve iso6358, friction switch or lugre, heat polytropic, "
-            "constant-lambda or convection, any of the optional effects"
+            + f". Supported: valve {' or '.join(SUPPORTED_VALVES)}, friction "
+            f"{' or '.join(SUPPORTED_FRICTION)}, heat {', '.join(SUPPORTED_HEAT)}, effects "
+            f"{', '.join(SUPPORTED_EFFECTS)}"
         )
 
 
@@ -290,7 +309,8 @@ def model_description(
             "modelName": f"pneumafit {structure.name} actuator",
             "guid": guid,
             "description": (
-                f"double-acting pneumatic cylinder, two ISO 6358 servo-valves, heat law "
+                f"double-acting pneumatic cylinder, two servo-valves (valve law "
+                f"{structure.valve}), heat law "
                 f"{structure.heat} (air properties {structure.air_properties}), friction law "
                 f"{structure.friction}"
                 + (f", effects {', '.join(sorted(structure.effects))}" if structure.effects else "")
@@ -379,7 +399,7 @@ def _c_double(value: float) -> str:
 
 def config_header(structure: ModelStructure) -> str:
     """``pneumafit_config.h``: indices, the structure's laws and constants."""
-    from pneumafit.physics import air, friction, valve
+    from pneumafit.physics import air, friction, valve, valve_map
     from pneumafit.simulation import simulator
 
     lines = [
@@ -399,6 +419,7 @@ def config_header(structure: ModelStructure) -> str:
         f"#define PF_HEAT {HEAT_LAWS[structure.heat]} /* {structure.heat} */",
         f"#define PF_LUGRE {1 if structure.friction == 'lugre' else 0} /* {structure.friction} */",
         f"#define PF_SUTHERLAND {1 if structure.air_properties == 'sutherland' else 0}",
+        f"#define PF_VALVE_MAP {1 if structure.valve == 'map' else 0} /* {structure.valve} */",
         *(
             f"#define PF_EFFECT_{name.upper()} {int(structure.effects.get(name, 0))}"
             for name in EFFECT_SLOTS
@@ -417,9 +438,20 @@ def config_header(structure: ModelStructure) -> str:
         "LUGRE_RATE_LIMIT": friction.LUGRE_RATE_LIMIT,
         "LUGRE_MIN_LEVEL": friction.LUGRE_MIN_LEVEL,
         "COMMAND_RESOLUTION": simulator.COMMAND_RESOLUTION,
+        "MAP_C_LOWER": MAP_C_LOWER, "MAP_C_UPPER": MAP_C_UPPER,
+        "MAP_B_LOWER": MAP_B_LOWER, "MAP_B_UPPER": MAP_B_UPPER,
+        "MAP_B1": valve_map.MAP_B_FRACTIONS[1], "MAP_FLOOR": valve_map._FLOOR,
     }  # fmt: skip
     lines += ["", "/* constants (pneumafit.physics, pneumafit.simulation.simulator) */"]
     lines += [f"#define PF_{k} {_c_double(v)}" for k, v in constants.items()]
+    knots = ", ".join(_c_double(f) for f in valve_map.MAP_KNOTS)
+    lines += [
+        "",
+        "/* valve-map knots, fractions of valve_u_sat (physics.valve_map.MAP_KNOTS) */",
+        f"#define PF_N_MAP_KNOTS {len(valve_map.MAP_KNOTS)}",
+        f"#define PF_MAP_CENTRE_KNOT {valve_map.CENTRE_KNOT}",
+        f"#define PF_MAP_KNOTS_INIT {{{knots}}}",
+    ]
     lines += ["", "#endif", ""]
     return "\n".join(lines)
 
@@ -526,8 +558,9 @@ def write_fmu(
     Parameters
     ----------
     structure : ModelStructure
-        Supported: ISO 6358 valves, switch or LuGre friction, any of the
-        three heat laws, the optional effects (:func:`check_structure`).
+        Supported: ISO 6358 valves or the measured valve map, switch or LuGre
+        friction, any of the three heat laws, the optional effects
+        (:func:`check_structure`).
     values : mapping of str to float, or ndarray (NP,)
         SI parameter values by name (defaults for the rest), or a full vector.
     out : path
@@ -642,7 +675,7 @@ def build_fmu(fit_path: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
     ------
     PneumafitInputError
         Unreadable file, bad entries, or a structure the FMU does not support
-        (the measured valve map).
+        (:func:`check_structure`).
     FmuBuildError
         "cannot build the FMU: no C compiler found (...)", or the compiler failed.
     """

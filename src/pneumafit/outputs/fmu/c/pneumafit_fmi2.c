@@ -63,6 +63,7 @@ static void set_defaults(pf_data *d)
     d->model.heat = PF_HEAT;
     d->model.lugre = PF_LUGRE;
     d->model.sutherland = PF_SUTHERLAND;
+    d->model.valve_map = PF_VALVE_MAP;
     d->model.chamber_leak = PF_EFFECT_CHAMBER_LEAKAGE;
     d->model.external_leak = PF_EFFECT_EXTERNAL_LEAKAGE;
     d->model.valve_order = PF_EFFECT_VALVE_DYNAMICS;

@@ -25,7 +25,7 @@ static double conductivity(double t) /* physics.air.conductivity (Sutherland) */
 
 /* --------------------------------------------------------------- checks */
 
-int pf_check_parameters(const double *p) /* kernel.check_parameters, ISO valve part */
+int pf_check_parameters(const double *p) /* kernel.check_parameters */
 {
     int i;
     for (i = 0; i < PF_NP; i++) {
@@ -60,6 +60,17 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters, ISO valve p
     if (p[PF_P_wall_heat_capacity] <= 0.0) return 0;
     if (p[PF_P_stop_stiffness] < 0.0 || p[PF_P_stop_damping] < 0.0) return 0;
     if (p[PF_P_friction_stiffness] <= 0.0 || p[PF_P_friction_damping] < 0.0) return 0;
+    /* valve map (checked whatever the law: the defaults are admissible) */
+    for (i = 0; i < PF_N_MAP_KNOTS; i++) {
+        double cs = p[PF_P_valve_map_CS_00 + i], ce = p[PF_P_valve_map_CE_00 + i];
+        if (cs < PF_MAP_C_LOWER || cs > PF_MAP_C_UPPER) return 0;
+        if (ce < PF_MAP_C_LOWER || ce > PF_MAP_C_UPPER) return 0;
+    }
+    for (i = 0; i < 3; i++) {
+        double bs = p[PF_P_valve_map_bS_0 + i], be = p[PF_P_valve_map_bE_0 + i];
+        if (bs < PF_MAP_B_LOWER || bs > PF_MAP_B_UPPER || bs >= p[PF_P_valve_x_laminar]) return 0;
+        if (be < PF_MAP_B_LOWER || be > PF_MAP_B_UPPER || be >= p[PF_P_valve_x_laminar]) return 0;
+    }
     return 1;
 }
 
@@ -145,9 +156,181 @@ static void valve_flows(const pf_model *m, double u, double pres, double inv_pre
     *q_supply = q_s;
 }
 
+/* ------------------------------------------------------------ valve map */
+
+static double flow_function(double x, double b, double m, double x_lam)
+{ /* physics.valve.flow_function (tail coefficients computed per call) */
+    double s, base, a, c, z;
+    if (x <= b) return 1.0;
+    if (x < x_lam) {
+        s = (x - b) / (1.0 - b);
+        base = 1.0 - s * s;
+        return m == 0.5 ? sqrt(base) : pow(base, m);
+    }
+    laminar_tail(b, m, x_lam, &a, &c);
+    z = 1.0 - x;
+    return a * z + c * z * z;
+}
+
+static void pchip_slopes(const double *x, const double *y, double *slopes, int n)
+{ /* physics.valve_map.pchip_slopes */
+    int k;
+    double h0, h1, d0, d1, w1, w2;
+    slopes[0] = 0.0;
+    slopes[n - 1] = 0.0;
+    for (k = 1; k < n - 1; k++) {
+        h0 = x[k] - x[k - 1];
+        h1 = x[k + 1] - x[k];
+        d0 = (y[k] - y[k - 1]) / h0;
+        d1 = (y[k + 1] - y[k]) / h1;
+        if (d0 * d1 <= 0.0) {
+            slopes[k] = 0.0;
+        } else {
+            w1 = 2.0 * h1 + h0;
+            w2 = h1 + 2.0 * h0;
+            slopes[k] = (w1 + w2) / (w1 / d0 + w2 / d1);
+        }
+    }
+}
+
+static void fill_path(const double *u, const double *c, double *ck, double *coef)
+{ /* physics.valve_map._fill_path */
+    const int n = PF_N_MAP_KNOTS;
+    double logc[PF_N_MAP_KNOTS], slopes[PF_N_MAP_KNOTS], h, delta, m0, m1;
+    int k;
+    for (k = 0; k < n; k++) {
+        ck[k] = c[k];
+        logc[k] = log(c[k]);
+    }
+    pchip_slopes(u, logc, slopes, n);
+    for (k = 0; k < n - 1; k++) {
+        h = u[k + 1] - u[k];
+        delta = logc[k + 1] - logc[k];
+        m0 = h * slopes[k];
+        m1 = h * slopes[k + 1];
+        coef[3 * k] = m0;
+        coef[3 * k + 1] = 3.0 * delta - 2.0 * m0 - m1;
+        coef[3 * k + 2] = m0 + m1 - 2.0 * delta;
+    }
+}
+
+static void map_constants(pf_model *m)
+{ /* physics.valve_map.map_constants */
+    static const double knots[PF_N_MAP_KNOTS] = PF_MAP_KNOTS_INIT;
+    const int n = PF_N_MAP_KNOTS;
+    const double *p = m->p, *b_s = p + PF_P_valve_map_bS_0, *b_e = p + PF_P_valve_map_bE_0;
+    double u_sat = p[PF_P_valve_u_sat], cs[PF_N_MAP_KNOTS], ce[PF_N_MAP_KNOTS];
+    int k;
+    for (k = 0; k < n; k++) {
+        m->vm_u[k] = knots[k] * u_sat;
+        cs[k] = p[PF_P_valve_map_CS_00 + k] > PF_MAP_FLOOR ? p[PF_P_valve_map_CS_00 + k]
+                                                           : PF_MAP_FLOOR;
+        ce[k] = p[PF_P_valve_map_CE_00 + k] > PF_MAP_FLOOR ? p[PF_P_valve_map_CE_00 + k]
+                                                           : PF_MAP_FLOOR;
+    }
+    for (k = 1; k < n; k++) {
+        if (cs[k] < cs[k - 1]) cs[k] = cs[k - 1];
+    }
+    for (k = n - 2; k >= 0; k--) {
+        if (ce[k] < ce[k + 1]) ce[k] = ce[k + 1];
+    }
+    m->vm_iusat = 1.0 / u_sat;
+    m->vm_cs_lo = cs[0];
+    m->vm_cs_hi = cs[n - 1];
+    m->vm_ce_lo = ce[0];
+    m->vm_ce_hi = ce[n - 1];
+    for (k = 0; k < 3; k++) {
+        m->vm_bs[k] = b_s[k];
+        m->vm_be[k] = b_e[k];
+    }
+    m->vm_dbs[0] = (b_s[1] - b_s[0]) / PF_MAP_B1;
+    m->vm_dbs[1] = (b_s[2] - b_s[1]) / (1.0 - PF_MAP_B1);
+    m->vm_dbe[0] = (b_e[1] - b_e[0]) / PF_MAP_B1;
+    m->vm_dbe[1] = (b_e[2] - b_e[1]) / (1.0 - PF_MAP_B1);
+    for (k = 0; k < n - 1; k++) m->vm_ih[k] = 1.0 / (m->vm_u[k + 1] - m->vm_u[k]);
+    fill_path(m->vm_u, cs, m->vm_ck_s, m->vm_coef_s);
+    fill_path(m->vm_u, ce, m->vm_ck_e, m->vm_coef_e);
+}
+
+static void map_conductances(const pf_model *m, double u, double *c_s, double *c_e)
+{ /* physics.valve_map.map_conductances */
+    int k = PF_MAP_CENTRE_KNOT;
+    double t;
+    const double *j;
+    if (u <= m->vm_u[0]) {
+        *c_s = m->vm_cs_lo;
+        *c_e = m->vm_ce_lo;
+        return;
+    }
+    if (u >= m->vm_u[PF_N_MAP_KNOTS - 1]) {
+        *c_s = m->vm_cs_hi;
+        *c_e = m->vm_ce_hi;
+        return;
+    }
+    if (u >= 0.0) {
+        while (u >= m->vm_u[k + 1]) k++;
+    } else {
+        k--;
+        while (u < m->vm_u[k]) k--;
+    }
+    t = (u - m->vm_u[k]) * m->vm_ih[k];
+    j = m->vm_coef_s + 3 * k;
+    *c_s = m->vm_ck_s[k] * exp(t * (j[0] + t * (j[1] + t * j[2])));
+    j = m->vm_coef_e + 3 * k;
+    *c_e = m->vm_ck_e[k] * exp(t * (j[0] + t * (j[1] + t * j[2])));
+}
+
+static double map_ratio(double f, const double *b, const double *db)
+{ /* physics.valve_map._ratio */
+    if (f <= 0.0) return b[0];
+    if (f < PF_MAP_B1) return b[0] + f * db[0];
+    if (f < 1.0) return b[1] + (f - PF_MAP_B1) * db[1];
+    return b[2];
+}
+
+static void valve_flows_map(const pf_model *m, double u, double pres, double inv_pres,
+                            double temp, double rt, double p_supply, double inv_p_supply,
+                            double *q_net, double *h_in, double *q_supply)
+{ /* physics.valve_map.flows_core_map */
+    double c_s, c_e, f = u * m->vm_iusat, b_s, b_e, q_s, t_s, q_e, t_e, p_e = m->v_pe;
+    const double k = PF_RHO0, mm = m->v_m, x_lam = m->v_xlam;
+    map_conductances(m, u, &c_s, &c_e);
+    b_s = map_ratio(f, m->vm_bs, m->vm_dbs);
+    b_e = map_ratio(-f, m->vm_be, m->vm_dbe);
+    if (p_supply >= pres) {
+        q_s = c_s * k * p_supply * m->v_rta * flow_function(pres * inv_p_supply, b_s, mm, x_lam);
+        t_s = m->v_ta;
+    } else {
+        q_s = -c_s * k * pres * rt * flow_function(p_supply * inv_pres, b_s, mm, x_lam);
+        t_s = temp;
+    }
+    if (pres >= p_e) {
+        q_e = c_e * k * pres * rt * flow_function(p_e * inv_pres, b_e, mm, x_lam);
+        t_e = temp;
+    } else {
+        q_e = -c_e * k * p_e * m->v_rta * flow_function(pres * m->v_ipe, b_e, mm, x_lam);
+        t_e = m->v_ta;
+    }
+    *q_net = q_s - q_e;
+    *h_in = q_s * t_s - q_e * t_e;
+    *q_supply = q_s;
+}
+
+static void valve(const pf_model *m, double u, double pres, double inv_pres, double temp,
+                  double rt, double p_supply, double inv_p_supply, double *q_net, double *h_in,
+                  double *q_supply)
+{ /* kernel._valve: the configured valve law */
+    if (m->valve_map)
+        valve_flows_map(m, u, pres, inv_pres, temp, rt, p_supply, inv_p_supply, q_net, h_in,
+                        q_supply);
+    else
+        valve_flows(m, u, pres, inv_pres, temp, rt, p_supply, inv_p_supply, q_net, h_in,
+                    q_supply);
+}
+
 /* -------------------------------------------------------------- derived */
 
-void pf_derive(pf_model *m) /* kernel.derive and physics.valve.valve_constants */
+void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants */
 {
     const double *p = m->p;
     double bore = p[PF_P_bore], rod = p[PF_P_rod], length = p[PF_P_characteristic_length];
@@ -189,6 +372,7 @@ void pf_derive(pf_model *m) /* kernel.derive and physics.valve.valve_constants *
     m->v_ipe = 1.0 / p[PF_P_exhaust_pressure];
     m->v_ta = p[PF_P_ambient_temperature];
     m->v_rta = sqrt(PF_T_REF / p[PF_P_ambient_temperature]);
+    map_constants(m);
 }
 
 /* ---------------------------------------------------------- heat, chamber */
@@ -335,16 +519,16 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
     rt_n = sqrt(PF_T_REF / t_n);
     p_s = p[PF_P_supply_pressure];
     inv_ps = m->inv_ps;
-    valve_flows(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, &q_p, &h_p, &qs_p);
-    valve_flows(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, &q_n, &h_n, &qs_n);
+    valve(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, &q_p, &h_p, &qs_p);
+    valve(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, &q_n, &h_n, &qs_n);
     if (m->supply_drop) {
         q_draw = qs_p + qs_n;
         if (q_draw < 0.0) q_draw = 0.0;
         p_s = p_s - p[PF_P_supply_line_resistance] * q_draw;
         if (p_s < p_e) p_s = p_e;
         inv_ps = 1.0 / p_s;
-        valve_flows(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, &q_p, &h_p, &qs_p);
-        valve_flows(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, &q_n, &h_n, &qs_n);
+        valve(m, u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, &q_p, &h_p, &qs_p);
+        valve(m, u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, &q_n, &h_n, &qs_n);
     }
     qe_total = (qs_p - q_p) + (qs_n - q_n);
     aux[PF_A_QN] = q_n;

@@ -2,7 +2,8 @@
  *
  * A port of pneumafit.models.kernel (rhs, rk_step with Kutta's third-order
  * method, locate_event, the per-interval loop of integrate) restricted to the
- * structures the FMU supports: ISO 6358 valves, the switch or LuGre friction
+ * structures the FMU supports: ISO 6358 valves or the measured valve map
+ * (pneumafit.physics.valve_map), the switch or LuGre friction
  * law, a polytropic, constant-lambda or full-convection heat law, and the
  * optional effects of pneumafit.models.structure.EFFECT_SLOTS. Index names
  * (PF_P_*, PF_X_*) and constants come from pneumafit_config.h, generated from
@@ -25,6 +26,7 @@ typedef struct {
     int heat;       /* 0 polytropic, 1 constant lambda, 2 convection */
     int lugre;      /* 0 switch model, 1 LuGre */
     int sutherland; /* air properties: 0 at the wall temperature, 1 Sutherland at gas T */
+    int valve_map;  /* valve law: 0 ISO 6358, 1 measured map */
     /* optional effects (pneumafit.models.structure.EFFECT_SLOTS) */
     int chamber_leak, external_leak, valve_order, wall_mass, forced_conv, supply_drop, seal;
     /* parameters (SI, layout of pneumafit.models.layout) */
@@ -34,6 +36,12 @@ typedef struct {
     /* valve constants (physics.valve.valve_constants) */
     double v_cs, v_ce, v_bs, v_be, v_ibs, v_ibe, v_m, v_xlam, v_as, v_qs, v_ae, v_qe;
     double v_over, v_irange, v_leak2, v_iw, v_pe, v_ipe, v_ta, v_rta, v_ns, v_ne;
+    /* valve-map constants (physics.valve_map.map_constants) */
+    double vm_iusat, vm_cs_lo, vm_cs_hi, vm_ce_lo, vm_ce_hi;
+    double vm_bs[3], vm_be[3], vm_dbs[2], vm_dbe[2];
+    double vm_u[PF_N_MAP_KNOTS], vm_ih[PF_N_MAP_KNOTS - 1];
+    double vm_ck_s[PF_N_MAP_KNOTS], vm_ck_e[PF_N_MAP_KNOTS];
+    double vm_coef_s[3 * (PF_N_MAP_KNOTS - 1)], vm_coef_e[3 * (PF_N_MAP_KNOTS - 1)];
 } pf_model;
 
 /* integrator state carried between communication steps */

@@ -296,22 +296,16 @@ def simulate(
 
     The parameter file's ``friction`` key (a fit.json's ``structure.friction``)
     chooses the friction law: ``switch`` (default) or ``lugre``; its
-    ``effects`` (a fit.json's ``structure.effects``) switch optional effects on.
+    ``effects`` (a fit.json's ``structure.effects``) switch optional effects on;
+    a fit.json's valve law and air properties are kept.
     """
-    import dataclasses
-
     from pneumafit.campaign import Recording, write_recording_h5
-    from pneumafit.models import get_structure
-    from pneumafit.parameters_io import read_effects, read_friction_law, read_parameter_file
+    from pneumafit.parameters_io import read_structure
     from pneumafit.simulation import Simulator
     from pneumafit.simulation.scenarios import blocked_test, step_test
 
-    file_model, values = read_parameter_file(params)
-    model = model or file_model
-    structure = dataclasses.replace(get_structure(model), friction=read_friction_law(params))
-    effects = read_effects(params)
-    if effects:  # a fit that kept an effect (seal friction, discovery's refits)
-        structure = structure.with_effects(**effects)
+    # the fitted structure: valve and friction laws, effects, air properties
+    structure, values = read_structure(params, model)
     if kind not in ("charge", "discharge", "step"):
         raise PneumafitInputError(
             f"option --kind: expected charge, discharge or step, found {kind!r}"

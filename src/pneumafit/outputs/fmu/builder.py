@@ -14,10 +14,8 @@ system's C compiler and ``sources/`` (a tool with a compiler can rebuild it).
 
 from __future__ import annotations
 
-import dataclasses
 import datetime
 import hashlib
-import json
 import math
 import os
 import shlex
@@ -681,21 +679,6 @@ def build_fmu(fit_path: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
     """
     from pneumafit.analysis.closed_loop import read_plant_file
 
+    # the fit's own structure, Sutherland air of a convection fit included
     structure, values = read_plant_file(fit_path)
-    air = _fitted_air_properties(fit_path)
-    if air is not None and structure.heat == "convection" and air != structure.air_properties:
-        # a convection fit is made with Sutherland air (identification.staged.fit_structure);
-        # the plant reader keeps the registered structure's constant air properties
-        structure = dataclasses.replace(structure, air_properties=air)
     return write_fmu(structure, values, out, source=str(fit_path))
-
-
-def _fitted_air_properties(path: str | os.PathLike[str]) -> str | None:
-    """``structure.air_properties`` of a fit.json (None for a parameter file)."""
-    try:
-        document = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    spec = document.get("structure") if isinstance(document, dict) else None
-    air = spec.get("air_properties") if isinstance(spec, dict) else None
-    return air if air in ("constant", "sutherland") else None

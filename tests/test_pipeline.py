@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import json
 import time
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -60,8 +61,10 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
     assert exported["design"]["validated"] is True  # the closed-loop stage's design
     assert exported["design"]["w0"] == closed["inputs"]["w0_rad_s"]
     sil = json.loads((out / "export" / "sil.json").read_text())
-    if sil["run"]:  # a C compiler was found
+    if sil["run"]:  # a C compiler was found: the plant FMU is built too
         assert sil["max_command_difference_V"] <= 1e-9 and sil["identical_figures"]
+        with zipfile.ZipFile(out / "export" / "plant.fmu") as fmu:
+            assert "modelDescription.xml" in fmu.namelist()
     html = (out / "report.html").read_text()
     assert "The exported controller in the loop" in html
     assert html.lstrip().lower().startswith("<!doctype html")

@@ -22,7 +22,8 @@ Stages, in order, each writing into ``OUT``:
    compensation from ``closed_loop.json``) as JSON, YAML, a C header with
    its controller source, a MATLAB file and a CSV schedule (``pneumafit
    export``); the C code, compiled, is run in the loop on the closed-loop
-   stage's plant beside the Python law (``export/sil.json``).
+   stage's plant beside the Python law (``export/sil.json``); the fitted
+   plant as an FMI 2.0 FMU (``export/plant.fmu``, where a C compiler is there).
 8. ``report.html``: the self-contained validation report.
 
 Re-running reuses what is finished. A fit is reused when its fit.json
@@ -48,6 +49,7 @@ from rich.text import Text
 
 from pneumafit import __version__
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.commandline import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
@@ -67,6 +69,9 @@ RUN_MODELS = ("polytropic", "constant-lambda", "convection")
 #: Formats of the controller export.
 EXPORT_FORMATS = {"json": "controller.json", "yaml": "controller.yaml", "c": "controller.h",
                   "mat": "controller.mat", "csv": "controller.csv"}  # fmt: skip
+
+#: The fitted plant as an FMU (export stage; written when a C compiler is there).
+PLANT_FMU = "plant.fmu"
 
 #: The exported C controller run in the loop (export stage): figures and command difference.
 SIL_FILE = "sil.json"
@@ -417,12 +422,21 @@ def _export(fit: Path, closed_loop: Path, out: Path, console: Console) -> int:
     (``sil.json``; skipped, and said, without a C compiler)."""
     from pneumafit.outputs.c_controller import find_compiler, sil_from_closed_loop
     from pneumafit.outputs.export import export_document, write_export
+    from pneumafit.outputs.fmu import build_fmu
 
     doc = export_document(fit, closed_loop=closed_loop)
     for fmt, name in EXPORT_FORMATS.items():
         write_export(doc, out / name, fmt)
     console.print(f"controller export ({', '.join(EXPORT_FORMATS)}, controller.c) in {out}: "
                   f"{doc['design']['description']}")  # fmt: skip
+    # the fitted plant for Simulink, AMESim, Dymola, OpenModelica (FMI 2.0
+    # co-simulation); not a stage output: a machine without a C compiler, or
+    # a structure the FMU does not have, still gets everything else
+    try:
+        build_fmu(fit, out / PLANT_FMU)
+        console.print(f"plant FMU (FMI 2.0 co-simulation) of the convection fit: {out / PLANT_FMU}")
+    except PneumafitInputError as exc:
+        console.print(f"plant FMU not written: {exc}")
     if find_compiler() is None:
         sil = {"format": "pneumafit-sil", "version": 1, "run": False,
                "reason": "no C compiler found (set CC, or install cc/gcc/clang)"}  # fmt: skip

@@ -133,7 +133,8 @@ def test_sections_render_what_the_run_holds(
         "comparison": "not run",
         "linear": "partial",  # design_6.json was not written
         "discovery": "not run",
-        "air": "partial",  # simulated air use, no closed-loop test
+        "closed-loop": "not run",  # never run here: not "partial"
+        "air": "ok",  # the air each fit draws on the recorded tests
     }
     fit = json.loads((run / "fits" / "convection" / "fit.json").read_text())
     params = _section_html(html, "parameters")
@@ -149,7 +150,7 @@ def test_sections_render_what_the_run_holds(
     assert "not run for constant-lambda" in measurement
     assert "RMSE p_P" in measurement and "kPa" in measurement
     assert "Ljung-Box" in _section_html(html, "residuals")
-    assert "closed_loop.json</code> not found" in _section_html(html, "air")
+    assert "closed_loop.json</code> not found" in _section_html(html, "closed-loop")
     assert "air supplied" in _section_html(html, "air")
     linear = _section_html(html, "linear")
     assert "open_loop_poles.png" in linear and "gain_schedule_4.png" in linear
@@ -254,8 +255,10 @@ def test_documented_formats_of_other_stages_render(tmp_path: Path) -> None:
     assert "<strong>chamber_leakage</strong>" in discovery
     assert "-75&nbsp;%" in discovery  # RMSE 2 kPa -> 0.5 kPa
     assert "2.000e-11&nbsp;kg/s/Pa" in discovery
-    air = _section_html(html, "air")
-    assert "0.43&nbsp;g" in air and "69.8&nbsp;J" in air and "air mass [g]" in air
+    closed_loop = _section_html(html, "closed-loop")
+    assert status["closed-loop"] == "ok"
+    assert "0.43&nbsp;g" in closed_loop and "69.8&nbsp;J" in closed_loop
+    assert "air mass [g]" in closed_loop
 
 
 def _chromium() -> str | None:

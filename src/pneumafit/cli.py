@@ -2,41 +2,135 @@
 
 Every command reports bad input as one readable message (file, key, expected,
 found) and a non-zero exit status; tracebacks are for bugs only, and shown
-with ``PNEUMAFIT_DEBUG=1``.
+with ``PNEUMAFIT_DEBUG=1``. Every command that writes checks its ``--out``
+first (:func:`pneumafit.commandline.check_output`), and every command takes
+``--quiet`` and ``--verbose`` (added by :class:`_App`).
 """
 
 from __future__ import annotations
 
+import errno
+import functools
+import inspect
+import logging
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.commandline import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    LOGGER,
+    check_output,
+    configure_output,
+    make_console,
+    release_output,
+)
 
 if TYPE_CHECKING:
     import numpy as np
 
-app = typer.Typer(
+log = logging.getLogger(LOGGER)
+
+EXIT_STATUSES = (
+    "Exit status: 0 done; 1 the work failed (a fit, a simulation); 2 bad input (an option, "
+    "a file, an output path that cannot be written, a report whose inputs disagree or are "
+    "missing); 3 an untrustworthy result under --strict; 130 interrupted. Any other "
+    "failure is a bug: 'internal error', exit status 1."
+)
+
+# Not a terminal (a log file, a pipe, CI): tables in full (no cut, no
+# ellipses) and messages on their own lines, so that logs can be searched.
+console = make_console()
+err_console = make_console(stderr=True)
+
+QuietOption = Annotated[
+    bool,
+    typer.Option(
+        "--quiet", "-q",
+        help="Print nothing but errors (the command's output is shown on standard error "
+        "only if it fails); log warnings only.",
+    ),
+]  # fmt: skip
+VerboseOption = Annotated[
+    bool,
+    typer.Option(
+        "--verbose", "-v", help="Also log debug records (options, exit status, time) to stderr."
+    ),
+]
+
+
+def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """``func`` with the ``--quiet`` and ``--verbose`` options of every command."""
+    signature = inspect.signature(func, eval_str=True)
+    extra = [
+        inspect.Parameter("quiet", inspect.Parameter.KEYWORD_ONLY, default=False,
+                          annotation=QuietOption),
+        inspect.Parameter("verbose", inspect.Parameter.KEYWORD_ONLY, default=False,
+                          annotation=VerboseOption),
+    ]  # fmt: skip
+
+    @functools.wraps(func)
+    def command(*args: Any, quiet: bool = False, verbose: bool = False, **kwargs: Any) -> Any:
+        configure_output(console, quiet=quiet, verbose=verbose)
+        name = func.__name__.replace("_", "-")
+        log.debug("pneumafit %s: %s", name, kwargs)
+        started = time.perf_counter()
+        code: int | None = 0
+        try:
+            return func(*args, **kwargs)
+        except typer.Exit as exc:
+            code = exc.exit_code
+            raise
+        except BaseException:
+            code = None
+            raise
+        finally:
+            release_output(console, failed=code != 0)
+            log.debug("pneumafit %s: exit status %s after %.1f s", name,
+                      "(exception)" if code is None else code,
+                      time.perf_counter() - started)  # fmt: skip
+
+    command.__signature__ = signature.replace(  # type: ignore[attr-defined]
+        parameters=[*signature.parameters.values(), *extra]
+    )
+    command.__annotations__ = {
+        **{p.name: p.annotation for p in signature.parameters.values()},
+        "quiet": QuietOption,
+        "verbose": VerboseOption,
+    }
+    return command
+
+
+class _App(typer.Typer):
+    """A typer app whose every command also takes ``--quiet`` and ``--verbose``."""
+
+    def command(self, *args: Any, **kwargs: Any) -> Callable[[Callable[..., Any]], Any]:
+        register = super().command(*args, **kwargs)
+
+        def decorator(func: Callable[..., Any]) -> Callable[..., Any]:
+            register(_with_output_options(func))
+            return func
+
+        return decorator
+
+
+app = _App(
     name="pneumafit",
     help="Identify and validate models of electropneumatic actuators.",
+    epilog=EXIT_STATUSES,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-# Not a terminal (a log file, a pipe, CI): no 80-column cut, so that tables
-# of parameter names and values stay readable in logs.
-console = Console() if sys.stdout.isatty() else Console(width=200)
-# messages to a log or a pipe are not wrapped: a path cut at 80 columns
-# cannot be searched for (soft_wrap keeps each message on its own lines)
-err_console = Console(stderr=True) if sys.stderr.isatty() else Console(stderr=True, soft_wrap=True)
-
-EXIT_INVALID_INPUT = 2
 
 
 def _quantity(text: str, unit: str, option: str) -> float:
@@ -81,6 +175,7 @@ def run(
     """
     from pneumafit.pipeline import run as run_pipeline
 
+    check_output(out, "folder")
     code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
                         steps=steps, strict=strict)  # fmt: skip
     raise typer.Exit(code)
@@ -236,11 +331,25 @@ def report(
         Path | None,
         typer.Option("--campaign", help="Campaign folder (default: the one the fits recorded)."),
     ] = None,
+    allow_partial: Annotated[
+        bool,
+        typer.Option(
+            "--allow-partial",
+            help="Write the report even when the run folder holds no result, its fits were "
+            "made from another campaign than --campaign (or than each other), or the campaign "
+            "cannot be read; without it these exit with status 2 and nothing is written.",
+        ),
+    ] = False,
 ) -> None:
-    """Validation report: one self-contained HTML file from a run folder."""
+    """Validation report: one self-contained HTML file from a run folder.
+
+    Exit status: 0 written, 2 bad input (no run folder, an --out that cannot be
+    written, or inputs that are missing or disagree, unless --allow-partial).
+    """
     from pneumafit.outputs.report import write_report
 
-    write_report(run_dir, out or Path(run_dir) / "report.html", campaign=campaign, console=console)
+    write_report(run_dir, out or Path(run_dir) / "report.html", campaign=campaign, console=console,
+                 allow_partial=allow_partial)  # fmt: skip
     raise typer.Exit(0)
 
 
@@ -267,6 +376,7 @@ def rig(
     """Record a campaign on the virtual rig (deterministic for a seed)."""
     from pneumafit.rig import run_rig
 
+    check_output(out, "folder")
     raise typer.Exit(
         run_rig(out, effect or [], seed=seed, console=console, protocol=protocol, truth=truth)
     )
@@ -300,6 +410,7 @@ def simulate(
     """
     import dataclasses
 
+    check_output(out, "file")
     from pneumafit.campaign import Recording, write_recording_h5
     from pneumafit.models import get_structure
     from pneumafit.parameters_io import read_effects, read_friction_law, read_parameter_file
@@ -411,6 +522,7 @@ def linear(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Equilibria, linear models and open-loop poles over the stroke (eqs. 10-14)."""
+    check_output(out, "folder")
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_linear
 
@@ -435,6 +547,7 @@ def design(
     lambda_e: LambdaOption = None,
 ) -> None:
     """State-feedback gain schedule placing the ITAE poles (paper Figs. 6-7)."""
+    check_output(out, "folder")
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_design
 
@@ -484,6 +597,7 @@ def closed_loop(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Both state-feedback designs run on the nonlinear model: steps and air (Figs. 9-11)."""
+    check_output(out, "folder")
     from pneumafit.outputs.closed_loop_report import run_closed_loop
 
     numbers, _, unit = steps.strip().partition(" ")
@@ -510,6 +624,7 @@ def export(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Export parameters, linear models and the gain schedule for a controller."""
+    check_output(out, "file")
     from pneumafit.models.layout import P
     from pneumafit.outputs.export import FORMATS, build_export, write_export
     from pneumafit.parameters_io import read_parameter_details
@@ -532,34 +647,68 @@ def export(
     )
 
 
+#: What the environment refuses (permissions, a read-only or full disk): a
+#: message about the path and exit status 2, not a bug.
+_ENVIRONMENT_ERRNOS = frozenset({errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC,
+                                 errno.EDQUOT})  # fmt: skip
+
+_REPORT_BUG = (
+    "This is a bug in pneumafit; please report it with the traceback that the same command "
+    "prints with PNEUMAFIT_DEBUG=1."
+)
+
+
 def main() -> None:
     """Entry point: run the app; turn input errors into messages, not tracebacks.
 
     Typer (standalone mode) handles usage errors, ``--help`` and exit codes
     itself and leaves by ``SystemExit``; what reaches the handlers below is
-    bad input found while working (one message, exit status 2), an interrupt
-    (130) or a bug (one line, exit status 1; traceback with
-    ``PNEUMAFIT_DEBUG=1``).
+    bad input found while working (one message, exit status 2), a path the
+    system refuses to read or write (permission, read-only or full disk: one
+    message, 2), an interrupt (130) or a bug ("internal error", exit status
+    1, with how to report it; traceback with ``PNEUMAFIT_DEBUG=1``).
     """
     debug = os.environ.get("PNEUMAFIT_DEBUG") == "1"
     try:
         app()
-    except (PneumafitInputError, ValueError) as exc:
+    except PneumafitInputError as exc:
         if debug:
             raise
         err_console.print(f"[bold red]error:[/bold red] {exc}")
-        sys.exit(EXIT_INVALID_INPUT)
-    except KeyboardInterrupt:
-        err_console.print("interrupted")
-        sys.exit(130)
-    except Exception as exc:
+        sys.exit(EXIT_BAD_INPUT)
+    except ValueError as exc:
+        # library checks of values raise ValueError with a message in the
+        # user's words; a ValueError from a bug reads like one, hence the hint
         if debug:
             raise
         err_console.print(
-            f"[bold red]internal error:[/bold red] {type(exc).__name__}: {exc}\n"
-            "This is a bug in pneumafit; run again with PNEUMAFIT_DEBUG=1 for the traceback."
+            f"[bold red]error:[/bold red] {exc}\n(if this is not about your input: {_REPORT_BUG})"
         )
-        sys.exit(1)
+        sys.exit(EXIT_BAD_INPUT)
+    except OSError as exc:
+        if debug or exc.errno not in _ENVIRONMENT_ERRNOS:
+            _internal_error(exc, debug)
+        where = exc.filename if exc.filename is not None else "a file"
+        err_console.print(
+            f"[bold red]error:[/bold red] cannot write or read {where}: {exc.strerror}; "
+            "check the path, its permissions and the free space"
+        )
+        sys.exit(EXIT_BAD_INPUT)
+    except KeyboardInterrupt:
+        err_console.print("interrupted")
+        sys.exit(EXIT_INTERRUPTED)
+    except Exception as exc:
+        _internal_error(exc, debug)
+
+
+def _internal_error(exc: BaseException, debug: bool) -> None:
+    """Re-raise under ``PNEUMAFIT_DEBUG=1``, else one line and exit status 1."""
+    if debug:
+        raise exc
+    err_console.print(
+        f"[bold red]internal error:[/bold red] {type(exc).__name__}: {exc}\n{_REPORT_BUG}"
+    )
+    sys.exit(EXIT_FAILED)
 
 
 if __name__ == "__main__":

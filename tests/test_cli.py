@@ -231,7 +231,9 @@ def test_every_writing_command_checks_its_output_path(
         out = tmp_path / "a_file" / "sub" / ("out.h5" if kind == "file" else "out")
     else:
         out = tmp_path / "locked" / "sub" / ("out.h5" if kind == "file" else "out")
-        monkeypatch.setattr(fileio, "_writable", lambda folder: folder != tmp_path / "locked")
+        locked = tmp_path / "locked"
+        refuse = lambda d: "permission denied" if d == locked else None  # noqa: E731
+        monkeypatch.setattr(fileio, "_refusal", refuse)
     before = _files(tmp_path)
     code, text = run_main([command, *arguments(tmp_path), "--out", str(out)], monkeypatch, capsys)
     assert code == 2, text

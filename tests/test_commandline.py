@@ -87,7 +87,7 @@ def test_a_folder_without_write_permission(tmp_path: Path, monkeypatch) -> None:
     """Permission is asked of the nearest existing folder (os.access, write and
     search). Tests run as root, which passes every permission check, so the
     refusal is simulated here; tests/test_cli.py checks a real read-only
-    folder when not root."""
+    folder when not root, and the probe below a folder that refuses even root."""
     import os
 
     locked = tmp_path / "locked"
@@ -143,3 +143,11 @@ def test_quiet_holds_the_output_back_and_shows_it_on_failure(capsys) -> None:
     configure_output(console, quiet=False, verbose=False)
     with pytest.raises(PneumafitInputError, match="--quiet and --verbose"):
         configure_output(console, quiet=True, verbose=True)
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_a_folder_that_refuses_even_root_is_found_by_the_probe() -> None:
+    """/proc passes os.access for root but creates no folder: the probe says so."""
+    problem = output_problem("/proc/pneumafit-out", "folder")
+    assert problem is not None and problem.startswith("cannot write /proc/pneumafit-out: ")
+    assert "/proc refuses new files (" in problem and "choose another --out" in problem

@@ -71,11 +71,22 @@ def temporary_folder(near: str | os.PathLike[str]) -> Path:
     return tmp
 
 
-def _writable(folder: Path) -> bool:
-    """Whether files can be created in an existing ``folder`` (write and search
-    permission). Root passes every permission check: only a read-only file
-    system stops it, and that is found when writing."""
-    return os.access(folder, os.W_OK | os.X_OK)
+def _refusal(folder: Path) -> str | None:
+    """Why no file can be created in the existing ``folder`` (a phrase naming
+    it), or None.
+
+    Write and search permission first (``os.access``); then a real probe (an
+    empty folder created and removed at once), since root passes every
+    permission check and only the file system itself refuses it (read-only,
+    or a virtual one such as /proc).
+    """
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"permission denied in {os.fspath(folder)}"
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".pneumafit-probe.", dir=folder))
+    except OSError as exc:
+        return f"{os.fspath(folder)} refuses new files ({exc.strerror or type(exc).__name__})"
+    return None
 
 
 def output_problem(
@@ -128,10 +139,10 @@ def output_problem(
             f"cannot write {shown}: {os.fspath(existing)} is a file, so no folder can be "
             f"created under it; choose another {option}"
         )
-    if not _writable(existing):
+    refusal = _refusal(existing)
+    if refusal:
         return (
-            f"cannot write {shown}: permission denied in {os.fspath(existing)}; choose another "
-            f"{option} or make that folder writable"
+            f"cannot write {shown}: {refusal}; choose another {option} or make that folder writable"
         )
     return None  # an existing file is replaced (written beside it, then renamed)
 

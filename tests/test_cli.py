@@ -326,3 +326,16 @@ def test_report_of_another_campaign_or_of_nothing_is_bad_input(tmp_path):
     res = cli("report", str(empty), "--allow-partial", "--quiet")
     assert res.returncode == 0, res.stderr
     assert (empty / "report.html").is_file()
+
+
+def test_an_interrupt_exits_130_with_a_word(tmp_path, params_file, monkeypatch, capsys):
+    """typer turns Ctrl-C into exit status 130 silently; every command says it."""
+    from pneumafit.outputs import linear_report
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(linear_report, "write_linear", interrupted)
+    code, text = run_main(["linear", str(params_file), "--out", str(tmp_path / "lin")],
+                          monkeypatch, capsys)  # fmt: skip
+    assert code == 130 and "interrupted" in text and "Traceback" not in text

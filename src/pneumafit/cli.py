@@ -90,6 +90,12 @@ def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
         except typer.Exit as exc:
             code = exc.exit_code
             raise
+        except KeyboardInterrupt:
+            # typer itself turns it into exit status 130 without a word
+            code = EXIT_INTERRUPTED
+            release_output(console, failed=True)
+            err_console.print("interrupted")
+            raise typer.Exit(EXIT_INTERRUPTED) from None
         except BaseException:
             code = None
             raise

@@ -59,6 +59,9 @@ def test_simulate_step(tmp_path, params_file):
         (["--kind", "jump"], "--kind"),
         (["--kind", "step", "--y-ref", "3 bar"], "--y-ref"),
         (["--kind", "charge", "--chamber", "Q"], "--chamber"),
+        (["--kind", "charge", "--rate", "0 Hz"], "--rate"),
+        (["--kind", "charge", "--model", "isothermal"], "--model"),
+        (["--kind", "charge", "--position", "900 mm"], "--position"),
     ],
 )
 def test_simulate_bad_options_are_messages(tmp_path, params_file, args, needle):
@@ -339,3 +342,25 @@ def test_an_interrupt_exits_130_with_a_word(tmp_path, params_file, monkeypatch, 
     code, text = run_main(["linear", str(params_file), "--out", str(tmp_path / "lin")],
                           monkeypatch, capsys)  # fmt: skip
     assert code == 130 and "interrupted" in text and "Traceback" not in text
+
+
+def test_a_bug_is_an_internal_error_not_bad_input(tmp_path, params_file, monkeypatch, capsys):
+    """A ValueError that is not a PneumafitInputError is a bug (numpy's
+    broadcasting errors are ValueErrors too): exit 1, "internal error" and
+    how to report it; PNEUMAFIT_DEBUG=1 gives the traceback."""
+    from pneumafit.outputs import linear_report
+
+    def broken(*args, **kwargs):
+        raise ValueError("operands could not be broadcast together with shapes (3,) (4,)")
+
+    monkeypatch.setattr(linear_report, "write_linear", broken)
+    args = ["linear", str(params_file), "--out", str(tmp_path / "lin")]
+    code, text = run_main(args, monkeypatch, capsys)
+    assert code == 1 and "internal error: ValueError: operands" in text
+    assert "please report it" in text and "PNEUMAFIT_DEBUG=1" in text
+    monkeypatch.setenv("PNEUMAFIT_DEBUG", "1")
+    monkeypatch.setattr(sys, "argv", ["pneumafit", *args])
+    from pneumafit import cli as cli_module
+
+    with pytest.raises(ValueError, match="operands"):
+        cli_module.main()

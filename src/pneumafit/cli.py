@@ -156,6 +156,13 @@ def _quantity(text: str, unit: str, option: str) -> float:
         ) from None
 
 
+def _positive(value: float, option: str, text: str) -> float:
+    """``value`` if it is positive, else an input error naming the option."""
+    if not value > 0:
+        raise PneumafitInputError(f"option {option}: expected a positive value, found {text!r}")
+    return value
+
+
 @app.command()
 def run(
     campaign: Annotated[
@@ -416,14 +423,19 @@ def simulate(
     """
     import dataclasses
 
-    check_output(out, "file")
     from pneumafit.campaign import Recording, write_recording_h5
     from pneumafit.models import get_structure
+    from pneumafit.models.structure import MODELS
     from pneumafit.parameters_io import read_effects, read_friction_law, read_parameter_file
     from pneumafit.simulation import Simulator
     from pneumafit.simulation.scenarios import blocked_test, step_test
 
+    check_output(out, "file")
     file_model, values = read_parameter_file(params)
+    if model is not None and model not in MODELS:
+        raise PneumafitInputError(
+            f"option --model: expected one of {', '.join(MODELS)}, found {model!r}"
+        )
     model = model or file_model
     structure = dataclasses.replace(get_structure(model), friction=read_friction_law(params))
     effects = read_effects(params)
@@ -435,8 +447,8 @@ def simulate(
         )
     if chamber not in ("P", "N"):
         raise PneumafitInputError(f"option --chamber: expected P or N, found {chamber!r}")
-    fs = _quantity(rate, "Hz", "--rate")
-    length = _quantity(duration, "s", "--duration")
+    fs = _positive(_quantity(rate, "Hz", "--rate"), "--rate", rate)
+    length = _positive(_quantity(duration, "s", "--duration"), "--duration", duration)
     if kind == "step":
         exp = step_test(
             structure, values, y0=_quantity(y0, "m", "--y0"),
@@ -446,8 +458,18 @@ def simulate(
             umax=_quantity(umax, "V", "--umax"), rate=fs,
         )  # fmt: skip
     else:
+        from pneumafit.models import parameter_vector
+        from pneumafit.models.layout import P
+
+        stroke = float(parameter_vector(values)[P["stroke"]])
+        blocked_at = _quantity(position, "m", "--position")
+        if not 0.0 <= blocked_at <= stroke:
+            raise PneumafitInputError(
+                f"option --position: expected a position within the stroke [0, {stroke:g}] m, "
+                f"found {position!r}"
+            )
         exp = blocked_test(
-            kind, values, chamber=chamber, position=_quantity(position, "m", "--position"),
+            kind, values, chamber=chamber, position=blocked_at,
             amplitude=_quantity(amplitude, "V", "--amplitude"),
             start=_quantity(start, "s", "--start"),
             open_time=_quantity(open_time, "s", "--open-time"), duration=length, rate=fs,
@@ -681,15 +703,6 @@ def main() -> None:
         if debug:
             raise
         err_console.print(f"[bold red]error:[/bold red] {exc}")
-        sys.exit(EXIT_BAD_INPUT)
-    except ValueError as exc:
-        # library checks of values raise ValueError with a message in the
-        # user's words; a ValueError from a bug reads like one, hence the hint
-        if debug:
-            raise
-        err_console.print(
-            f"[bold red]error:[/bold red] {exc}\n(if this is not about your input: {_REPORT_BUG})"
-        )
         sys.exit(EXIT_BAD_INPUT)
     except OSError as exc:
         if debug or exc.errno not in _ENVIRONMENT_ERRNOS:

@@ -114,7 +114,7 @@ def test_run_on_a_missing_campaign_is_a_message(tmp_path):
     """The main job end to end is tests/test_pipeline.py (the demo with MCMC
     takes minutes); here only its command-line contract."""
     res = cli("run", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run"))
-    assert res.returncode != 0
+    assert res.returncode == 2
     assert "nowhere" in res.stdout + res.stderr
     assert "Traceback" not in res.stdout + res.stderr
     assert not (tmp_path / "run" / "fits").exists()

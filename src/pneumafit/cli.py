@@ -40,11 +40,13 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(LOGGER)
 
+#: The exit statuses of every command (the app's --help epilog; README.md).
 EXIT_STATUSES = (
-    "Exit status: 0 done; 1 the work failed (a fit, a simulation); 2 bad input (an option, "
-    "a file, an output path that cannot be written, a report whose inputs disagree or are "
-    "missing); 3 an untrustworthy result under --strict; 130 interrupted. Any other "
-    "failure is a bug: 'internal error', exit status 1."
+    "Exit status: 0 done; 1 the work failed (a fit, a simulation), or check found problems "
+    "in the campaign; 2 bad input (an option, a file, an invalid campaign, an output path "
+    "that cannot be written, a report whose inputs disagree or are missing); 3 an "
+    "untrustworthy result under --strict; 130 interrupted. A bug is an 'internal error' "
+    "(exit status 1) with how to report it."
 )
 
 # Not a terminal (a log file, a pipe, CI): tables in full (no cut, no

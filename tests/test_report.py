@@ -165,6 +165,28 @@ def test_an_empty_run_folder_gives_not_run_sections(tmp_path: Path) -> None:
         assert "not run" in _section_html(html, anchor), anchor
 
 
+def test_a_report_on_another_campaign_is_refused_or_says_so(
+    run_folder: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Fits made from other campaign files than --campaign (here the same
+    protocol recorded with another seed): an input error before anything is
+    written unless allowed, and then said at the top and in the campaign
+    section. The fits' own campaign passes."""
+    run, campaign = run_folder
+    other = tmp_path / "other"
+    VirtualRig(seed=4).write(other, _tiny_protocol())
+    target = tmp_path / "report.html"
+    with pytest.raises(PneumafitInputError, match=r"fits/convection/fit.json was made from"):
+        write_report(run, target, campaign=other, allow_partial=False)
+    assert not target.exists()
+    html = write_report(run, target, campaign=other).read_text(encoding="utf-8")
+    assert "<strong>Inputs disagree</strong>" in html
+    assert "inputs disagree: fits/polytropic/fit.json" in _section_html(html, "campaign")
+    assert str(campaign) in _section_html(html, "campaign")  # where the fits came from
+    html = write_report(run, target, campaign=campaign, allow_partial=False).read_text("utf-8")
+    assert "Inputs disagree" not in html
+
+
 def test_bad_run_folder_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(PneumafitInputError, match=r"nowhere: expected a folder.*found nothing"):
         write_report(tmp_path / "nowhere", tmp_path / "r.html")

@@ -211,6 +211,8 @@ class _Run:
         self.campaign_error: str | None = None
         self.replays: list[Any] = []
         self.replay_errors: dict[str, str] = {}
+        #: What makes the report untrue to its inputs (:meth:`disagreements`).
+        self.problems: list[str] = []
 
     def _campaign_path(self, given: Path | None) -> tuple[Path | None, str]:
         if given is not None:
@@ -266,8 +268,9 @@ class _Run:
             differ = sorted(k for k in set(theirs) | set(ours) if theirs.get(k) != ours.get(k))
             shown = ", ".join(differ[:4]) + (" ..." if len(differ) > 4 else "")
             problems.append(
-                f"{origin} was made from campaign {entry.get('name')!r}, not from campaign "
-                f"{self.campaign.name!r} at {self.campaign_path} (files that differ: {shown})"
+                f"{origin} was made from campaign {entry.get('name')!r} at {entry.get('path')}, "
+                f"not from campaign {self.campaign.name!r} at {self.campaign_path} as it is now "
+                f"(files that differ: {shown})"
             )
         return problems
 
@@ -348,6 +351,8 @@ def _campaign_section(run: _Run) -> tuple[str, str, str]:
     parts.append(_stages_table(run))
     for model, error in run.fit_errors.items():
         parts.append(note(f"fit {esc(model)}: {esc(error)}", "error"))
+    for problem in run.problems:
+        parts.append(note(f"inputs disagree: {esc(problem)}", "error"))
     if run.summary_error:
         parts.append(note(esc(run.summary_error), "error"))
     source = f"campaign folder ({esc(run.campaign_origin) or 'not recorded'})"
@@ -1155,15 +1160,14 @@ def write_report(
             "give a run folder, or --allow-partial for a report of empty sections"
         )
     run.load_campaign()
-    if not allow_partial:
-        problems = run.disagreements(given=campaign is not None)
-        if problems:
-            raise PneumafitInputError(
-                f"report: the inputs of run folder {folder} disagree or are missing: "
-                + "; ".join(problems)
-                + ". Give the campaign the fits were made from with --campaign, or "
-                "--allow-partial to write the report anyway"
-            )
+    run.problems = problems = run.disagreements(given=campaign is not None)
+    if problems and not allow_partial:
+        raise PneumafitInputError(
+            f"report: the inputs of run folder {folder} disagree or are missing: "
+            + "; ".join(problems)
+            + ". Give the campaign the fits were made from with --campaign, or "
+            "--allow-partial to write the report anyway"
+        )
     run.replay(console)
     sections = []
     for anchor, title in SECTIONS:
@@ -1181,6 +1185,9 @@ def write_report(
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     subtitle = (f"run folder <code>{esc(folder.resolve())}</code>; written {esc(created)} by "
                 f"pneumafit {esc(_version())}")  # fmt: skip
+    if run.problems:
+        subtitle += ("<br><strong>Inputs disagree</strong> (the report was written anyway): "
+                     + "; ".join(esc(p) for p in run.problems))  # fmt: skip
     headline = _quality_headline(run)
     if headline:
         subtitle += f"<br><strong>Fit quality</strong>: {headline}"

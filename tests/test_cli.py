@@ -104,7 +104,12 @@ def test_rig_quick_campaign_and_bad_effect(tmp_path):
     res = cli("rig", "--out", str(out), "--protocol", "quick", "--seed", "5")
     assert res.returncode == 0, res.stdout + res.stderr
     assert (out / "campaign.toml").exists() and (out / "truth.json").exists()
-    assert cli("check", str(out)).returncode == 0
+    res = cli("check", str(out))
+    assert res.returncode == 0
+    # stdout is a pipe (as in a log or CI): the table is printed whole, each
+    # row on one line (at 200 columns the step test's channels were wrapped)
+    row = next(line for line in res.stdout.splitlines() if "step_1.csv" in line)
+    assert "T_N [degC]" in row and "umax=10 V" in row and "…" not in res.stdout
     res = cli("rig", "--out", str(tmp_path / "b"), "--protocol", "quick", "--effect", "warp=1")
     assert res.returncode == 2
     assert "warp" in res.stdout + res.stderr and "Traceback" not in res.stdout + res.stderr

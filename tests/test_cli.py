@@ -369,3 +369,22 @@ def test_a_bug_is_an_internal_error_not_bad_input(tmp_path, params_file, monkeyp
 
     with pytest.raises(ValueError, match="operands"):
         cli_module.main()
+
+
+def test_a_refusal_while_writing_is_bad_input(tmp_path, params_file, monkeypatch, capsys):
+    """Permissions or a full disk found only while writing (after the check):
+    exit 2 naming the file, not "internal error"."""
+    import errno
+
+    from pneumafit.outputs import linear_report
+
+    target = str(tmp_path / "lin" / "linear.json")
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", target)
+
+    monkeypatch.setattr(linear_report, "write_linear", full)
+    code, text = run_main(["linear", str(params_file), "--out", str(tmp_path / "lin")],
+                          monkeypatch, capsys)  # fmt: skip
+    assert code == 2 and f"cannot write or read {target}: No space left" in " ".join(text.split())
+    assert "internal error" not in text

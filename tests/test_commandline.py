@@ -131,9 +131,12 @@ def test_quiet_holds_the_output_back_and_shows_it_on_failure(capsys) -> None:
     assert captured.out == "" and "progress" not in captured.err
     assert "WARNING pneumafit.test: a warning record" in captured.err
     assert "info record" not in captured.err
-    configure_output(console, quiet=True, verbose=False)
-    console.print("why it failed")
-    release_output(console, failed=True)
+    tty = Console(file=sys.stdout, force_terminal=True)
+    configure_output(tty, quiet=True, verbose=False)
+    assert not tty.is_terminal  # no progress bars while quiet
+    tty.print("why it failed")
+    release_output(tty, failed=True)
+    assert tty.is_terminal
     captured = capsys.readouterr()
     assert captured.out == "" and "why it failed" in captured.err
     configure_output(console, quiet=False, verbose=True)

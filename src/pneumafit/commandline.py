@@ -135,7 +135,8 @@ def configure_output(console: Console, *, quiet: bool, verbose: bool) -> None:
     options, its exit status and time). ``--quiet``: the console's output is
     held back (``console.begin_capture``) and shown on standard error only if
     the command fails (:func:`release_output`), log records of level WARNING
-    and above only. Error messages of the command line itself always show.
+    and above only, and the console is not a terminal (no progress bars).
+    Error messages of the command line itself always show.
 
     Raises
     ------
@@ -155,6 +156,10 @@ def configure_output(console: Console, *, quiet: bool, verbose: bool) -> None:
     if quiet:
         console.begin_capture()
         console._pneumafit_quiet = True  # type: ignore[attr-defined]
+        # not a terminal while quiet, so that no progress bar is drawn (the fit
+        # asks console.is_terminal); rich has no public setter for it
+        console._pneumafit_terminal = console._force_terminal  # type: ignore[attr-defined]
+        console._force_terminal = False
 
 
 def release_output(console: Console, *, failed: bool) -> None:
@@ -164,6 +169,7 @@ def release_output(console: Console, *, failed: bool) -> None:
     if not getattr(console, "_pneumafit_quiet", False):
         return
     console._pneumafit_quiet = False  # type: ignore[attr-defined]
+    console._force_terminal = console._pneumafit_terminal  # type: ignore[attr-defined]
     held = console.end_capture()
     if failed and held:
         sys.stderr.write(held)

@@ -575,3 +575,34 @@ def test_auto_friction_keeps_the_switch_model_on_a_stick_slip_rig(tmp_path: Path
         # for another platform's rounding and still fails a LuGre fit of these
         # data (its stage-(c) static friction was 54.0 N, +8 %)
         assert result.parameters[name].value == pytest.approx(rig.parameters[name], rel=0.02)
+
+
+def test_fit_json_structure_is_read_whole(tmp_path: Path) -> None:
+    """A convection fit is made with Sutherland air (``fit_structure``): every
+    plant reader (closed loop, simulate, the FMU) gets the fitted structure
+    back, not the registered one with constant air properties; a bad value
+    is named."""
+    from pneumafit.analysis.closed_loop import read_plant_file
+    from pneumafit.parameters_io import parse_structure, read_structure
+
+    structure = ModelStructure("convection", air_properties="sutherland", friction="lugre")
+    doc = _fit_document(structure.with_effects(seal_friction=1))
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(doc))
+    for read in (read_plant_file, read_structure):
+        got = read(path)[0]
+        assert (got.air_properties, got.friction, got.effects, got.valve) == (
+            "sutherland", "lugre", {"seal_friction": 1}, "iso6358"
+        )  # fmt: skip
+    # --model replaces the heat law and keeps the rest
+    other = read_structure(path, "polytropic")[0]
+    assert (other.heat, other.friction) == ("polytropic", "lugre")
+    # a parameter file without the keys: the registered structure
+    assert parse_structure({"parameters": {}}, "convection").air_properties == "constant"
+    with pytest.raises(PneumafitInputError, match=r"fit\.json: structure\.air_properties: "
+                       r"expected one of constant, sutherland, found 'wall'"):  # fmt: skip
+        parse_structure({"structure": {"air_properties": "wall"}}, "convection", "fit.json")
+    with pytest.raises(PneumafitInputError, match=r"structure\.valve: expected iso6358 or map"):
+        parse_structure({"structure": {"valve": "spline"}}, "convection")
+    with pytest.raises(PneumafitInputError, match=r"model: expected one of"):
+        parse_structure({}, "adiabatic")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import json
 import time
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -53,9 +54,19 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
     assert (out / "linear" / "design_6.json").exists()
     closed = json.loads((out / "closed_loop" / "closed_loop.json").read_text())
     assert len(closed["controllers"]) == 2
-    for name in ("controller.json", "controller.yaml", "controller.h", "controller.mat"):
+    for name in ("controller.json", "controller.yaml", "controller.h", "controller.c",
+                 "controller.mat", "controller.csv", "sil.json"):  # fmt: skip
         assert (out / "export" / name).stat().st_size > 0
+    exported = json.loads((out / "export" / "controller.json").read_text())
+    assert exported["design"]["validated"] is True  # the closed-loop stage's design
+    assert exported["design"]["w0"] == closed["inputs"]["w0_rad_s"]
+    sil = json.loads((out / "export" / "sil.json").read_text())
+    if sil["run"]:  # a C compiler was found: the plant FMU is built too
+        assert sil["max_command_difference_V"] <= 1e-9 and sil["identical_figures"]
+        with zipfile.ZipFile(out / "export" / "plant.fmu") as fmu:
+            assert "modelDescription.xml" in fmu.namelist()
     html = (out / "report.html").read_text()
+    assert "The exported controller in the loop" in html
     assert html.lstrip().lower().startswith("<!doctype html")
     summary = json.loads((out / "summary.json").read_text())
     assert summary["failed_stage"] is None

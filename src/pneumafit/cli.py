@@ -421,28 +421,23 @@ def simulate(
 
     The parameter file's ``friction`` key (a fit.json's ``structure.friction``)
     chooses the friction law: ``switch`` (default) or ``lugre``; its
-    ``effects`` (a fit.json's ``structure.effects``) switch optional effects on.
+    ``effects`` (a fit.json's ``structure.effects``) switch optional effects on;
+    a fit.json's valve law and air properties are kept.
     """
-    import dataclasses
-
     from pneumafit.campaign import Recording, write_recording_h5
-    from pneumafit.models import get_structure
     from pneumafit.models.structure import MODELS
-    from pneumafit.parameters_io import read_effects, read_friction_law, read_parameter_file
+    from pneumafit.parameters_io import read_structure
     from pneumafit.simulation import Simulator
     from pneumafit.simulation.scenarios import blocked_test, step_test
 
     check_output(out, "file")
-    file_model, values = read_parameter_file(params)
     if model is not None and model not in MODELS:
         raise PneumafitInputError(
             f"option --model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
-    model = model or file_model
-    structure = dataclasses.replace(get_structure(model), friction=read_friction_law(params))
-    effects = read_effects(params)
-    if effects:  # a fit that kept an effect (seal friction, discovery's refits)
-        structure = structure.with_effects(**effects)
+    # the fitted structure: valve and friction laws, effects, air properties
+    structure, values = read_structure(params, model)
+    model = model or structure.name  # the file's model when not overridden
     if kind not in ("charge", "discharge", "step"):
         raise PneumafitInputError(
             f"option --kind: expected charge, discharge or step, found {kind!r}"
@@ -646,35 +641,101 @@ def closed_loop(
 @app.command()
 def export(
     fit: Annotated[Path, typer.Argument(help="fit.json or a parameter file.")],
-    format: Annotated[str, typer.Option("--format", help="json, yaml, c or mat.")],
-    out: Annotated[Path, typer.Option("--out", help="File to write.")],
+    format: Annotated[str, typer.Option("--format", help="json, yaml, c, mat, csv or fmu.")],
+    out: Annotated[Path, typer.Option("--out", help="File to write (c: the header, .h).")],
     order: Annotated[int, typer.Option(help="Design model: 4 or 6.")] = 6,
-    w0: Annotated[float, typer.Option(help="ITAE frequency scale (rad/s).")] = 15.0,
+    placement: Annotated[
+        str | None, typer.Option(help="dominant (validated default) or itae.")
+    ] = None,
+    w0: Annotated[
+        float | None,
+        typer.Option(help="ITAE frequency scale (rad/s); default closed-loop's (largest_w0)."),
+    ] = None,
+    compensate: Annotated[
+        bool | None,
+        typer.Option("--compensate/--no-compensate", help="Dead-band compensation (default on)."),
+    ] = None,
+    closed_loop: Annotated[
+        Path | None,
+        typer.Option("--closed-loop", help="closed_loop.json whose design to export."),
+    ] = None,
     positions: PositionsOption = None,
     lambda_e: LambdaOption = None,
+    sil: Annotated[
+        bool,
+        typer.Option("--sil", help="c: compile controller.c and run it in the loop (sil.json)."),
+    ] = False,
 ) -> None:
-    """Export parameters, linear models and the gain schedule for a controller."""
+    """Export the validated controller: parameters, linear models, gain schedule, C code."""
     check_output(out, "file")
     from pneumafit.models.layout import P
-    from pneumafit.outputs.export import FORMATS, build_export, write_export
-    from pneumafit.parameters_io import read_parameter_details
+    from pneumafit.outputs.export import FORMATS, export_document, write_export
 
+    if format == "fmu":
+        try:
+            from pneumafit.outputs.fmu import build_fmu
+        except ImportError as exc:
+            err_console.print(
+                f"[bold red]error:[/bold red] --format fmu: the FMU exporter "
+                f"(pneumafit.outputs.fmu) is not available in this installation ({exc})"
+            )
+            raise typer.Exit(2) from None
+        written = build_fmu(fit, out)
+        console.print(f"wrote {written}")
+        return
     if format not in FORMATS:
         raise PneumafitInputError(
-            f"option --format: expected one of {', '.join(FORMATS)}, found {format!r}"
+            f"option --format: expected one of {', '.join((*FORMATS, 'fmu'))}, found {format!r}"
         )
-    if order not in (4, 6):
-        raise PneumafitInputError(f"option --order: expected 4 or 6, found {order}")
-    params, nominal, model, valve = _fit_parameters(fit)
-    _, details = read_parameter_details(fit)
-    ys = _positions(positions, params[P["stroke"]])
-    doc = build_export(details, model=model, source=fit.name, positions=ys, order=order, w0=w0,
-                       lambda_e=lambda_e or nominal, valve=valve)  # fmt: skip
+    params, _, _, _ = _fit_parameters(fit)
+    ys = None if positions is None else _positions(positions, params[P["stroke"]])
+    doc = export_document(fit, order=order, placement=placement, w0=w0, compensate=compensate,
+                          positions=ys, lambda_e=lambda_e, closed_loop=closed_loop)  # fmt: skip
     write_export(doc, out, format)
+    extra = " and " + str(out.with_suffix(".c")) if format == "c" else ""
     console.print(
-        f"wrote {out}: {len(doc['grid']['positions'])} positions, order {order}"
-        + (f" ({len(doc['skipped'])} positions without equilibrium)" if doc["skipped"] else "")
+        f"wrote {out}{extra}: {doc['design']['description']}; "
+        f"{len(doc['grid']['positions'])} breakpoints"
+        + (f" ({len(doc['skipped'])} positions left out)" if doc["skipped"] else "")
     )
+    if not sil:
+        return
+    if format != "c":
+        raise PneumafitInputError("option --sil: runs the C controller; use it with --format c")
+    import json
+
+    from pneumafit.fileio import write_text_atomic
+    from pneumafit.outputs.c_controller import sil_for_fit
+
+    try:
+        result = sil_for_fit(doc, out, fit, closed_loop=closed_loop)
+    except RuntimeError as exc:  # no compiler, or the code does not compile
+        err_console.print(f"[bold red]error:[/bold red] --sil: {exc}")
+        raise typer.Exit(1) from None
+    write_text_atomic(out.with_name("sil.json"), json.dumps(result, indent=2) + "\n")
+    table = Table(title="software in the loop: Python law / compiled controller.c")
+    for column in ("step", "overshoot", "settling", "final error", "air"):
+        table.add_column(column, justify="right")
+
+    def pair(p: dict, c: dict, key: str, scale: float, spec: str, unit: str) -> str:
+        both = [("-" if r.get(key) is None else f"{r[key] * scale:{spec}}") for r in (p, c)]
+        return f"{both[0]} / {both[1]} {unit}"
+
+    for p, c in zip(result["python"]["steps"], result["c"]["steps"], strict=True):
+        table.add_row(
+            f"{p['size_m'] * 1e3:+.1f} mm", pair(p, c, "overshoot_m", 1e3, ".2f", "mm"),
+            pair(p, c, "settling_time_s", 1.0, ".3f", "s"),
+            pair(p, c, "final_error_m", 1e3, "+.3f", "mm"),
+            pair(p, c, "air_mass_kg", 1e6, ".1f", "mg"),
+        )  # fmt: skip
+    console.print(table)
+    console.print(
+        f"largest command difference {result['max_command_difference_V']} V over "
+        f"{result['samples']} samples; figures identical: {result['identical_figures']}; "
+        f"wrote {out.with_name('sil.json')}"
+    )
+    if not result["identical_figures"]:
+        raise typer.Exit(1)
 
 
 #: What the environment refuses (permissions, a read-only or full disk): a

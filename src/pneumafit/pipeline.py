@@ -17,8 +17,13 @@ Stages, in order, each writing into ``OUT``:
    ``truth.json`` where it has one that the compiled model can run (a rig
    recorded with the fitted laws), else the convection fit (also for an
    independent truth such as the bundled demo's).
-7. ``export``: the convection fit for controllers, as JSON, YAML, a C
-   header and a MATLAB file (``pneumafit export``).
+7. ``export``: the controller the closed-loop stage validated (its order-6
+   design repeated over a grid of positions: placement, w0 and dead-band
+   compensation from ``closed_loop.json``) as JSON, YAML, a C header with
+   its controller source, a MATLAB file and a CSV schedule (``pneumafit
+   export``); the C code, compiled, is run in the loop on the closed-loop
+   stage's plant beside the Python law (``export/sil.json``); the fitted
+   plant as an FMI 2.0 FMU (``export/plant.fmu``, where a C compiler is there).
 8. ``report.html``: the self-contained validation report.
 
 Re-running reuses what is finished. A fit is reused when its fit.json
@@ -44,6 +49,7 @@ from rich.text import Text
 
 from pneumafit import __version__
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.commandline import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
@@ -62,7 +68,13 @@ RUN_MODELS = ("polytropic", "constant-lambda", "convection")
 
 #: Formats of the controller export.
 EXPORT_FORMATS = {"json": "controller.json", "yaml": "controller.yaml", "c": "controller.h",
-                  "mat": "controller.mat"}  # fmt: skip
+                  "mat": "controller.mat", "csv": "controller.csv"}  # fmt: skip
+
+#: The fitted plant as an FMU (export stage; written when a C compiler is there).
+PLANT_FMU = "plant.fmu"
+
+#: The exported C controller run in the loop (export stage): figures and command difference.
+SIL_FILE = "sil.json"
 
 STAGES_FILE = "stages.json"
 
@@ -312,12 +324,14 @@ def _analyses(
     inputs = [conv, lambda_file] + ([truth] if plant else [])
     stage("closed_loop", inputs, [out / "closed_loop" / "closed_loop.json"], closed_loop)
 
-    def export() -> int:
-        _export(conv, lambda_file, out / "export", console)
-        return 0
+    closed_loop_file = out / "closed_loop" / "closed_loop.json"
 
-    stage("export", [conv, lambda_file],
-          [out / "export" / f for f in EXPORT_FORMATS.values()], export)  # fmt: skip
+    def export() -> int:
+        return _export(conv, closed_loop_file, out / "export", console)
+
+    stage("export", [conv, lambda_file, closed_loop_file],
+          [out / "export" / f for f in (*EXPORT_FORMATS.values(), "controller.c", SIL_FILE)],
+          export)  # fmt: skip
 
 
 def _runnable_truth(truth: Path) -> bool:
@@ -351,6 +365,7 @@ def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,
         out / "linear" / "linear.json",
         out / "closed_loop" / "closed_loop.json",
         out / "export" / EXPORT_FORMATS["json"],
+        out / "export" / SIL_FILE,
     ]
     stage("report", report_inputs, [out / "report.html"], report)
 
@@ -401,21 +416,41 @@ def _linear(fit: Path, lambda_fit: Path, out: Path, console: Console) -> None:
                   f"W/m^2/K) in {out}")  # fmt: skip
 
 
-def _export(fit: Path, lambda_fit: Path, out: Path, console: Console) -> None:
-    """The convection fit for controllers, in every export format."""
-    from pneumafit.models import parameter_vector
-    from pneumafit.outputs.export import build_export, write_export
-    from pneumafit.parameters_io import read_parameter_details, read_valve_law
+def _export(fit: Path, closed_loop: Path, out: Path, console: Console) -> int:
+    """The controller the closed-loop stage validated, in every export format,
+    and its C code run in the loop on the closed-loop stage's plant
+    (``sil.json``; skipped, and said, without a C compiler)."""
+    from pneumafit.outputs.c_controller import find_compiler, sil_from_closed_loop
+    from pneumafit.outputs.export import export_document, write_export
+    from pneumafit.outputs.fmu import build_fmu
 
-    model, details = read_parameter_details(fit)
-    valve = read_valve_law(fit)
-    params = parameter_vector({k: v["value"] for k, v in details.items()})
-    doc = build_export(details, model=model, source=str(fit), positions=_grid(params), order=6,
-                       w0=_design_frequency(params, valve), lambda_e=_lambda_e(lambda_fit),
-                       valve=valve)  # fmt: skip
+    doc = export_document(fit, closed_loop=closed_loop)
     for fmt, name in EXPORT_FORMATS.items():
         write_export(doc, out / name, fmt)
-    console.print(f"controller export ({', '.join(EXPORT_FORMATS)}) in {out}")
+    console.print(f"controller export ({', '.join(EXPORT_FORMATS)}, controller.c) in {out}: "
+                  f"{doc['design']['description']}")  # fmt: skip
+    # the fitted plant for Simulink, AMESim, Dymola, OpenModelica (FMI 2.0
+    # co-simulation); not a stage output: a machine without a C compiler, or
+    # a structure the FMU does not have, still gets everything else
+    try:
+        build_fmu(fit, out / PLANT_FMU)
+        console.print(f"plant FMU (FMI 2.0 co-simulation) of the convection fit: {out / PLANT_FMU}")
+    except PneumafitInputError as exc:
+        console.print(f"plant FMU not written: {exc}")
+    if find_compiler() is None:
+        sil = {"format": "pneumafit-sil", "version": 1, "run": False,
+               "reason": "no C compiler found (set CC, or install cc/gcc/clang)"}  # fmt: skip
+        console.print("software in the loop: skipped, no C compiler")
+        write_text_atomic(out / SIL_FILE, json.dumps(sil, indent=2) + "\n")
+        return 0
+    sil = sil_from_closed_loop(doc, out / EXPORT_FORMATS["c"], closed_loop)
+    write_text_atomic(out / SIL_FILE, json.dumps(sil, indent=2, allow_nan=False) + "\n")
+    console.print(f"software in the loop: the compiled controller.c on the nonlinear model, "
+                  f"largest command difference from the Python law "
+                  f"{sil['max_command_difference_V']} V over {sil['samples']} samples; "
+                  f"figures identical: {sil['identical_figures']}")  # fmt: skip
+    ok = sil["python"]["ok"] and sil["c"]["ok"] and sil["identical_figures"]
+    return 0 if ok else 1
 
 
 def _summary(

@@ -200,3 +200,20 @@ def test_early_stop_at_the_first_converged_check_and_resumes(tmp_path: Path) -> 
     )  # fmt: skip
     assert resumed.n_steps == full.n_steps
     assert np.array_equal(resumed.chain, full.chain)
+
+
+def test_checks_continue_while_the_chain_is_extended() -> None:
+    """Past its default length an extended chain is still checked every
+    ``min_steps`` steps (not in rounds of half the default length), so it
+    stops at the first converged multiple of ``min_steps``. The default
+    length here (100 steps) is far too short for 50 tau of the analytic
+    Gaussian, so the stop lies in the extension."""
+    run = run_mcmc(
+        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=100, seed=6, min_steps=50,
+        max_steps=3000,
+    )  # fmt: skip
+    assert 100 < run.n_steps < 3000 and run.n_steps % 50 == 0
+    assert run.tau_multiple >= 50 and max(run.rhat.values()) <= 1.01
+    shorter = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=run.n_steps - 50,
+                       seed=6)  # fmt: skip
+    assert shorter.tau_multiple < 50 or max(shorter.rhat.values()) > 1.01

@@ -26,7 +26,6 @@ overlap (docs/physics.md, "State feedback on the nonlinear model"):
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import json
 import math
@@ -601,12 +600,7 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
     PneumafitInputError
         Unreadable file or bad entries.
     """
-    from pneumafit.parameters_io import (
-        parse_effects,
-        parse_friction_law,
-        parse_parameters,
-        read_parameter_file,
-    )
+    from pneumafit.parameters_io import parse_parameters, parse_structure, read_parameter_file
 
     file = Path(path)
     try:
@@ -638,14 +632,6 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
         _, values = parse_parameters({"model": spec["heat"], "parameters": values}, str(file))
         return structure, values
     model, values = parse_parameters(document, str(file))
-    structure = get_structure(model)
-    valve = (document.get("structure") or {}).get("valve") if isinstance(document, dict) else None
-    if valve and valve != structure.valve:  # a fit of the measured valve map
-        structure = dataclasses.replace(structure, valve=str(valve))
-    friction = parse_friction_law(document, str(file))  # "switch" unless the file says
-    if friction != structure.friction:
-        structure = dataclasses.replace(structure, friction=friction)
-    effects = parse_effects(document, str(file))  # a fit that kept an effect
-    if effects:
-        structure = structure.with_effects(**effects)
+    # valve law, friction law, effects and air properties of a fit.json
+    structure = parse_structure(document, model, str(file))
     return structure, values

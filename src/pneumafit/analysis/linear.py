@@ -432,6 +432,47 @@ class LinearModel:
         ev = np.linalg.eigvals(self.A)
         return ev[np.argsort(ev.real)]
 
+    @property
+    def input_name(self) -> str:
+        """``"v"`` (controller output, before the compensation) or ``"u"`` (valve command)."""
+        return "u" if self.compensation is None else "v"
+
+    def output_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """C (n, n) = identity and D (n, 1) = 0: every state is an output (the
+        state feedback measures them all, in the state order ``states``)."""
+        n = self.A.shape[0]
+        return np.eye(n), np.zeros((n, 1))
+
+    def to_ss(self):
+        """The model as ``scipy.signal.StateSpace(A, B, C, D)`` (continuous time).
+
+        Deviations from the equilibrium: x - x_e (SI, order ``states``), input
+        ``input_name`` minus its equilibrium value (V), outputs the states.
+        """
+        from scipy.signal import StateSpace
+
+        c, d = self.output_matrices()
+        return StateSpace(self.A, self.B, c, d)
+
+    def to_control(self):
+        """The model as a python-control ``StateSpace`` with named signals.
+
+        Raises
+        ------
+        ImportError
+            When python-control is not installed (``pip install control``).
+        """
+        try:
+            import control
+        except ImportError:
+            raise ImportError(
+                "LinearModel.to_control needs python-control, which is not installed: "
+                "pip install control (or use LinearModel.to_ss for scipy)"
+            ) from None
+        c, d = self.output_matrices()
+        return control.ss(self.A, self.B, c, d, inputs=[self.input_name],
+                          outputs=list(self.states), states=list(self.states))  # fmt: skip
+
 
 def linearize(
     parameters: Mapping[str, float] | np.ndarray,

@@ -252,12 +252,13 @@ def run_mcmc(
         Receives one line per extension.
     min_steps : int, optional
         Stop early: the chain is first run to ``min_steps`` and checked
-        there and every ``min_steps`` steps after; it stops at the first
-        check where it is at least :data:`MIN_TAU_MULTIPLE` tau long and
-        every R-hat is at most :data:`MAX_RHAT`, else at ``n_steps`` (or,
-        with ``max_steps``, extends as above). None: no check before
-        ``n_steps``. The checks see the stored chain only, so an
-        interrupted run resumes to the same chain and the same stop.
+        there and every ``min_steps`` steps after, also past ``n_steps`` up
+        to ``max_steps``; it stops at the first check where it is at least
+        :data:`MIN_TAU_MULTIPLE` tau long and every R-hat is at most
+        :data:`MAX_RHAT`, else at ``n_steps`` (or ``max_steps``). None: no
+        check before ``n_steps``, extensions in rounds of half ``n_steps``.
+        The checks see the stored chain only, so an interrupted run resumes
+        to the same chain and the same stop.
 
     Returns
     -------
@@ -332,13 +333,14 @@ def run_mcmc(
         )
         if converged or target >= limit:
             break
-        if target < n_steps:  # early checks, then the extension rounds
-            target = min(n_steps, target + check)
-            continue
-        target = min(limit, target + max(n_steps // 2, 1))
-        if log is not None:
+        # with checks, every ``check`` steps up to the limit (a chain that needs
+        # 1.1x its default length stops there, not at 1.5x); without, the
+        # extension rounds of half the default length
+        previous = target
+        target = min(limit, target + (check if check > 0 else max(n_steps // 2, 1)))
+        if log is not None and target > n_steps:
             log(
-                f"mcmc {name}: {result.tau_multiple:.0f} tau, R-hat up to "
+                f"mcmc {name}: {previous} steps, {result.tau_multiple:.0f} tau, R-hat up to "
                 f"{max(result.rhat.values()):.3f}: extending to {target} steps (limit {limit})"
             )
     seconds = time.perf_counter() - t0

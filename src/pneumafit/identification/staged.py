@@ -118,11 +118,14 @@ DEFAULT_CHANNELS: tuple[str, ...] = ("p_P", "p_N", "y", "qm_P", "qm_N")
 #: differential-evolution moves tau is ~10 steps (heat) and ~30 (friction,
 #: from a wide start) on the demo, so these are 50 tau plus burn-in.
 DEFAULT_STEPS = {"valve": 2500, "heat": 1000, "friction": 2000}
-#: With ``FitOptions.early_stop``, a chain is checked this many times before
-#: its default length (every DEFAULT_STEPS / MCMC_CHECKS steps) and stops at
-#: the first check where it is >= 50 tau long with every R-hat <= 1.01 (on
-#: the demo the heat chain was 215 tau long at 1000 steps).
-MCMC_CHECKS = 4
+#: With ``FitOptions.early_stop``, a chain is checked every
+#: DEFAULT_STEPS / MCMC_CHECKS steps (heat 100, friction 200), also while it
+#: is extended, and stops at the first check where it is >= 50 tau long with
+#: every R-hat <= 1.01. On the demo (2026-11-25) the friction chain's tau was
+#: 15-23 steps and its walkers' mean log-probability settled within 50 steps
+#: of the start (so a start from the Laplace ellipse would save little): it
+#: needs ~1100-1300 steps, and a check every 500 steps overshoots by up to 499.
+MCMC_CHECKS = 10
 #: Stages sampled by default. The valve is not: its eight parameters need
 #: long chains on the charge/discharge tests (the flow tests alone leave the
 #: centre leakage, which the blocked tests measure, ten times less certain
@@ -390,9 +393,10 @@ class FitOptions:
         before it keeps one. A structure passed as ``model`` keeps its own
         effects.
     early_stop : bool
-        Stop a chain at the first of :data:`MCMC_CHECKS` checks where it is
-        at least 50 tau long with every R-hat <= 1.01 (ignored with
-        ``steps``, which gives chains of exactly that length).
+        Stop a chain at the first check (every 1 / :data:`MCMC_CHECKS` of its
+        default length, also while extended) where it is at least 50 tau
+        long with every R-hat <= 1.01 (ignored with ``steps``, which gives
+        chains of exactly that length).
     temper : bool
         Count each block's residuals as n / tau independent samples in the
         Laplace covariance and the MCMC, tau their correlation time at the

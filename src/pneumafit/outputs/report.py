@@ -979,12 +979,51 @@ def _discovery_section(run: _Run) -> tuple[str, str, str]:
     return "\n".join(parts), "ok", source
 
 
+def _sil_html(path: Path) -> str:
+    """The exported controller run in the loop (export/sil.json), as HTML."""
+    doc, error = _read_json(path)
+    head = "<h3>The exported controller in the loop</h3>"
+    if error:
+        return head + note(esc(error), "error")
+    if not isinstance(doc, dict):
+        return head + _not_found(path)
+    if not doc.get("run"):
+        return head + note(f"software in the loop not run: {esc(doc.get('reason'))}", "warn")
+    runs = {k: doc.get(k) if isinstance(doc.get(k), Mapping) else {} for k in ("python", "c")}
+    diff = doc.get("max_command_difference_V")
+    same = doc.get("identical_figures") is True
+    text = (
+        f"The exported controller ({esc(doc.get('design'))}): its gain schedule with the "
+        f"dead-band compensation, sampled every {fmt(doc.get('period_s'), 's')} with the "
+        f"command held, on the plant <code>{esc(doc.get('plant'))}</code>, same steps. "
+        f"The exported C code (<code>export/controller.c</code>, compiled with "
+        f"<code>{esc(doc.get('compiler'))} {esc(doc.get('flags'))}</code>) was run in the "
+        f"loop through ctypes beside the Python law: largest command difference "
+        f"{esc(diff)} V over {esc(doc.get('samples'))} samples; "
+        + ("every figure below is identical." if same else "the figures differ.")
+    )
+    rows = []
+    keys = ("overshoot_m", "settling_time_s", "final_error_m", "air_mass_kg", "max_abs_u_V")
+    c_steps = runs["c"].get("steps") or []
+    for i, s in enumerate(runs["python"].get("steps") or []):
+        c = c_steps[i] if i < len(c_steps) else {}
+        pairs = [f"{_by_key(k, s.get(k))} / {_by_key(k, c.get(k))}" for k in keys]
+        rows.append([_by_key("size_m", s.get("size_m")), *pairs])
+    rows.append(["whole test", "", "", "",
+                 f"{_by_key('air_mass_kg', runs['python'].get('air_mass_kg'))} / "
+                 f"{_by_key('air_mass_kg', runs['c'].get('air_mass_kg'))}", ""])  # fmt: skip
+    return head + note(text, "note" if same else "error") + table(
+        ["step", *(f"{_key_label(k)} (Python / C)" for k in keys)], rows,
+        caption="Exported controller, sampled: Python law / compiled C code",
+    )  # fmt: skip
+
+
 def _closed_loop_section(run: _Run) -> tuple[str, str, str]:
     """The controllers run on the nonlinear model (closed_loop.json): its
     status is that of the closed-loop test alone."""
     folder = run.dir / "closed_loop"
     path = folder / "closed_loop.json"
-    source = f"<code>{esc(path)}</code> and figures"
+    source = f"<code>{esc(path)}</code> and figures; <code>export/sil.json</code>"
     doc, error = _read_json(path)
     parts = []
     status_cl = "ok"
@@ -1033,6 +1072,7 @@ def _closed_loop_section(run: _Run) -> tuple[str, str, str]:
             parts.append(note("closed_loop.json lists no controllers.", "warn"))
             status_cl = "partial"
         parts.append(_figures(_pngs(folder, doc.get("figures"))))
+        parts.append(_sil_html(run.dir / "export" / "sil.json"))
     return "\n".join(parts), status_cl, source
 
 

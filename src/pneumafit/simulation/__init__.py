@@ -1,6 +1,7 @@
 """Simulation layer: experiments, compiled fixed-step simulator, reference solver."""
 
 from pneumafit.simulation.experiment import PD, Experiment, StateFeedback
+from pneumafit.simulation.sampled import simulate_sampled
 from pneumafit.simulation.simulator import (
     DEFAULT_STEP,
     AirConsumption,
@@ -27,5 +28,6 @@ __all__ = [
     "StateFeedback",
     "Tableau",
     "choose_step",
+    "simulate_sampled",
     "substeps",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -58,6 +59,9 @@ def test_simulate_step(tmp_path, params_file):
         (["--kind", "jump"], "--kind"),
         (["--kind", "step", "--y-ref", "3 bar"], "--y-ref"),
         (["--kind", "charge", "--chamber", "Q"], "--chamber"),
+        (["--kind", "charge", "--rate", "0 Hz"], "--rate"),
+        (["--kind", "charge", "--model", "isothermal"], "--model"),
+        (["--kind", "charge", "--position", "900 mm"], "--position"),
     ],
 )
 def test_simulate_bad_options_are_messages(tmp_path, params_file, args, needle):
@@ -100,7 +104,12 @@ def test_rig_quick_campaign_and_bad_effect(tmp_path):
     res = cli("rig", "--out", str(out), "--protocol", "quick", "--seed", "5")
     assert res.returncode == 0, res.stdout + res.stderr
     assert (out / "campaign.toml").exists() and (out / "truth.json").exists()
-    assert cli("check", str(out)).returncode == 0
+    res = cli("check", str(out))
+    assert res.returncode == 0
+    # stdout is a pipe (as in a log or CI): the table is printed whole, each
+    # row on one line (at 200 columns the step test's channels were wrapped)
+    row = next(line for line in res.stdout.splitlines() if "step_1.csv" in line)
+    assert "T_N [degC]" in row and "umax=10 V" in row and "…" not in res.stdout
     res = cli("rig", "--out", str(tmp_path / "b"), "--protocol", "quick", "--effect", "warp=1")
     assert res.returncode == 2
     assert "warp" in res.stdout + res.stderr and "Traceback" not in res.stdout + res.stderr
@@ -110,7 +119,7 @@ def test_run_on_a_missing_campaign_is_a_message(tmp_path):
     """The main job end to end is tests/test_pipeline.py (the demo with MCMC
     takes minutes); here only its command-line contract."""
     res = cli("run", str(tmp_path / "nowhere"), "--out", str(tmp_path / "run"))
-    assert res.returncode != 0
+    assert res.returncode == 2
     assert "nowhere" in res.stdout + res.stderr
     assert "Traceback" not in res.stdout + res.stderr
     assert not (tmp_path / "run" / "fits").exists()
@@ -171,3 +180,211 @@ def test_linear_and_design_commands(tmp_path, params_file):
     assert res.returncode == 2 and "--order" in res.stderr
     res = cli("linear", str(params_file), "--positions", "0.9", "--out", str(out))
     assert res.returncode == 2 and "--positions" in res.stderr
+
+
+# ------------------------------------------------------ output paths (issue 17)
+#: Every command that writes: (arguments before --out, whether --out is a file
+#: or a folder). Each fails on --out before any heavy work.
+WRITERS = {
+    "run": (lambda d: [str(DEMO)], "folder"),
+    "fit": (lambda d: [str(DEMO), "--no-mcmc"], "folder"),
+    "compare": (lambda d: [str(DEMO), "--no-mcmc"], "folder"),
+    "fit-many": (lambda d: [str(DEMO), "--no-mcmc"], "folder"),
+    "discover": (lambda d: [str(DEMO), "--fit", str(d / "params.json")], "folder"),
+    "report": (lambda d: [str(d)], "file"),
+    "rig": (lambda d: ["--protocol", "quick"], "folder"),
+    "simulate": (lambda d: [str(d / "params.json"), "--kind", "charge"], "file"),
+    "linear": (lambda d: [str(d / "params.json")], "folder"),
+    "export": (lambda d: [str(d / "params.json"), "--format", "json"], "file"),
+    "design": (lambda d: [str(d / "params.json")], "folder"),
+    "closed-loop": (lambda d: [str(d / "params.json")], "folder"),
+}
+
+
+def run_main(args: list[str], monkeypatch, capsys) -> tuple[int, str]:
+    """``pneumafit ARGS`` in this process (fast: the imports are paid once):
+    (exit status, stdout + stderr)."""
+    from pneumafit import cli as cli_module
+
+    monkeypatch.setattr(sys, "argv", ["pneumafit", *args])
+    with pytest.raises(SystemExit) as stopped:
+        cli_module.main()
+    captured = capsys.readouterr()
+    code = stopped.value.code
+    return (0 if code is None else code), captured.out + captured.err
+
+
+def _files(folder: Path) -> list[str]:
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+
+
+@pytest.mark.parametrize("case", ["wrong kind", "under a file", "not writable"])
+@pytest.mark.parametrize("command", list(WRITERS))
+def test_every_writing_command_checks_its_output_path(
+    tmp_path, params_file, monkeypatch, capsys, command, case
+):
+    """Exit 2 and "cannot write PATH" before any work: nothing created, no
+    traceback, never "internal error". The refused permission is simulated
+    (tests run as root, which passes every permission check); a real
+    read-only folder is the next test's."""
+    from pneumafit import fileio
+
+    arguments, kind = WRITERS[command]
+    (tmp_path / "a_file").write_text("x")
+    (tmp_path / "a_folder").mkdir()
+    (tmp_path / "locked").mkdir()
+    if case == "wrong kind":
+        out = tmp_path / ("a_folder" if kind == "file" else "a_file")
+    elif case == "under a file":
+        out = tmp_path / "a_file" / "sub" / ("out.h5" if kind == "file" else "out")
+    else:
+        out = tmp_path / "locked" / "sub" / ("out.h5" if kind == "file" else "out")
+        locked = tmp_path / "locked"
+        refuse = lambda d: "permission denied" if d == locked else None  # noqa: E731
+        monkeypatch.setattr(fileio, "_refusal", refuse)
+    before = _files(tmp_path)
+    code, text = run_main([command, *arguments(tmp_path), "--out", str(out)], monkeypatch, capsys)
+    assert code == 2, text
+    assert f"cannot write {out}" in text
+    assert "Traceback" not in text and "internal error" not in text
+    assert _files(tmp_path) == before
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "geteuid") or os.geteuid() == 0,
+    reason="root passes every permission check: a chmod 0o555 folder stays writable",
+)
+@pytest.mark.parametrize("command", ["linear", "simulate", "report"])
+def test_a_real_read_only_folder(tmp_path, params_file, monkeypatch, capsys, command):
+    arguments, kind = WRITERS[command]
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o555)
+    try:
+        out = locked / ("x.h5" if kind == "file" else "out")
+        code, text = run_main([command, *arguments(tmp_path), "--out", str(out)], monkeypatch,
+                              capsys)  # fmt: skip
+        assert code == 2 and f"cannot write {out}: permission denied" in text
+    finally:
+        locked.chmod(0o755)
+
+
+@pytest.mark.parametrize("command", [*WRITERS, "check"])
+def test_every_command_takes_quiet_and_verbose(command):
+    from typer.testing import CliRunner
+
+    from pneumafit.cli import app
+
+    res = CliRunner().invoke(app, [command, "--help"], terminal_width=200)
+    assert res.exit_code == 0
+    assert "--quiet" in res.output and "--verbose" in res.output
+
+
+def test_quiet_verbose_and_exit_statuses_on_a_real_command(tmp_path, params_file):
+    """--quiet: nothing on stdout when it works, the reason on stderr when it
+    fails; --verbose: debug records on stderr; the exit statuses in --help."""
+    out = tmp_path / "lin"
+    res = cli("linear", str(params_file), "--positions", "250 mm", "--out", str(out), "--quiet")
+    assert res.returncode == 0 and res.stdout == "" and res.stderr == ""
+    assert (out / "linear.json").is_file()
+    res = cli("linear", str(params_file), "--positions", "250 mm", "--out", str(out), "-v")
+    assert res.returncode == 0 and "wrote" in res.stdout
+    assert "DEBUG pneumafit: pneumafit linear" in res.stderr and "exit status 0" in res.stderr
+    res = cli("check", str(tmp_path), "--quiet")
+    assert res.returncode == 1 and res.stdout == "" and "campaign.toml" in res.stderr
+    res = cli("check", str(tmp_path), "--quiet", "--verbose")
+    assert res.returncode == 2 and "--quiet and --verbose" in res.stderr
+    res = cli("--help")
+    assert res.returncode == 0
+    for status in ("0 done", "2 bad input", "3 an untrustworthy result", "130 interrupted"):
+        assert status in " ".join(res.stdout.split())
+
+
+# ------------------------------------------------------------ report (issue 17)
+def _fake_fit(run: Path, model: str, campaign: dict) -> None:
+    """A fit.json as far as the report's checks read it (they run before any
+    simulation)."""
+    folder = run / "fits" / model
+    folder.mkdir(parents=True)
+    doc = {"format": "pneumafit-fit", "model": model, "parameters": {}, "campaign": campaign}
+    (folder / "fit.json").write_text(json.dumps(doc))
+
+
+def test_report_of_another_campaign_or_of_nothing_is_bad_input(tmp_path):
+    """A run folder whose fits were made from another campaign than
+    --campaign, and a folder without any result, exit 2 with the reason and
+    write nothing; --allow-partial writes the empty folder's report."""
+    run = tmp_path / "run"
+    _fake_fit(run, "convection", {"name": "other", "path": str(tmp_path / "gone"),
+                                   "sha256": {"step_1.h5": "0" * 64}})  # fmt: skip
+    res = cli("report", str(run), "--campaign", str(DEMO))
+    assert res.returncode == 2, res.stdout + res.stderr
+    message = " ".join(res.stderr.split())
+    assert "fits/convection/fit.json was made from campaign 'other'" in message
+    assert "--allow-partial" in message and "Traceback" not in res.stderr
+    # the campaign the fit recorded is gone and none was given: missing input
+    res = cli("report", str(run))
+    assert res.returncode == 2 and "gone" in res.stderr
+    assert not (run / "report.html").exists()
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = cli("report", str(empty))
+    assert res.returncode == 2 and "found none of" in " ".join(res.stderr.split())
+    assert _files(empty) == []
+    res = cli("report", str(empty), "--allow-partial", "--quiet")
+    assert res.returncode == 0, res.stderr
+    assert (empty / "report.html").is_file()
+
+
+def test_an_interrupt_exits_130_with_a_word(tmp_path, params_file, monkeypatch, capsys):
+    """typer turns Ctrl-C into exit status 130 silently; every command says it."""
+    from pneumafit.outputs import linear_report
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(linear_report, "write_linear", interrupted)
+    code, text = run_main(["linear", str(params_file), "--out", str(tmp_path / "lin")],
+                          monkeypatch, capsys)  # fmt: skip
+    assert code == 130 and "interrupted" in text and "Traceback" not in text
+
+
+def test_a_bug_is_an_internal_error_not_bad_input(tmp_path, params_file, monkeypatch, capsys):
+    """A ValueError that is not a PneumafitInputError is a bug (numpy's
+    broadcasting errors are ValueErrors too): exit 1, "internal error" and
+    how to report it; PNEUMAFIT_DEBUG=1 gives the traceback."""
+    from pneumafit.outputs import linear_report
+
+    def broken(*args, **kwargs):
+        raise ValueError("operands could not be broadcast together with shapes (3,) (4,)")
+
+    monkeypatch.setattr(linear_report, "write_linear", broken)
+    args = ["linear", str(params_file), "--out", str(tmp_path / "lin")]
+    code, text = run_main(args, monkeypatch, capsys)
+    assert code == 1 and "internal error: ValueError: operands" in text
+    assert "please report it" in text and "PNEUMAFIT_DEBUG=1" in text
+    monkeypatch.setenv("PNEUMAFIT_DEBUG", "1")
+    monkeypatch.setattr(sys, "argv", ["pneumafit", *args])
+    from pneumafit import cli as cli_module
+
+    with pytest.raises(ValueError, match="operands"):
+        cli_module.main()
+
+
+def test_a_refusal_while_writing_is_bad_input(tmp_path, params_file, monkeypatch, capsys):
+    """Permissions or a full disk found only while writing (after the check):
+    exit 2 naming the file, not "internal error"."""
+    import errno
+
+    from pneumafit.outputs import linear_report
+
+    target = str(tmp_path / "lin" / "linear.json")
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", target)
+
+    monkeypatch.setattr(linear_report, "write_linear", full)
+    code, text = run_main(["linear", str(params_file), "--out", str(tmp_path / "lin")],
+                          monkeypatch, capsys)  # fmt: skip
+    assert code == 2 and f"cannot write or read {target}: No space left" in " ".join(text.split())
+    assert "internal error" not in text

@@ -133,7 +133,8 @@ def test_sections_render_what_the_run_holds(
         "comparison": "not run",
         "linear": "partial",  # design_6.json was not written
         "discovery": "not run",
-        "air": "partial",  # simulated air use, no closed-loop test
+        "closed-loop": "not run",  # never run here: not "partial"
+        "air": "ok",  # the air each fit draws on the recorded tests
     }
     fit = json.loads((run / "fits" / "convection" / "fit.json").read_text())
     params = _section_html(html, "parameters")
@@ -149,7 +150,7 @@ def test_sections_render_what_the_run_holds(
     assert "not run for constant-lambda" in measurement
     assert "RMSE p_P" in measurement and "kPa" in measurement
     assert "Ljung-Box" in _section_html(html, "residuals")
-    assert "closed_loop.json</code> not found" in _section_html(html, "air")
+    assert "closed_loop.json</code> not found" in _section_html(html, "closed-loop")
     assert "air supplied" in _section_html(html, "air")
     linear = _section_html(html, "linear")
     assert "open_loop_poles.png" in linear and "gain_schedule_4.png" in linear
@@ -162,6 +163,28 @@ def test_an_empty_run_folder_gives_not_run_sections(tmp_path: Path) -> None:
     assert html.count('class="notrun"') >= len(SECTIONS)
     for anchor, _ in SECTIONS:
         assert "not run" in _section_html(html, anchor), anchor
+
+
+def test_a_report_on_another_campaign_is_refused_or_says_so(
+    run_folder: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Fits made from other campaign files than --campaign (here the same
+    protocol recorded with another seed): an input error before anything is
+    written unless allowed, and then said at the top and in the campaign
+    section. The fits' own campaign passes."""
+    run, campaign = run_folder
+    other = tmp_path / "other"
+    VirtualRig(seed=4).write(other, _tiny_protocol())
+    target = tmp_path / "report.html"
+    with pytest.raises(PneumafitInputError, match=r"fits/convection/fit.json was made from"):
+        write_report(run, target, campaign=other, allow_partial=False)
+    assert not target.exists()
+    html = write_report(run, target, campaign=other).read_text(encoding="utf-8")
+    assert "<strong>Inputs disagree</strong>" in html
+    assert "inputs disagree: fits/polytropic/fit.json" in _section_html(html, "campaign")
+    assert str(campaign) in _section_html(html, "campaign")  # where the fits came from
+    html = write_report(run, target, campaign=campaign, allow_partial=False).read_text("utf-8")
+    assert "Inputs disagree" not in html
 
 
 def test_bad_run_folder_is_an_input_error(tmp_path: Path) -> None:
@@ -254,8 +277,10 @@ def test_documented_formats_of_other_stages_render(tmp_path: Path) -> None:
     assert "<strong>chamber_leakage</strong>" in discovery
     assert "-75&nbsp;%" in discovery  # RMSE 2 kPa -> 0.5 kPa
     assert "2.000e-11&nbsp;kg/s/Pa" in discovery
-    air = _section_html(html, "air")
-    assert "0.43&nbsp;g" in air and "69.8&nbsp;J" in air and "air mass [g]" in air
+    closed_loop = _section_html(html, "closed-loop")
+    assert status["closed-loop"] == "ok"
+    assert "0.43&nbsp;g" in closed_loop and "69.8&nbsp;J" in closed_loop
+    assert "air mass [g]" in closed_loop
 
 
 def _chromium() -> str | None:

@@ -2,41 +2,143 @@
 
 Every command reports bad input as one readable message (file, key, expected,
 found) and a non-zero exit status; tracebacks are for bugs only, and shown
-with ``PNEUMAFIT_DEBUG=1``.
+with ``PNEUMAFIT_DEBUG=1``. Every command that writes checks its ``--out``
+first (:func:`pneumafit.commandline.check_output`), and every command takes
+``--quiet`` and ``--verbose`` (added by :class:`_App`).
 """
 
 from __future__ import annotations
 
+import errno
+import functools
+import inspect
+import logging
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.commandline import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    LOGGER,
+    check_output,
+    configure_output,
+    make_console,
+    release_output,
+)
 
 if TYPE_CHECKING:
     import numpy as np
 
-app = typer.Typer(
+log = logging.getLogger(LOGGER)
+
+#: The exit statuses of every command (the app's --help epilog; README.md).
+EXIT_STATUSES = (
+    "Exit status: 0 done; 1 the work failed (a fit, a simulation), or check found problems "
+    "in the campaign; 2 bad input (an option, a file, an invalid campaign, an output path "
+    "that cannot be written, a report whose inputs disagree or are missing); 3 an "
+    "untrustworthy result under --strict; 130 interrupted. A bug is an 'internal error' "
+    "(exit status 1) with how to report it."
+)
+
+# Not a terminal (a log file, a pipe, CI): tables in full (no cut, no
+# ellipses) and messages on their own lines, so that logs can be searched.
+console = make_console()
+err_console = make_console(stderr=True)
+
+QuietOption = Annotated[
+    bool,
+    typer.Option(
+        "--quiet", "-q",
+        help="Print nothing but errors (the command's output is shown on standard error "
+        "only if it fails); log warnings only.",
+    ),
+]  # fmt: skip
+VerboseOption = Annotated[
+    bool,
+    typer.Option(
+        "--verbose", "-v", help="Also log debug records (options, exit status, time) to stderr."
+    ),
+]
+
+
+def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """``func`` with the ``--quiet`` and ``--verbose`` options of every command."""
+    signature = inspect.signature(func, eval_str=True)
+    extra = [
+        inspect.Parameter("quiet", inspect.Parameter.KEYWORD_ONLY, default=False,
+                          annotation=QuietOption),
+        inspect.Parameter("verbose", inspect.Parameter.KEYWORD_ONLY, default=False,
+                          annotation=VerboseOption),
+    ]  # fmt: skip
+
+    @functools.wraps(func)
+    def command(*args: Any, quiet: bool = False, verbose: bool = False, **kwargs: Any) -> Any:
+        configure_output(console, quiet=quiet, verbose=verbose)
+        name = func.__name__.replace("_", "-")
+        log.debug("pneumafit %s: %s", name, kwargs)
+        started = time.perf_counter()
+        code: int | None = 0
+        try:
+            return func(*args, **kwargs)
+        except typer.Exit as exc:
+            code = exc.exit_code
+            raise
+        except KeyboardInterrupt:
+            # typer itself turns it into exit status 130 without a word
+            code = EXIT_INTERRUPTED
+            release_output(console, failed=True)
+            err_console.print("interrupted")
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        except BaseException:
+            code = None
+            raise
+        finally:
+            release_output(console, failed=code != 0)
+            log.debug("pneumafit %s: exit status %s after %.1f s", name,
+                      "(exception)" if code is None else code,
+                      time.perf_counter() - started)  # fmt: skip
+
+    command.__signature__ = signature.replace(  # type: ignore[attr-defined]
+        parameters=[*signature.parameters.values(), *extra]
+    )
+    command.__annotations__ = {
+        **{p.name: p.annotation for p in signature.parameters.values()},
+        "quiet": QuietOption,
+        "verbose": VerboseOption,
+    }
+    return command
+
+
+class _App(typer.Typer):
+    """A typer app whose every command also takes ``--quiet`` and ``--verbose``."""
+
+    def command(self, *args: Any, **kwargs: Any) -> Callable[[Callable[..., Any]], Any]:
+        register = super().command(*args, **kwargs)
+
+        def decorator(func: Callable[..., Any]) -> Callable[..., Any]:
+            register(_with_output_options(func))
+            return func
+
+        return decorator
+
+
+app = _App(
     name="pneumafit",
     help="Identify and validate models of electropneumatic actuators.",
+    epilog=EXIT_STATUSES,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-# Not a terminal (a log file, a pipe, CI): no 80-column cut, so that tables
-# of parameter names and values stay readable in logs.
-console = Console() if sys.stdout.isatty() else Console(width=200)
-# messages to a log or a pipe are not wrapped: a path cut at 80 columns
-# cannot be searched for (soft_wrap keeps each message on its own lines)
-err_console = Console(stderr=True) if sys.stderr.isatty() else Console(stderr=True, soft_wrap=True)
-
-EXIT_INVALID_INPUT = 2
 
 
 def _quantity(text: str, unit: str, option: str) -> float:
@@ -54,6 +156,13 @@ def _quantity(text: str, unit: str, option: str) -> float:
             f"option {option}: expected a number in {unit} or a value with a unit "
             f"(e.g. '0.25' or '250 mm'), found {text!r} ({exc})"
         ) from None
+
+
+def _positive(value: float, option: str, text: str) -> float:
+    """``value`` if it is positive, else an input error naming the option."""
+    if not value > 0:
+        raise PneumafitInputError(f"option {option}: expected a positive value, found {text!r}")
+    return value
 
 
 @app.command()
@@ -81,6 +190,7 @@ def run(
     """
     from pneumafit.pipeline import run as run_pipeline
 
+    check_output(out, "folder")
     code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
                         steps=steps, strict=strict)  # fmt: skip
     raise typer.Exit(code)
@@ -236,11 +346,25 @@ def report(
         Path | None,
         typer.Option("--campaign", help="Campaign folder (default: the one the fits recorded)."),
     ] = None,
+    allow_partial: Annotated[
+        bool,
+        typer.Option(
+            "--allow-partial",
+            help="Write the report even when the run folder holds no result, its fits were "
+            "made from another campaign than --campaign (or than each other), or the campaign "
+            "cannot be read; without it these exit with status 2 and nothing is written.",
+        ),
+    ] = False,
 ) -> None:
-    """Validation report: one self-contained HTML file from a run folder."""
+    """Validation report: one self-contained HTML file from a run folder.
+
+    Exit status: 0 written, 2 bad input (no run folder, an --out that cannot be
+    written, or inputs that are missing or disagree, unless --allow-partial).
+    """
     from pneumafit.outputs.report import write_report
 
-    write_report(run_dir, out or Path(run_dir) / "report.html", campaign=campaign, console=console)
+    write_report(run_dir, out or Path(run_dir) / "report.html", campaign=campaign, console=console,
+                 allow_partial=allow_partial)  # fmt: skip
     raise typer.Exit(0)
 
 
@@ -267,6 +391,7 @@ def rig(
     """Record a campaign on the virtual rig (deterministic for a seed)."""
     from pneumafit.rig import run_rig
 
+    check_output(out, "folder")
     raise typer.Exit(
         run_rig(out, effect or [], seed=seed, console=console, protocol=protocol, truth=truth)
     )
@@ -300,20 +425,27 @@ def simulate(
     a fit.json's valve law and air properties are kept.
     """
     from pneumafit.campaign import Recording, write_recording_h5
+    from pneumafit.models.structure import MODELS
     from pneumafit.parameters_io import read_structure
     from pneumafit.simulation import Simulator
     from pneumafit.simulation.scenarios import blocked_test, step_test
 
+    check_output(out, "file")
+    if model is not None and model not in MODELS:
+        raise PneumafitInputError(
+            f"option --model: expected one of {', '.join(MODELS)}, found {model!r}"
+        )
     # the fitted structure: valve and friction laws, effects, air properties
     structure, values = read_structure(params, model)
+    model = model or structure.name  # the file's model when not overridden
     if kind not in ("charge", "discharge", "step"):
         raise PneumafitInputError(
             f"option --kind: expected charge, discharge or step, found {kind!r}"
         )
     if chamber not in ("P", "N"):
         raise PneumafitInputError(f"option --chamber: expected P or N, found {chamber!r}")
-    fs = _quantity(rate, "Hz", "--rate")
-    length = _quantity(duration, "s", "--duration")
+    fs = _positive(_quantity(rate, "Hz", "--rate"), "--rate", rate)
+    length = _positive(_quantity(duration, "s", "--duration"), "--duration", duration)
     if kind == "step":
         exp = step_test(
             structure, values, y0=_quantity(y0, "m", "--y0"),
@@ -323,8 +455,18 @@ def simulate(
             umax=_quantity(umax, "V", "--umax"), rate=fs,
         )  # fmt: skip
     else:
+        from pneumafit.models import parameter_vector
+        from pneumafit.models.layout import P
+
+        stroke = float(parameter_vector(values)[P["stroke"]])
+        blocked_at = _quantity(position, "m", "--position")
+        if not 0.0 <= blocked_at <= stroke:
+            raise PneumafitInputError(
+                f"option --position: expected a position within the stroke [0, {stroke:g}] m, "
+                f"found {position!r}"
+            )
         exp = blocked_test(
-            kind, values, chamber=chamber, position=_quantity(position, "m", "--position"),
+            kind, values, chamber=chamber, position=blocked_at,
             amplitude=_quantity(amplitude, "V", "--amplitude"),
             start=_quantity(start, "s", "--start"),
             open_time=_quantity(open_time, "s", "--open-time"), duration=length, rate=fs,
@@ -405,6 +547,7 @@ def linear(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Equilibria, linear models and open-loop poles over the stroke (eqs. 10-14)."""
+    check_output(out, "folder")
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_linear
 
@@ -429,6 +572,7 @@ def design(
     lambda_e: LambdaOption = None,
 ) -> None:
     """State-feedback gain schedule placing the ITAE poles (paper Figs. 6-7)."""
+    check_output(out, "folder")
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_design
 
@@ -478,6 +622,7 @@ def closed_loop(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Both state-feedback designs run on the nonlinear model: steps and air (Figs. 9-11)."""
+    check_output(out, "folder")
     from pneumafit.outputs.closed_loop_report import run_closed_loop
 
     numbers, _, unit = steps.strip().partition(" ")
@@ -522,6 +667,7 @@ def export(
     ] = False,
 ) -> None:
     """Export the validated controller: parameters, linear models, gain schedule, C code."""
+    check_output(out, "file")
     from pneumafit.models.layout import P
     from pneumafit.outputs.export import FORMATS, export_document, write_export
 
@@ -592,34 +738,59 @@ def export(
         raise typer.Exit(1)
 
 
+#: What the environment refuses (permissions, a read-only or full disk): a
+#: message about the path and exit status 2, not a bug.
+_ENVIRONMENT_ERRNOS = frozenset({errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC,
+                                 errno.EDQUOT})  # fmt: skip
+
+_REPORT_BUG = (
+    "This is a bug in pneumafit; please report it with the traceback that the same command "
+    "prints with PNEUMAFIT_DEBUG=1."
+)
+
+
 def main() -> None:
     """Entry point: run the app; turn input errors into messages, not tracebacks.
 
     Typer (standalone mode) handles usage errors, ``--help`` and exit codes
     itself and leaves by ``SystemExit``; what reaches the handlers below is
-    bad input found while working (one message, exit status 2), an interrupt
-    (130) or a bug (one line, exit status 1; traceback with
-    ``PNEUMAFIT_DEBUG=1``).
+    bad input found while working (one message, exit status 2), a path the
+    system refuses to read or write (permission, read-only or full disk: one
+    message, 2), an interrupt (130) or a bug ("internal error", exit status
+    1, with how to report it; traceback with ``PNEUMAFIT_DEBUG=1``).
     """
     debug = os.environ.get("PNEUMAFIT_DEBUG") == "1"
     try:
         app()
-    except (PneumafitInputError, ValueError) as exc:
+    except PneumafitInputError as exc:
         if debug:
             raise
         err_console.print(f"[bold red]error:[/bold red] {exc}")
-        sys.exit(EXIT_INVALID_INPUT)
+        sys.exit(EXIT_BAD_INPUT)
+    except OSError as exc:
+        if debug or exc.errno not in _ENVIRONMENT_ERRNOS:
+            _internal_error(exc, debug)
+        where = exc.filename if exc.filename is not None else "a file"
+        err_console.print(
+            f"[bold red]error:[/bold red] cannot write or read {where}: {exc.strerror}; "
+            "check the path, its permissions and the free space"
+        )
+        sys.exit(EXIT_BAD_INPUT)
     except KeyboardInterrupt:
         err_console.print("interrupted")
-        sys.exit(130)
+        sys.exit(EXIT_INTERRUPTED)
     except Exception as exc:
-        if debug:
-            raise
-        err_console.print(
-            f"[bold red]internal error:[/bold red] {type(exc).__name__}: {exc}\n"
-            "This is a bug in pneumafit; run again with PNEUMAFIT_DEBUG=1 for the traceback."
-        )
-        sys.exit(1)
+        _internal_error(exc, debug)
+
+
+def _internal_error(exc: BaseException, debug: bool) -> None:
+    """Re-raise under ``PNEUMAFIT_DEBUG=1``, else one line and exit status 1."""
+    if debug:
+        raise exc
+    err_console.print(
+        f"[bold red]internal error:[/bold red] {type(exc).__name__}: {exc}\n{_REPORT_BUG}"
+    )
+    sys.exit(EXIT_FAILED)
 
 
 if __name__ == "__main__":

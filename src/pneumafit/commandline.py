@@ -4,17 +4,27 @@ Each command (``fit``, ``compare``, ``discover``, ``fit-many``, ...) checks
 all of its options first and reports every problem at once, one line each
 (the option, what was expected, what was found), then exits with
 :data:`EXIT_BAD_INPUT` before any work is done.
+
+Output paths (``--out``) are checked the same way by every command that
+writes (:func:`output_problem`): a folder where a file is expected or the
+reverse, a path under a file, or a folder that cannot be written is bad input
+(exit status 2, "cannot write PATH: ..." with what to do). Missing parent
+folders are not a problem: they are created, for file and folder outputs
+alike (as ``mkdir -p``).
 """
 
 from __future__ import annotations
 
+import logging
 import os
+import sys
 from collections.abc import Iterable
-from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 from rich.text import Text
+
+from pneumafit.fileio import check_output, output_problem
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -22,8 +32,15 @@ __all__ = [
     "EXIT_INTERRUPTED",
     "EXIT_OK",
     "EXIT_UNTRUSTWORTHY",
+    "LOGGER",
+    "LogConsole",
+    "check_output",
+    "configure_output",
     "folder_problem",
     "int_problem",
+    "make_console",
+    "output_problem",
+    "release_output",
     "report_problems",
 ]
 
@@ -37,11 +54,9 @@ EXIT_INTERRUPTED = 130
 
 
 def folder_problem(path: str | os.PathLike[str], option: str = "--out") -> str | None:
-    """The problem of an output folder option naming an existing file, or None."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        return f"option {option} {os.fspath(path)!r}: expected a folder, found a file"
-    return None
+    """The problem of an output folder option, or None: :func:`output_problem`
+    with ``kind="folder"``."""
+    return output_problem(path, "folder", option)
 
 
 def int_problem(option: str, value: Any, minimum: int) -> str | None:
@@ -62,3 +77,100 @@ def report_problems(console: Console, problems: Iterable[str | None]) -> bool:
     for p in found:
         console.print(Text(p, style="bold red"))
     return bool(found)
+
+
+# --------------------------------------------------------------- logs, --quiet, --verbose
+#: Width of the console when its output is not a terminal (a log file, a pipe,
+#: CI): wide enough that no table is cut (no ellipses) or has its cells wrapped;
+#: a table takes its natural width, a message stays on its own line.
+LOG_WIDTH = 100_000
+#: Width of the horizontal rules (``console.rule``) in a log.
+LOG_RULE_WIDTH = 100
+#: The logger of every pneumafit module (``logging.getLogger(__name__)``).
+LOGGER = "pneumafit"
+
+
+class LogConsole(Console):
+    """A rich console for output that is not a terminal: tables in full.
+
+    Tables and messages are never cut at a width (:data:`LOG_WIDTH`); rules,
+    which fill the width, are drawn :data:`LOG_RULE_WIDTH` characters wide.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("width", LOG_WIDTH)
+        kwargs.setdefault("soft_wrap", True)
+        super().__init__(**kwargs)
+
+    def rule(self, title: Any = "", *, characters: str = "─", style: Any = "rule.line",
+             align: Any = "center") -> None:  # fmt: skip
+        from rich.rule import Rule
+
+        rule = Rule(title, characters=characters, style=style, align=align)
+        self.print(rule, width=min(self.width, LOG_RULE_WIDTH))
+
+
+def make_console(*, stderr: bool = False) -> Console:
+    """The command line's console: rich's own on a terminal, else a :class:`LogConsole`."""
+    stream = sys.stderr if stderr else sys.stdout
+    return Console(stderr=stderr) if stream.isatty() else LogConsole(stderr=stderr)
+
+
+class _StderrHandler(logging.Handler):
+    """Log records to the current ``sys.stderr`` (looked up at each record, so
+    that a test runner's capture is honoured)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            sys.stderr.write(self.format(record) + "\n")
+        except Exception:  # logging must never raise
+            self.handleError(record)
+
+
+def configure_output(console: Console, *, quiet: bool, verbose: bool) -> None:
+    """Apply ``--quiet`` / ``--verbose`` to ``console`` and the ``pneumafit`` logger.
+
+    Default: the console's output as usual, log records of level INFO and above
+    on standard error. ``--verbose``: DEBUG records too (each command's
+    options, its exit status and time). ``--quiet``: the console's output is
+    held back (``console.begin_capture``) and shown on standard error only if
+    the command fails (:func:`release_output`), log records of level WARNING
+    and above only, and the console is not a terminal (no progress bars).
+    Error messages of the command line itself always show.
+
+    Raises
+    ------
+    PneumafitInputError
+        Both ``--quiet`` and ``--verbose`` were given.
+    """
+    from pneumafit.campaign.errors import PneumafitInputError
+
+    if quiet and verbose:
+        raise PneumafitInputError("options --quiet and --verbose: expected one at most, found both")
+    logger = logging.getLogger(LOGGER)
+    logger.setLevel(logging.DEBUG if verbose else logging.WARNING if quiet else logging.INFO)
+    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+        logger.addHandler(handler)
+    if quiet:
+        console.begin_capture()
+        console._pneumafit_quiet = True  # type: ignore[attr-defined]
+        # not a terminal while quiet, so that no progress bar is drawn (the fit
+        # asks console.is_terminal); rich has no public setter for it
+        console._pneumafit_terminal = console._force_terminal  # type: ignore[attr-defined]
+        console._force_terminal = False
+
+
+def release_output(console: Console, *, failed: bool) -> None:
+    """End ``--quiet``'s capture: the held-back output goes to standard error
+    when the command failed (so that its messages explain the exit status),
+    else it is dropped."""
+    if not getattr(console, "_pneumafit_quiet", False):
+        return
+    console._pneumafit_quiet = False  # type: ignore[attr-defined]
+    console._force_terminal = console._pneumafit_terminal  # type: ignore[attr-defined]
+    held = console.end_capture()
+    if failed and held:
+        sys.stderr.write(held)
+        sys.stderr.flush()

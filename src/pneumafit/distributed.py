@@ -42,6 +42,7 @@ from pneumafit.commandline import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
+    LogConsole,
     folder_problem,
     int_problem,
     report_problems,
@@ -197,7 +198,7 @@ def _fit_one(
     from pneumafit.identification.command import fit_command
 
     text = io.StringIO()
-    console = Console(file=text, width=160, force_terminal=False)
+    console = LogConsole(file=text, force_terminal=False)  # each fit's log, tables in full
     t0 = time.perf_counter()
     try:
         code = fit_command(Path(campaign), model, Path(out), walkers, steps, seed, mcmc, console)

@@ -116,20 +116,20 @@ def design_poles(model: LinearModel, w0: float, placement: str = "dominant") -> 
 
     Raises
     ------
-    ValueError
-        Unknown placement, or a kept mode that is not stable.
+    PneumafitInputError
+        Unknown placement, or a kept mode that is not stable (a ValueError).
     """
     n = model.A.shape[0]
     if placement == "itae":
         return itae_poles(n, w0)
     if placement != "dominant":
-        raise ValueError(f"placement: expected one of {PLACEMENTS}, found {placement!r}")
+        raise PneumafitInputError(f"placement: expected one of {PLACEMENTS}, found {placement!r}")
     if not w0 > 0:
-        raise ValueError(f"w0: expected a positive frequency in rad/s, found {w0}")
+        raise PneumafitInputError(f"w0: expected a positive frequency in rad/s, found {w0}")
     open_loop = model.poles[np.argsort(np.abs(model.poles))]
     kept = open_loop[1 : n - 2]  # skip the integrator (|s| smallest), keep n - 3
     if np.any(kept.real >= 0.0):
-        raise ValueError(
+        raise PneumafitInputError(
             f"placement 'dominant': the slow open-loop modes to keep are not all stable: {kept}"
         )
     return np.concatenate([np.roots(ITAE_3) * w0, kept])
@@ -418,7 +418,7 @@ def largest_w0(
     for order in orders:
         lo, hi = math.log(0.1), math.log(1000.0)
         if not fits(math.exp(lo), order):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"w0: no design of order {order} keeps a {step * 1e3:g} mm step within "
                 f"{fraction * umax:g} V, even at w0 = 0.1 rad/s"
             )
@@ -496,15 +496,15 @@ def compare_controllers(
     y_mid = 0.5 * stroke if y_mid is None else float(y_mid)
     offsets = [float(s) for s in steps]
     if not offsets:
-        raise ValueError("steps: expected at least one reference step, found none")
+        raise PneumafitInputError("steps: expected at least one reference step, found none")
     for s in offsets:
         if not 0.0 < y_mid + s < stroke:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"steps: expected references inside the stroke (0, {stroke:g}) m, "
                 f"found {y_mid + s:g} m (offset {s:+g} m from {y_mid:g} m)"
             )
     if not hold > 0:
-        raise ValueError(f"hold: expected a positive time in s, found {hold}")
+        raise PneumafitInputError(f"hold: expected a positive time in s, found {hold}")
     t, y_ref, starts = step_reference(y_mid, offsets, hold=hold)
     plant_structure = get_structure(plant)
     design_valve = plant_structure.valve if valve is None else valve

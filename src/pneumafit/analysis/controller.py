@@ -42,6 +42,7 @@ from pneumafit.analysis.closed_loop import (
     design_controller,
     step_reference,
 )
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 
@@ -220,8 +221,8 @@ def design_schedule(
                             "here (the centre gain matches the open valve's)"})  # fmt: skip
         designs = [d for d in designs if d.compensation is not None]
     if not designs:
-        raise ValueError("design schedule: no position of the grid has a design: "
-                         + "; ".join(s["reason"] for s in skipped[:3]))  # fmt: skip
+        raise PneumafitInputError("design schedule: no position of the grid has a design: "
+                                  + "; ".join(s["reason"] for s in skipped[:3]))  # fmt: skip
     amplitude = designs[0].compensation.amplitude if designs[0].compensation else 0.0
     controller = ScheduledController(
         positions=[d.model.equilibrium.y for d in designs],

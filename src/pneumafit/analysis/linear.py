@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import (
     C_INPUT,
@@ -107,11 +108,13 @@ def valve_law(valve: str) -> int:
 
     Raises
     ------
-    ValueError
-        An unknown name.
+    PneumafitInputError
+        An unknown name (a ValueError).
     """
     if valve not in VALVE_LAWS:
-        raise ValueError(f"valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
+        raise PneumafitInputError(
+            f"valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}"
+        )
     return VALVE_LAWS[valve]
 
 
@@ -207,7 +210,9 @@ def equilibrium(
     law = valve_law(valve)
     stroke = p[P["stroke"]]
     if not 0.0 <= y <= stroke:
-        raise ValueError(f"equilibrium: y: expected a position in [0, {stroke}] m, found {y}")
+        raise PneumafitInputError(
+            f"equilibrium: y: expected a position in [0, {stroke}] m, found {y}"
+        )
     s_p, s_n, f_ext = _external_force(p)
     t0 = p[P["wall_temperature"]]
     u_sat = p[P["valve_u_sat"]]
@@ -298,7 +303,7 @@ class DeadbandCompensation:
 
     def __post_init__(self) -> None:
         if not (self.amplitude >= 0.0 and self.width > 0.0):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"dead-band compensation: expected a >= 0 V and w > 0 V, found "
                 f"a = {self.amplitude} and w = {self.width}"
             )
@@ -370,8 +375,8 @@ def deadband_compensation(
 
     Raises
     ------
-    ValueError
-        When no equilibrium exists at y.
+    PneumafitInputError
+        When no equilibrium exists at y (a ValueError).
     """
     from pneumafit.physics.valve import OPENING_SMOOTHING
 
@@ -379,7 +384,7 @@ def deadband_compensation(
     law = valve_law(valve)
     eq = equilibrium(p, y, valve=valve)
     if not eq.exists:
-        raise ValueError(eq.message)
+        raise PneumafitInputError(eq.message)
     a = overlap(p, valve)
     if a <= 0.0:
         return None
@@ -503,14 +508,14 @@ def linearize(
 
     Raises
     ------
-    ValueError
-        When no equilibrium exists at y.
+    PneumafitInputError
+        When no equilibrium exists at y (a ValueError).
     """
     p = _vec(parameters)
     law = valve_law(valve)
     eq = equilibrium(p, y, valve=valve)
     if not eq.exists:
-        raise ValueError(eq.message)
+        raise PneumafitInputError(eq.message)
     bore, rod, stroke = p[P["bore"]], p[P["rod"]], p[P["stroke"]]
     s_p, s_n = piston_areas(bore, rod)
     v_p, v_n = chamber_volumes(y, stroke, s_p, s_n, p[P["dead_volume_P"]], p[P["dead_volume_N"]])
@@ -522,7 +527,7 @@ def linearize(
     qu_n = -qu_n  # u_N = -u
     n = 6 if order == 6 else 4
     if order not in (4, 6):
-        raise ValueError(f"linearize: order: expected 4 or 6, found {order}")
+        raise PneumafitInputError(f"linearize: order: expected 4 or 6, found {order}")
     A = np.zeros((n, n))
     B = np.zeros((n, 1))
     A[0, 1] = 1.0
@@ -626,9 +631,11 @@ def numerical_jacobian(
 def itae_poles(order: int, w0: float) -> np.ndarray:
     """ITAE prototype poles (1/s) of order 4 or 6 scaled by w0 (rad/s): s -> s / w0."""
     if order not in ITAE_POLES:
-        raise ValueError(f"itae_poles: order: expected 4 or 6, found {order}")
+        raise PneumafitInputError(f"itae_poles: order: expected 4 or 6, found {order}")
     if not w0 > 0:
-        raise ValueError(f"itae_poles: w0: expected a positive frequency in rad/s, found {w0}")
+        raise PneumafitInputError(
+            f"itae_poles: w0: expected a positive frequency in rad/s, found {w0}"
+        )
     return ITAE_POLES[order] * w0
 
 

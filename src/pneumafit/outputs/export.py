@@ -573,7 +573,9 @@ def write_export(doc: dict, path: str | os.PathLike[str], fmt: str) -> Path:
         write_text_atomic(target, yaml.safe_dump(doc, sort_keys=False))
     elif fmt == "c":
         if target.suffix == ".c":
-            raise ValueError(
+            from pneumafit.campaign.errors import PneumafitInputError
+
+            raise PneumafitInputError(
                 f"export: --out {target}: --format c writes a header and the controller source "
                 f"beside it; expected the header's name (e.g. {target.with_suffix('.h').name})"
             )

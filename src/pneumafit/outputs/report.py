@@ -32,7 +32,7 @@ from typing import Any
 from rich.console import Console
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.fileio import write_text_atomic
+from pneumafit.fileio import check_output, write_text_atomic
 from pneumafit.outputs.report_html import (
     Section,
     channel_value,
@@ -49,6 +49,18 @@ __all__ = ["FIT_MODELS", "SECTIONS", "write_report"]
 #: Fits looked for, in this order: ``RUN/fits/<model>/fit.json``.
 FIT_MODELS = ("convection", "constant-lambda", "polytropic")
 
+#: Files of a run folder that hold a result (any one of them makes a report).
+RESULT_FILES = (
+    "summary.json",
+    *(f"fits/{m}/fit.json" for m in FIT_MODELS),
+    "comparison/comparison.json",
+    "linear/linear.json",
+    "linear/design_4.json",
+    "linear/design_6.json",
+    "closed_loop/closed_loop.json",
+    "discovery/discovery.json",
+)
+
 #: Sections of the report, in order: (anchor, heading).
 SECTIONS = (
     ("campaign", "Campaign summary"),
@@ -59,7 +71,8 @@ SECTIONS = (
     ("comparison", "Model comparison"),
     ("linear", "Pole maps and gain schedule"),
     ("discovery", "Discovery: before and after"),
-    ("air", "Closed loop and air consumption"),
+    ("closed-loop", "Closed loop on the nonlinear model"),
+    ("air", "Air consumption"),
 )
 
 _ROLES = ("fit", "validate")
@@ -198,6 +211,8 @@ class _Run:
         self.campaign_error: str | None = None
         self.replays: list[Any] = []
         self.replay_errors: dict[str, str] = {}
+        #: What makes the report untrue to its inputs (:meth:`disagreements`).
+        self.problems: list[str] = []
 
     def _campaign_path(self, given: Path | None) -> tuple[Path | None, str]:
         if given is not None:
@@ -219,6 +234,45 @@ class _Run:
                     path = next((b / path for b in bases if (b / path).exists()), path)
                 return path, origin
         return None, ""
+
+    def has_results(self) -> bool:
+        """Whether the folder holds any result file (:data:`RESULT_FILES`)."""
+        return any((self.dir / name).is_file() for name in RESULT_FILES)
+
+    def disagreements(self, given: bool) -> list[str]:
+        """What makes this run's report untrue: the campaign cannot be read
+        (when it was given, or fits need it), or a fit, the comparison or the
+        main job's summary records other campaign files than the campaign's
+        (``campaign.sha256``: file -> SHA-256). Call after :meth:`load_campaign`."""
+        needed = given or bool(self.fits) or bool(self.fit_errors)
+        if self.campaign is None:
+            if not needed:
+                return []
+            if self.campaign_path is None:
+                return ["no campaign folder was given (--campaign) or recorded in the fits"]
+            return [f"campaign {self.campaign_error}"]
+        ours = dict(self.campaign.sha256)
+        recorded: list[tuple[str, Any]] = [
+            (f"fits/{m}/fit.json", doc.get("campaign")) for m, (doc, _) in self.fits.items()
+        ]
+        comparison, _ = _read_json(self.dir / "comparison" / "comparison.json")
+        if isinstance(comparison, Mapping):
+            recorded.append(("comparison/comparison.json", comparison.get("campaign")))
+        if isinstance(self.summary, Mapping):
+            recorded.append(("summary.json", self.summary.get("campaign")))
+        problems = []
+        for origin, entry in recorded:
+            theirs = entry.get("sha256") if isinstance(entry, Mapping) else None
+            if not isinstance(theirs, Mapping) or dict(theirs) == ours:
+                continue  # nothing recorded to compare (older files), or the same files
+            differ = sorted(k for k in set(theirs) | set(ours) if theirs.get(k) != ours.get(k))
+            shown = ", ".join(differ[:4]) + (" ..." if len(differ) > 4 else "")
+            problems.append(
+                f"{origin} was made from campaign {entry.get('name')!r} at {entry.get('path')}, "
+                f"not from campaign {self.campaign.name!r} at {self.campaign_path} as it is now "
+                f"(files that differ: {shown})"
+            )
+        return problems
 
     def load_campaign(self) -> None:
         from pneumafit.campaign import read_campaign
@@ -297,6 +351,8 @@ def _campaign_section(run: _Run) -> tuple[str, str, str]:
     parts.append(_stages_table(run))
     for model, error in run.fit_errors.items():
         parts.append(note(f"fit {esc(model)}: {esc(error)}", "error"))
+    for problem in run.problems:
+        parts.append(note(f"inputs disagree: {esc(problem)}", "error"))
     if run.summary_error:
         parts.append(note(esc(run.summary_error), "error"))
     source = f"campaign folder ({esc(run.campaign_origin) or 'not recorded'})"
@@ -962,16 +1018,15 @@ def _sil_html(path: Path) -> str:
     )  # fmt: skip
 
 
-def _air_section(run: _Run) -> tuple[str, str, str]:
+def _closed_loop_section(run: _Run) -> tuple[str, str, str]:
+    """The controllers run on the nonlinear model (closed_loop.json): its
+    status is that of the closed-loop test alone."""
     folder = run.dir / "closed_loop"
     path = folder / "closed_loop.json"
-    source = (f"<code>{esc(path)}</code> and figures; the fits (simulated here); "
-              "summary.json")  # fmt: skip
+    source = f"<code>{esc(path)}</code> and figures; <code>export/sil.json</code>"
     doc, error = _read_json(path)
     parts = []
-    have = False
     status_cl = "ok"
-    parts.append("<h3>Controllers on the nonlinear model</h3>")
     if error:
         parts.append(note(esc(error), "error"))
         status_cl = "error"
@@ -982,7 +1037,6 @@ def _air_section(run: _Run) -> tuple[str, str, str]:
         parts.append(note(f"{esc(path)}: expected a JSON object", "error"))
         status_cl = "error"
     else:
-        have = True
         if doc.get("units"):
             parts.append(note(f"units in the file: {esc(doc['units'])}"))
         inputs = doc.get("inputs")
@@ -1019,8 +1073,17 @@ def _air_section(run: _Run) -> tuple[str, str, str]:
             status_cl = "partial"
         parts.append(_figures(_pngs(folder, doc.get("figures"))))
         parts.append(_sil_html(run.dir / "export" / "sil.json"))
+    return "\n".join(parts), status_cl, source
+
+
+def _air_section(run: _Run) -> tuple[str, str, str]:
+    """The air each fitted model draws on the recorded tests, and the nominal
+    replay's (summary.json); the closed-loop test's air is in its section."""
     from pneumafit.outputs.report_models import render_air
 
+    source = "the fits (simulated here); summary.json"
+    parts = []
+    have = False
     air_html = render_air(run.campaign, run.replays) if run.replays else ""
     if air_html:
         have = True
@@ -1035,8 +1098,10 @@ def _air_section(run: _Run) -> tuple[str, str, str]:
                                caption="Nominal replay of the whole campaign (summary.json, "
                                        "untuned models)"))  # fmt: skip
     if not have:
+        parts.append(note("not run: no fit could be simulated on the campaign and "
+                          "summary.json holds no nominal replay.", "notrun"))  # fmt: skip
         return "\n".join(parts), "not run", source
-    return "\n".join(parts), "ok" if status_cl == "ok" else "partial", source
+    return "\n".join(parts), "ok", source
 
 
 _BUILDERS: dict[str, Callable[[_Run], tuple[str, str, str]]] = {
@@ -1048,6 +1113,7 @@ _BUILDERS: dict[str, Callable[[_Run], tuple[str, str, str]]] = {
     "comparison": _comparison_section,
     "linear": _linear_section,
     "discovery": _discovery_section,
+    "closed-loop": _closed_loop_section,
     "air": _air_section,
 }
 
@@ -1065,6 +1131,7 @@ def write_report(
     *,
     campaign: str | os.PathLike[str] | None = None,
     console: Console | None = None,
+    allow_partial: bool = True,
 ) -> Path:
     """Write the validation report of a run folder as one HTML file.
 
@@ -1081,6 +1148,13 @@ def write_report(
         (``campaign.path``), comparison.json or summary.json.
     console : rich Console, optional
         Progress messages.
+    allow_partial : bool
+        Write the report whatever the folder holds (the default). False (the
+        command line without ``--allow-partial``): raise instead, before
+        anything is simulated or written, when the folder holds no result
+        (:data:`RESULT_FILES`), or when the campaign cannot be read (given,
+        or needed by the fits) or differs from the one the fits, comparison
+        or summary were made from (``campaign.sha256``).
 
     Returns
     -------
@@ -1091,7 +1165,9 @@ def write_report(
     ------
     PneumafitInputError
         ``run_dir`` is not an existing folder, ``campaign`` was given and does
-        not exist, or ``out_html`` is an existing folder.
+        not exist, ``out_html`` cannot be written
+        (:func:`pneumafit.fileio.output_problem`), or, unless
+        ``allow_partial``, the inputs are missing or disagree (above).
     """
     import matplotlib
 
@@ -1111,12 +1187,27 @@ def write_report(
             f"report: option --campaign {campaign}: expected a campaign folder, found nothing "
             "at that path"
         )
-    if target.is_dir():
-        raise PneumafitInputError(
-            f"report: option --out {target}: expected an HTML file name, found a folder"
-        )
+    check_output(target, "file")
     run = _Run(folder, Path(campaign) if campaign is not None else None)
+    if not allow_partial and not run.has_results():
+        hint = ""
+        if (folder / "fit.json").is_file():
+            hint = (" (it holds a fit.json: the report reads a run folder whose fits are in "
+                    "fits/<model>/fit.json, as pneumafit run writes them)")  # fmt: skip
+        raise PneumafitInputError(
+            f"report: run folder {folder}: expected the results of pneumafit run, fit, compare, "
+            f"linear, closed-loop or discover, found none of {', '.join(RESULT_FILES)}{hint}; "
+            "give a run folder, or --allow-partial for a report of empty sections"
+        )
     run.load_campaign()
+    run.problems = problems = run.disagreements(given=campaign is not None)
+    if problems and not allow_partial:
+        raise PneumafitInputError(
+            f"report: the inputs of run folder {folder} disagree or are missing: "
+            + "; ".join(problems)
+            + ". Give the campaign the fits were made from with --campaign, or "
+            "--allow-partial to write the report anyway"
+        )
     run.replay(console)
     sections = []
     for anchor, title in SECTIONS:
@@ -1134,6 +1225,9 @@ def write_report(
     created = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     subtitle = (f"run folder <code>{esc(folder.resolve())}</code>; written {esc(created)} by "
                 f"pneumafit {esc(_version())}")  # fmt: skip
+    if run.problems:
+        subtitle += ("<br><strong>Inputs disagree</strong> (the report was written anyway): "
+                     + "; ".join(esc(p) for p in run.problems))  # fmt: skip
     headline = _quality_headline(run)
     if headline:
         subtitle += f"<br><strong>Fit quality</strong>: {headline}"

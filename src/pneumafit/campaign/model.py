@@ -30,7 +30,7 @@ __all__ = [
 ]
 
 #: Recording kinds of the format.
-KINDS: tuple[str, ...] = ("charge", "discharge", "flow", "step", "free")
+KINDS: tuple[str, ...] = ("charge", "discharge", "flow", "step", "free", "friction")
 #: Roles: ``fit`` recordings are fitted, ``validate`` ones are held out.
 ROLES: tuple[str, ...] = ("fit", "validate")
 #: Chamber names: P is the full-bore side, N the rod side.
@@ -49,6 +49,7 @@ CHANNELS: dict[str, str] = {
     "qm_P": "mass flow",
     "qm_N": "mass flow",
     "y_ref": "length",
+    "F": "force",
 }
 #: Channels that drive a simulation; they need at least two real samples.
 INPUT_CHANNELS: tuple[str, ...] = ("u_P", "u_N", "y_ref")
@@ -60,6 +61,7 @@ _SI_UNITS = {
     "length": "m",
     "velocity": "m/s",
     "mass flow": "kg/s",
+    "force": "N",
 }
 
 
@@ -88,6 +90,8 @@ def required_channels(kind: str, chamber: str | None, has_controller: bool) -> t
         return ("y", "y_ref", "p_P", "p_N")
     if kind in ("step", "free"):
         return ("y", "u_P", "u_N")
+    if kind == "friction":
+        return ("y", "p_P", "F")
     return ()
 
 
@@ -120,6 +124,16 @@ class Rig:
         Angle of the rod axis above horizontal [rad].
     external_force : float, default 0
         Constant external force on the rod, positive extending [N].
+    acting : {"double", "single"}, default "double"
+        ``"single"``: only chamber P is pressurised, the rod side is open to
+        the atmosphere (a single-acting cylinder, e.g. a friction-test bench).
+
+    Notes
+    -----
+    In a campaign whose recordings are all friction tests (kind
+    ``friction``), only ``bore``, ``exhaust_pressure`` and
+    ``ambient_temperature`` are required; a value not given is NaN ("not
+    known") and nothing in a friction test uses it.
     """
 
     bore: float
@@ -135,10 +149,11 @@ class Rig:
     characteristic_length: float
     mounting_angle: float = 0.0
     external_force: float = 0.0
+    acting: str = "double"
 
     def as_parameters(self) -> dict[str, float]:
-        """All fields as ``{name: SI value}``."""
-        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+        """All numeric fields as ``{name: SI value}`` (NaN: not given)."""
+        return {f.name: float(getattr(self, f.name)) for f in fields(self) if f.name != "acting"}
 
 
 @dataclass(frozen=True)
@@ -197,7 +212,8 @@ class Recording:
     path : pathlib.Path or None
         Resolved path of the file; None for a recording made in memory.
     kind : str
-        ``charge``, ``discharge``, ``flow``, ``step`` or ``free``.
+        ``charge``, ``discharge``, ``flow``, ``step``, ``free`` or ``friction``
+        (imposed-motion friction test: ``y``, ``p_P`` and the rod force ``F``).
     role : str
         ``fit`` or ``validate`` (held out from fitting).
     chamber : str or None

@@ -59,7 +59,7 @@ def synthetic_campaign() -> Campaign:
     rig = Rig(bore=BORE, rod=nan, stroke=nan, dead_volume_P=nan, dead_volume_N=nan,
               moving_mass=nan, supply_pressure=nan, exhaust_pressure=ATM,
               ambient_temperature=293.15, wall_temperature=293.15,
-              characteristic_length=BORE, acting="single")  # fmt: skip
+              characteristic_length=BORE).with_acting("single")  # fmt: skip
     recs = [synthetic_test(p * 1e5, "fit", rng) for p in (1.0, 3.0, 5.0)]
     recs.append(synthetic_test(7e5, "validate", rng))
     return Campaign(path=None, name="synthetic", description="", rig=rig, recordings=recs)

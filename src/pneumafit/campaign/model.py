@@ -8,8 +8,9 @@ s, V, kg/s. Files and their units are dealt with in :mod:`.reader` and
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -124,9 +125,15 @@ class Rig:
         Angle of the rod axis above horizontal [rad].
     external_force : float, default 0
         Constant external force on the rod, positive extending [N].
-    acting : {"double", "single"}, default "double"
+
+    Attributes
+    ----------
+    acting : {"double", "single"}
         ``"single"``: only chamber P is pressurised, the rod side is open to
         the atmosphere (a single-acting cylinder, e.g. a friction-test bench).
+        Not a dataclass field (code that rebuilds a rig from its numeric
+        fields stays valid): set it with :meth:`with_acting`; default
+        ``"double"``.
 
     Notes
     -----
@@ -149,11 +156,19 @@ class Rig:
     characteristic_length: float
     mounting_angle: float = 0.0
     external_force: float = 0.0
-    acting: str = "double"
+    acting: ClassVar[str] = "double"
+
+    def with_acting(self, acting: str) -> Rig:
+        """A copy of this rig that is ``"single"`` or ``"double"`` acting."""
+        if acting not in ("double", "single"):
+            raise PneumafitInputError(f"acting: expected double or single, found {acting!r}")
+        out = replace(self)
+        object.__setattr__(out, "acting", acting)
+        return out
 
     def as_parameters(self) -> dict[str, float]:
         """All numeric fields as ``{name: SI value}`` (NaN: not given)."""
-        return {f.name: float(getattr(self, f.name)) for f in fields(self) if f.name != "acting"}
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
 
 
 @dataclass(frozen=True)

@@ -434,7 +434,7 @@ def _parse_rig(
     for key, (_kind, required) in _RIG_FIELDS.items():
         if required:  # only friction-only campaigns get here without one
             values.setdefault(key, math.nan)
-    return Rig(**values, acting=acting), valid
+    return Rig(**values).with_acting(acting), valid
 
 
 def _parse_controller(table: object, key: str, file: str, probs: _Problems) -> PDController | None:

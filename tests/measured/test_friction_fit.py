@@ -141,3 +141,26 @@ def test_bad_input_exits_2(tmp_path: Path) -> None:
     assert status == 2
     assert "NAP310_1bar.csv: expected the recording listed as recording[1]" in text
     assert "Traceback" not in text
+
+
+@pytest.mark.parametrize(
+    ("walkers", "friction", "seal", "message"),
+    [
+        (3, "auto", "off", "option --walkers: expected an integer >= 16, found 3"),
+        (None, "karnopp", "off", "option --friction: expected one of auto, switch, lugre"),
+        (None, "auto", "maybe", "option --seal-friction: expected one of auto, on, off"),
+    ],
+)
+def test_bad_options_exit_2(
+    tmp_path: Path, walkers: int | None, friction: str, seal: str, message: str
+) -> None:
+    from pneumafit.identification.command import fit_command
+
+    out = io.StringIO()
+    status = fit_command(
+        ROOT / "data" / "measured" / "NAP310", "friction", tmp_path / "fit", walkers, None, 0,
+        True, Console(file=out, width=200), friction=friction, seal=seal,
+    )  # fmt: skip
+    assert status == 2
+    assert message in " ".join(out.getvalue().split())
+    assert not (tmp_path / "fit").exists()

@@ -23,7 +23,8 @@ Stages:
    by every candidate, so their likelihoods compare.
 3. ``effects`` (``effects="auto"``): the optional terms of :data:`.model.EFFECTS`
    added one at a time, greedily, each kept when it lowers BIC (forward
-   selection).
+   selection); each step's comparison at the tempering power of the current
+   structure's residuals.
    When an effect is kept, the law is chosen again with the effects free
    (``law-with-effects``; its tempering power recomputed at the effects'
    estimate).
@@ -374,15 +375,23 @@ def identify_friction(
         # for pressure-dependent friction), a local minimum once the effect is free
         fresh = _fresh_start(est1.parameters.values(), chosen)
         while remaining:
+            # each step compares the current structure with one more effect at
+            # the power of the current structure's residuals: a step that fixed
+            # the largest misfit shortens the correlation time of the next
+            step_power = _common_power(like, est.z)[1] if kept else power
+            bic = _bic(like, est, step_power)[0]
             trials = {}
             for eff in remaining:
                 ps = _structure_set(est.parameters, chosen, (*kept, eff))
                 lk, es = _fit(problem, ps, starts=[{}, fresh], seed=seed)
-                trials[eff] = (lk, es, _bic(lk, es, power)[0])
+                trials[eff] = (lk, es, _bic(lk, es, step_power)[0])
             best = min(trials, key=lambda k: trials[k][2])
             effect_path.append({"added": best, "bic": trials[best][2], "bic_before": bic,
-                                "kept": trials[best][2] < bic})  # fmt: skip
-            say(f"effect {best}: BIC {trials[best][2]:.1f} (was {bic:.1f})")
+                                "power": step_power, "kept": trials[best][2] < bic})  # fmt: skip
+            say(
+                f"effect {best}: BIC {trials[best][2]:.1f} (was {bic:.1f}; every block "
+                f"counted at 1 / {1.0 / step_power:.0f})"
+            )
             if trials[best][2] >= bic:
                 break
             like, est, bic = trials[best]

@@ -234,3 +234,42 @@ def test_friction_campaign_round_trip(tmp_path: Path) -> None:
     np.testing.assert_allclose(b.time, a.time, rtol=1e-12)
     for name in ("y", "p_P", "F"):
         np.testing.assert_allclose(b.channels[name], a.channels[name], rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("where", "old", "new", "message"),
+    [
+        ("NAP310_3bar.csv", "\t54.369\n", "\t54.369\t7\n",
+         "NAP310_1bar.csv: line 12: expected 7 whitespace-separated fields, like line 1, found 8"),
+        ("NAP310_3bar.csv", None, None, 'NAP310_3bar.csv: F: expected numbers, found "abc"'),
+        ("campaign.toml", 'F = {column = 7, unit = "N"}', "F = {column = 7}",
+         "campaign.toml: read.channels.F.unit: expected a unit of force"),
+    ],
+)  # fmt: skip
+def test_fit_on_a_bad_file_exits_2(
+    tmp_path: Path, where: str, old: str | None, new: str | None, message: str
+) -> None:
+    folder = tmp_path / "NAP310"
+    shutil.copytree(MEASURED / "NAP310", folder)
+    if where == "NAP310_3bar.csv" and old is not None:
+        path = folder / "NAP310_1bar.csv"
+        text = path.read_text()
+        assert old in text
+        path.write_text(text.replace(old, new, 1))
+    elif where == "NAP310_3bar.csv":
+        path = folder / where
+        lines = path.read_text().splitlines()
+        lines[199] = lines[199].rsplit("\t", 1)[0] + "\tabc"
+        path.write_text("\n".join(lines) + "\n")
+    else:
+        path = folder / where
+        path.write_text(path.read_text().replace(old, new))
+    out = subprocess.run(
+        [sys.executable, "-m", "pneumafit.cli", "fit", str(folder), "--model", "friction",
+         "--out", str(tmp_path / "fit"), "--no-mcmc"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    text = " ".join((out.stdout + out.stderr).split())
+    assert out.returncode == 2, text
+    assert message in text
+    assert "Traceback" not in text

@@ -200,9 +200,13 @@ def run(
 def fit(
     campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
     out: Annotated[Path, typer.Option("--out", help="Folder for fit.json and chains.h5.")],
-    model: Annotated[str, typer.Option(help="convection, constant-lambda or polytropic.")] = (
-        "convection"
-    ),
+    model: Annotated[
+        str,
+        typer.Option(
+            help="convection, constant-lambda or polytropic; or friction (a campaign of "
+            "friction tests: the friction law on the rod-force balance)."
+        ),
+    ] = "convection",
     walkers: Annotated[int | None, typer.Option(help="MCMC walkers.")] = None,
     steps: Annotated[int | None, typer.Option(help="MCMC steps.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of every random draw.")] = 0,

@@ -46,6 +46,7 @@ UNITS = {
     "length": ["m", "mm", "cm", "inch"],
     "velocity": ["m/s", "mm/s"],
     "mass flow": ["kg/s", "g/s"],
+    "force": ["N", "kN", "lbf"],
 }
 RANGES = {
     "voltage": (-10.0, 10.0),
@@ -54,6 +55,7 @@ RANGES = {
     "length": (0.0, 0.5),
     "velocity": (-2.0, 2.0),
     "mass flow": (-0.01, 0.01),
+    "force": (-500.0, 500.0),
     None: (-5.0, 5.0),  # the unknown channel "aux", in mA
 }
 OPTIONAL = sorted(set(CHANNELS) - {"y", "u_P", "u_N"})

@@ -8,8 +8,9 @@ s, V, kg/s. Files and their units are dealt with in :mod:`.reader` and
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,7 +31,7 @@ __all__ = [
 ]
 
 #: Recording kinds of the format.
-KINDS: tuple[str, ...] = ("charge", "discharge", "flow", "step", "free")
+KINDS: tuple[str, ...] = ("charge", "discharge", "flow", "step", "free", "friction")
 #: Roles: ``fit`` recordings are fitted, ``validate`` ones are held out.
 ROLES: tuple[str, ...] = ("fit", "validate")
 #: Chamber names: P is the full-bore side, N the rod side.
@@ -49,6 +50,7 @@ CHANNELS: dict[str, str] = {
     "qm_P": "mass flow",
     "qm_N": "mass flow",
     "y_ref": "length",
+    "F": "force",
 }
 #: Channels that drive a simulation; they need at least two real samples.
 INPUT_CHANNELS: tuple[str, ...] = ("u_P", "u_N", "y_ref")
@@ -60,6 +62,7 @@ _SI_UNITS = {
     "length": "m",
     "velocity": "m/s",
     "mass flow": "kg/s",
+    "force": "N",
 }
 
 
@@ -88,6 +91,8 @@ def required_channels(kind: str, chamber: str | None, has_controller: bool) -> t
         return ("y", "y_ref", "p_P", "p_N")
     if kind in ("step", "free"):
         return ("y", "u_P", "u_N")
+    if kind == "friction":
+        return ("y", "p_P", "F")
     return ()
 
 
@@ -120,6 +125,22 @@ class Rig:
         Angle of the rod axis above horizontal [rad].
     external_force : float, default 0
         Constant external force on the rod, positive extending [N].
+
+    Attributes
+    ----------
+    acting : {"double", "single"}
+        ``"single"``: only chamber P is pressurised, the rod side is open to
+        the atmosphere (a single-acting cylinder, e.g. a friction-test bench).
+        Not a dataclass field (code that rebuilds a rig from its numeric
+        fields stays valid): set it with :meth:`with_acting`; default
+        ``"double"``.
+
+    Notes
+    -----
+    In a campaign whose recordings are all friction tests (kind
+    ``friction``), only ``bore``, ``exhaust_pressure`` and
+    ``ambient_temperature`` are required; a value not given is NaN ("not
+    known") and nothing in a friction test uses it.
     """
 
     bore: float
@@ -135,9 +156,18 @@ class Rig:
     characteristic_length: float
     mounting_angle: float = 0.0
     external_force: float = 0.0
+    acting: ClassVar[str] = "double"
+
+    def with_acting(self, acting: str) -> Rig:
+        """A copy of this rig that is ``"single"`` or ``"double"`` acting."""
+        if acting not in ("double", "single"):
+            raise PneumafitInputError(f"acting: expected double or single, found {acting!r}")
+        out = replace(self)
+        object.__setattr__(out, "acting", acting)
+        return out
 
     def as_parameters(self) -> dict[str, float]:
-        """All fields as ``{name: SI value}``."""
+        """All numeric fields as ``{name: SI value}`` (NaN: not given)."""
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}
 
 
@@ -197,7 +227,8 @@ class Recording:
     path : pathlib.Path or None
         Resolved path of the file; None for a recording made in memory.
     kind : str
-        ``charge``, ``discharge``, ``flow``, ``step`` or ``free``.
+        ``charge``, ``discharge``, ``flow``, ``step``, ``free`` or ``friction``
+        (imposed-motion friction test: ``y``, ``p_P`` and the rod force ``F``).
     role : str
         ``fit`` or ``validate`` (held out from fitting).
     chamber : str or None

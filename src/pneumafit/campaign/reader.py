@@ -71,7 +71,7 @@ HDF5_SUFFIXES = (".h5", ".hdf5")
 CSV_SUFFIXES = (".csv",)
 
 _MISSING = "nothing (the key is missing)"
-_TOP_KEYS = ("format", "version", "name", "description", "rig", "recording")
+_TOP_KEYS = ("format", "version", "name", "description", "rig", "read", "recording")
 _RECORDING_KEYS = (
     "file",
     "kind",
@@ -81,7 +81,20 @@ _RECORDING_KEYS = (
     "controller",
     "columns",
     "description",
+    "read",
 )
+#: keys of a ``[read]`` / ``[recording.read]`` table (how to read a file)
+_READ_KEYS = ("header", "separator", "channels", "start")
+#: separators of CSV files; "whitespace" is any run of spaces and tabs
+_SEPARATORS = ("whitespace", ",", ";", "\t")
+#: keys of one ``[read.channels]`` entry
+_CHANNEL_COLUMN_KEYS = ("column", "unit", "gauge", "reversed")
+#: channels a sensor may count the other way (``reversed = true``)
+_REVERSIBLE = ("y", "y_ref", "v", "F")
+#: rig keys still required when every recording is a friction test
+_FRICTION_RIG_KEYS = ("bore", "exhaust_pressure", "ambient_temperature")
+#: values of rig.acting
+_ACTING = ("double", "single")
 #: rig key -> (quantity kind, required). exhaust_pressure first: it is the
 #: reference of gauge values.
 _RIG_FIELDS: dict[str, tuple[str, bool]] = {
@@ -109,6 +122,8 @@ _CONTROLLER_FIELDS: dict[str, tuple[str, bool]] = {
 _BLOCKED_KINDS = ("charge", "discharge")
 _CHAMBER_KINDS = ("charge", "discharge", "flow")
 _OPEN_KINDS = ("step", "free")
+#: kinds that name no chamber and no blocked piston position
+_MOVING_KINDS = ("step", "free", "friction")
 
 
 def _shown(value: object) -> str:
@@ -180,6 +195,34 @@ class CampaignReport:
         return not self.errors
 
 
+@dataclass(frozen=True)
+class _ChannelColumn:
+    """Where one channel of a headerless file is: column (from 1), unit, gauge."""
+
+    column: int
+    unit: str
+    gauge: bool = False
+    reversed: bool = False
+
+
+@dataclass
+class _ReadSpec:
+    """How to read a recording file (``[read]`` merged with ``[recording.read]``).
+
+    ``keys`` maps each given key to where it was written (``read.header`` or
+    ``recording[2].read.header``), for messages. ``ok`` is False when the
+    table had an error: the file is then not read (the error is reported).
+    """
+
+    header: bool = True
+    separator: str = ","
+    channels: dict[str, _ChannelColumn] = field(default_factory=dict)
+    start: float | None = None
+    start_text: str = ""
+    keys: dict[str, str] = field(default_factory=dict)
+    ok: bool = True
+
+
 @dataclass
 class _Meta:
     """One ``[[recording]]`` entry of campaign.toml, values already in SI."""
@@ -197,6 +240,7 @@ class _Meta:
     columns_file: str = CAMPAIGN_FILE
     columns_key: str = "columns"
     exhaust_reported: bool = False  # campaign.toml already reports a bad exhaust pressure
+    read: _ReadSpec = field(default_factory=_ReadSpec)
 
 
 @dataclass
@@ -290,13 +334,26 @@ def _parse_header(
     return texts[0], texts[1]
 
 
+def _friction_only(doc: dict[str, Any]) -> bool:
+    """True when campaign.toml lists recordings and every one is a friction test."""
+    entries = doc.get("recording")
+    entries = [entries] if isinstance(entries, dict) else entries
+    return (
+        isinstance(entries, list)
+        and bool(entries)
+        and all(isinstance(e, dict) and e.get("kind") == "friction" for e in entries)
+    )
+
+
 def _parse_rig(
-    doc: dict[str, Any], file: str, probs: _Problems
+    doc: dict[str, Any], file: str, probs: _Problems, friction_only: bool = False
 ) -> tuple[Rig | None, dict[str, float]]:
     """The rig (None on any error) and the rig values that are valid on their own.
 
     The valid values (e.g. a good exhaust pressure next to a bad bore) still
     serve to check the recordings, so that one mistake is reported once.
+    With ``friction_only`` (every recording a friction test) only
+    :data:`_FRICTION_RIG_KEYS` are required; the others default to NaN.
     """
     table = doc.get("rig")
     if not isinstance(table, dict):
@@ -304,16 +361,26 @@ def _parse_rig(
         probs.error(file, "rig", "a [rig] table (bore, rod, stroke, ...)", found)
         return None, {}
     for key in table:
-        if key not in _RIG_FIELDS:
+        if key not in _RIG_FIELDS and key != "acting":
             probs.warning(
                 file,
                 f"rig.{key}",
-                f"a rig key ({', '.join(_RIG_FIELDS)})",
+                f"a rig key ({', '.join(_RIG_FIELDS)}, acting)",
                 f'unknown key "{key}" (ignored)',
             )
     n_errors = probs.n_errors
+    acting = table.get("acting", "double")
+    if acting not in _ACTING:
+        probs.error(
+            file,
+            "rig.acting",
+            '"double" (both chambers pressurised) or "single" (rod side open to the air)',
+            _shown(acting),
+        )
     values: dict[str, float] = {}
     for key, (kind, required) in _RIG_FIELDS.items():
+        if friction_only and key not in _FRICTION_RIG_KEYS:
+            required = False
         if key not in table:
             if required:
                 probs.error(file, f"rig.{key}", QUANTITY_KINDS[kind].expected, _MISSING)
@@ -364,7 +431,10 @@ def _parse_rig(
         return None, valid
     values.setdefault("wall_temperature", values["ambient_temperature"])
     values.setdefault("characteristic_length", values["bore"])
-    return Rig(**values), valid
+    for key, (_kind, required) in _RIG_FIELDS.items():
+        if required:  # only friction-only campaigns get here without one
+            values.setdefault(key, math.nan)
+    return Rig(**values).with_acting(acting), valid
 
 
 def _parse_controller(table: object, key: str, file: str, probs: _Problems) -> PDController | None:
@@ -472,7 +542,7 @@ def _parse_entry(
         probs.error(
             file, f"{prefix}.chamber", f'"P" or "N" (a {kind} test names its chamber)', _MISSING
         )
-    elif chamber is not None and kind in _OPEN_KINDS:
+    elif chamber is not None and kind in _MOVING_KINDS:
         probs.warning(
             file,
             f"{prefix}.chamber",
@@ -488,7 +558,7 @@ def _parse_entry(
             position = parse_value(raw, "length")
         except UnitError as exc:
             probs.error(file, f"{prefix}.piston_position", exc.expected, exc.found)
-        if position is not None and kind in _OPEN_KINDS:
+        if position is not None and kind in _MOVING_KINDS:
             probs.warning(
                 file,
                 f"{prefix}.piston_position",
@@ -565,6 +635,198 @@ def _parse_entry(
     )
 
 
+def _parse_read(table: object, prefix: str, file: str, probs: _Problems) -> dict[str, Any]:
+    """Check one ``[read]`` table; return its valid values (``ok`` False on an error).
+
+    ``prefix`` is the table's key path (``read`` or ``recording[2].read``).
+    """
+    out: dict[str, Any] = {"ok": True, "keys": {}}
+    if table is None:
+        return out
+    if not isinstance(table, dict):
+        probs.error(file, prefix, "a table (header, separator, channels, start)", _shown(table))
+        out["ok"] = False
+        return out
+    n_errors = probs.n_errors
+    for key in table:
+        if key not in _READ_KEYS:
+            probs.warning(
+                file,
+                f"{prefix}.{key}",
+                f"a read key ({', '.join(_READ_KEYS)})",
+                f'unknown key "{key}" (ignored)',
+            )
+        else:
+            out["keys"][key] = f"{prefix}.{key}"
+    if "header" in table:
+        if isinstance(table["header"], bool):
+            out["header"] = table["header"]
+        else:
+            probs.error(
+                file,
+                f"{prefix}.header",
+                "true (the first row names the columns) or false (no header row)",
+                _shown(table["header"]),
+            )
+    if "separator" in table:
+        sep = table["separator"]
+        if sep in _SEPARATORS:
+            out["separator"] = sep
+        else:
+            shown = '"whitespace", ",", ";", "\\t"'
+            probs.error(file, f"{prefix}.separator", f"one of {shown}", _shown(sep))
+    if "start" in table:
+        try:
+            out["start"] = parse_value(table["start"], "time")
+            out["start_text"] = _shown(table["start"])
+        except UnitError as exc:
+            probs.error(file, f"{prefix}.start", exc.expected, exc.found)
+    if "channels" in table:
+        out["channels"] = _parse_read_channels(table["channels"], f"{prefix}.channels", file, probs)
+    out["ok"] = probs.n_errors == n_errors
+    return out
+
+
+def _parse_read_channels(
+    table: object, prefix: str, file: str, probs: _Problems
+) -> dict[str, _ChannelColumn]:
+    """``[read.channels]``: channel -> {column, unit, gauge} of a headerless file."""
+    if not isinstance(table, dict):
+        probs.error(file, prefix, '{column = 1, unit = "ms"} tables by channel', _shown(table))
+        return {}
+    names = ("time", *CHANNELS)
+    out: dict[str, _ChannelColumn] = {}
+    used: dict[int, str] = {}
+    for name, entry in table.items():
+        key = f"{prefix}.{name}"
+        if name not in names:
+            probs.error(file, key, f"a channel name ({', '.join(names)})", f'"{name}"')
+            continue
+        if not isinstance(entry, dict):
+            probs.error(
+                file, key, '{column = N, unit = "..."} (column counted from 1)', _shown(entry)
+            )
+            continue
+        for extra in entry:
+            if extra not in _CHANNEL_COLUMN_KEYS:
+                probs.warning(
+                    file,
+                    f"{key}.{extra}",
+                    f"a channel column key ({', '.join(_CHANNEL_COLUMN_KEYS)})",
+                    f'unknown key "{extra}" (ignored)',
+                )
+        kind = "time" if name == "time" else CHANNELS[name]
+        ok = True
+        column = entry.get("column")
+        if type(column) is not int or column < 1:
+            probs.error(
+                file,
+                f"{key}.column",
+                "a column number counted from 1 (an integer)",
+                _MISSING if column is None else _shown(column),
+            )
+            ok = False
+        elif column in used:
+            probs.error(
+                file,
+                f"{key}.column",
+                "each column read as one channel only",
+                f"column {column}, already read as {used[column]}",
+            )
+            ok = False
+        unit = entry.get("unit")
+        expected_unit = f'a unit of {QUANTITY_KINDS[kind].name} (e.g. "{_example_unit(kind)}")'
+        if not isinstance(unit, str):
+            probs.error(
+                file, f"{key}.unit", expected_unit, _MISSING if unit is None else _shown(unit)
+            )
+            ok = False
+        else:
+            try:
+                parsed = parse_unit(unit, kind)
+            except UnitError as exc:
+                probs.error(file, f"{key}.unit", exc.expected, exc.found)
+                ok = False
+            else:
+                if parsed.gauge and entry.get("gauge") is False:
+                    probs.error(file, f"{key}.gauge", f'true, as the unit "{unit}" says', "false")
+                    ok = False
+        gauge = entry.get("gauge", False)
+        if not isinstance(gauge, bool):
+            probs.error(file, f"{key}.gauge", "true or false", _shown(gauge))
+            ok = False
+        elif gauge and kind != "pressure":
+            probs.error(file, f"{key}.gauge", f"no gauge on a {kind} channel", "gauge = true")
+            ok = False
+        flip = entry.get("reversed", False)
+        if not isinstance(flip, bool):
+            probs.error(file, f"{key}.reversed", "true or false", _shown(flip))
+            ok = False
+        elif flip and name not in _REVERSIBLE:
+            probs.error(
+                file,
+                f"{key}.reversed",
+                f"reversed only on {', '.join(_REVERSIBLE)} (a sensor counting the other way)",
+                f"reversed = true on {name}",
+            )
+            ok = False
+        if ok:
+            out[name] = _ChannelColumn(column, unit, gauge, flip)
+            used[column] = name
+    return out
+
+
+def _example_unit(kind: str) -> str:
+    """The unit part of a quantity kind's example (``"32 mm"`` -> ``"mm"``)."""
+    return QUANTITY_KINDS[kind].example.split(" ", 1)[-1]
+
+
+def _merge_read(top: dict[str, Any], own: dict[str, Any], file: str, probs: _Problems) -> _ReadSpec:
+    """A recording's read spec: its own keys override the campaign's ``[read]``."""
+    spec = _ReadSpec()
+    keys = {**top["keys"], **own["keys"]}
+    for part in (top, own):
+        for name in ("header", "separator", "channels", "start", "start_text"):
+            if name in part:
+                setattr(spec, name, part[name])
+    spec.keys = keys
+    spec.ok = top["ok"] and own["ok"]
+    if not spec.ok:
+        return spec
+
+    def combination(key: str, expected: str, found: str) -> None:
+        problem = Problem(file, key, expected, found, "error")
+        if problem not in probs.items:  # a campaign-wide [read] problem is said once
+            probs.items.append(problem)
+        spec.ok = False
+
+    if not spec.header and not spec.channels:
+        combination(
+            keys.get("header", "read.header"),
+            "read.channels too (a file without a header row names its columns in "
+            'campaign.toml, e.g. time = {column = 1, unit = "ms"})',
+            "header = false and no channels",
+        )
+    elif not spec.header and "time" not in spec.channels:
+        combination(
+            keys["channels"], 'a time column (e.g. time = {column = 1, unit = "ms"})', "none"
+        )
+    if spec.header and spec.channels:
+        combination(
+            keys["channels"],
+            "channels by column number only in a file without a header row (header = false); "
+            "with a header use [recording.columns]",
+            "header = true",
+        )
+    if spec.header and spec.separator == "whitespace":
+        combination(
+            keys["separator"],
+            'a one-character separator with a header row (whitespace would split "time [s]")',
+            '"whitespace"',
+        )
+    return spec
+
+
 def _parse_entries(
     doc: dict[str, Any], stroke: float | None, file: str, probs: _Problems
 ) -> list[_Meta]:
@@ -586,8 +848,16 @@ def _parse_entries(
         )
         return []
     seen: dict[str, int] = {}
-    metas = [_parse_entry(e, i, stroke, seen, file, probs) for i, e in enumerate(entries, start=1)]
-    return [m for m in metas if m is not None]
+    top = _parse_read(doc.get("read"), "read", file, probs)
+    metas = []
+    for i, entry in enumerate(entries, start=1):
+        meta = _parse_entry(entry, i, stroke, seen, file, probs)
+        if meta is None:
+            continue
+        own = _parse_read(entry.get("read"), f"recording[{i}].read", file, probs)
+        meta.read = _merge_read(top, own, file, probs)
+        metas.append(meta)
+    return metas
 
 
 # --------------------------------------------------------------------------- recording files
@@ -693,14 +963,18 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
         comment = stripped[1:]
         comments.append(comment[1:] if comment.startswith(" ") else comment)
         skip += 1
+    if not meta.read.header:
+        return _read_positional(lines, skip, comments, meta, probs)
     if skip == len(lines):
         probs.error(file, "", 'a header row "time [s],name [unit],..."', "no header row")
         return None
-    cells = [c.strip() for c in next(csv.reader([lines[skip]]))]
+    sep = meta.read.separator
+    cells = [c.strip() for c in next(csv.reader([lines[skip]], delimiter=sep))]
     body = "\n".join(lines[skip:])
     try:
         frame = pd.read_csv(
             io.StringIO(body),
+            sep=sep,
             header=None,
             skiprows=1,
             names=list(range(len(cells))),
@@ -717,11 +991,17 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
             probs.error(
                 file,
                 f"line {int(fields[2]) + skip}",
-                f"{fields[1]} comma-separated fields, like the header",
+                f"{fields[1]} {_separator_name(meta.read.separator)}-separated fields, "
+                "like the header",
                 f"{fields[3]} fields",
             )
         else:
-            probs.error(file, "", "comma-separated rows", str(exc).strip())
+            probs.error(
+                file,
+                "",
+                f"{_separator_name(meta.read.separator)}-separated rows",
+                str(exc).strip(),
+            )
         return None
     if frame.empty:
         probs.error(file, "", "at least 2 samples", "a header and no data rows")
@@ -774,6 +1054,87 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
             columns.append(_Column(name, headers[j][1], numbers[0], numbers[1]))
     description = "\n".join(comments).strip("\n") or None
     return _Raw(time[0], time_header[1], columns, present, locate, description)
+
+
+def _separator_name(separator: str) -> str:
+    return {",": "comma", ";": "semicolon", "\t": "tab", "whitespace": "whitespace"}.get(
+        separator, repr(separator)
+    )
+
+
+def _split_row(line: str, separator: str) -> list[str]:
+    if separator == "whitespace":
+        return line.split()
+    return [cell.strip() for cell in line.split(separator)]
+
+
+def _read_positional(
+    lines: list[str], skip: int, comments: list[str], meta: _Meta, probs: _Problems
+) -> _Raw | None:
+    """A CSV file without a header row: channels by column number (``[read.channels]``)."""
+    file = meta.file
+    spec = meta.read
+    where = spec.keys.get("channels", "read.channels")
+    rows: list[list[str]] = []
+    row_lines: list[int] = []
+    for number, line in enumerate(lines[skip:], start=skip + 1):
+        if line.strip():
+            rows.append(_split_row(line, spec.separator))
+            row_lines.append(number)
+    if len(rows) < 2:
+        probs.error(file, "", "at least 2 samples", f"{len(rows)} data row{'s' * (len(rows) != 1)}")
+        return None
+    name = _separator_name(spec.separator)
+    widest = max(spec.channels.items(), key=lambda item: item[1].column)
+    n_fields = len(rows[0])
+    if n_fields < widest[1].column:
+        probs.error(
+            file,
+            f"line {row_lines[0]}",
+            f"at least {widest[1].column} {name}-separated fields ({where}.{widest[0]} is "
+            f"column {widest[1].column})",
+            f"{n_fields} field{'s' * (n_fields != 1)}",
+        )
+        return None
+    uneven = [i for i, row in enumerate(rows) if len(row) != n_fields]
+    if uneven:
+        i = uneven[0]
+        more = f" (and {len(uneven) - 1} more lines)" if len(uneven) > 1 else ""
+        probs.error(
+            file,
+            f"line {row_lines[i]}",
+            f"{n_fields} {name}-separated fields, like line {row_lines[0]}",
+            f"{len(rows[i])} field{'s' * (len(rows[i]) != 1)}{more}",
+        )
+        return None
+
+    def locate(i: int) -> str:
+        return f"line {row_lines[i]}"
+
+    def cells(column: int) -> pd.Series:
+        return pd.Series([row[column - 1] for row in rows], dtype=object)
+
+    time_spec = spec.channels["time"]
+    time = _csv_numbers(cells(time_spec.column), file, "time", locate, probs)
+    if time is None:
+        return None
+    if not time[1].all():
+        i = int(np.flatnonzero(~time[1])[0])
+        probs.error(file, "time", "a time in every row", f"an empty cell at {locate(i)}")
+        return None
+    columns = []
+    for channel, col in spec.channels.items():
+        if channel == "time":
+            continue
+        numbers = _csv_numbers(cells(col.column), file, channel, locate, probs)
+        if numbers is None:
+            columns.append(_Column(channel, col.unit, np.empty(0), np.empty(0, bool), ok=False))
+        else:
+            values = -numbers[0] if col.reversed else numbers[0]
+            columns.append(_Column(channel, col.unit, values, numbers[1], col.gauge))
+    present = {c for c in spec.channels if c != "time"}
+    description = "\n".join(comments).strip("\n") or None
+    return _Raw(time[0], time_spec.unit, columns, present, locate, description)
 
 
 def _attr_text(value: object) -> str | None:
@@ -910,6 +1271,40 @@ def _needed_why(meta: _Meta) -> str:
     return why
 
 
+def _drop_before(
+    raw: _Raw, time: NDArray[np.float64], meta: _Meta, probs: _Problems
+) -> _Raw | None:
+    """The samples at and after ``[read] start`` (a start-up transient left out)."""
+    first = int(np.searchsorted(time, meta.read.start, side="left"))
+    if time.size - first < 2:
+        probs.error(
+            meta.columns_file,
+            meta.read.keys.get("start", "read.start"),
+            f"a start time that leaves at least 2 samples of {meta.file}",
+            f"{meta.read.start_text} (the file ends at {raw.time[-1]!r} {raw.time_unit})",
+        )
+        return None
+    columns = [
+        _Column(
+            c.channel,
+            c.unit_text,
+            c.values[first:] if c.values.size == time.size else c.values,
+            c.mask[first:] if c.mask.size == time.size else c.mask,
+            c.gauge_attr,
+            c.ok,
+        )
+        for c in raw.columns
+    ]
+    locate = raw.locate
+
+    def shifted(i: int) -> str:
+        return locate(i + first)
+
+    return _Raw(
+        raw.time[first:], raw.time_unit, columns, raw.present, shifted, raw.description, raw.kind
+    )
+
+
 def _build_recording(
     raw: _Raw, meta: _Meta, path: Path, exhaust: float | None, probs: _Problems
 ) -> Recording | None:
@@ -949,6 +1344,11 @@ def _build_recording(
         )
         return None
     time = to_si(t_file, time_unit)
+    if meta.read.start is not None:
+        raw = _drop_before(raw, time, meta, probs)
+        if raw is None:
+            return None
+        time = time[time >= meta.read.start]
 
     channels: dict[str, NDArray[np.float64]] = {}
     masks: dict[str, NDArray[np.bool_]] = {}
@@ -1094,6 +1494,16 @@ def _load_recording(
     if not data:
         probs.error(meta.file, "", "a recording with samples", "an empty file (0 bytes)")
         return None
+    if suffix in HDF5_SUFFIXES and (not meta.read.header or meta.read.channels):
+        probs.warning(
+            meta.columns_file,
+            meta.read.keys.get("channels", meta.read.keys.get("header", "read")),
+            "header and channels for CSV files only (HDF5 names its datasets)",
+            f"a read table for {meta.file} (ignored)",
+        )
+        meta.read.header, meta.read.channels = True, {}
+    if not meta.read.ok:
+        return None  # its read table has an error, already reported
     reader = _read_hdf5 if suffix in HDF5_SUFFIXES else _read_csv
     raw = reader(data, meta, probs)
     if raw is None:
@@ -1140,7 +1550,7 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
         if doc is None:
             return report
         name, description = _parse_header(doc, folder.name, toml_name, probs)
-        rig, rig_values = _parse_rig(doc, toml_name, probs)
+        rig, rig_values = _parse_rig(doc, toml_name, probs, _friction_only(doc))
         metas = _parse_entries(doc, rig_values.get("stroke"), toml_name, probs)
     except Exception as exc:  # the boundary: report, never raise
         probs.error(toml_name, "", "a readable campaign description", _unexpected(exc))
@@ -1302,6 +1712,8 @@ def _setup_text(recording: Recording) -> str:
         return text
     if recording.controller is not None:
         return str(recording.controller)
+    if recording.kind == "friction":
+        return "imposed motion (friction test)"
     return "open loop (measured commands)"
 
 

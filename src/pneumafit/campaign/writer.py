@@ -9,6 +9,7 @@ the unit conversion.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from collections.abc import Mapping, Sequence
@@ -222,7 +223,11 @@ def _campaign_toml(campaign: Campaign, files: list[str], csv_columns: list[dict[
         "",
         "[rig]",
     ]
+    if campaign.rig.acting != "double":
+        out.append(f"acting = {_toml_string(campaign.rig.acting)}")
     for key, value in campaign.rig.as_parameters().items():
+        if math.isnan(value):  # not given (a friction-only campaign)
+            continue
         out.append(f"{key} = {_toml_string(format_value(value, _RIG_KINDS[key]))}")
     for rec, file, columns in zip(campaign.recordings, files, csv_columns, strict=True):
         out += ["", "[[recording]]", f"file = {_toml_string(file)}"]

@@ -115,7 +115,9 @@ def fit_command(
     ----------
     campaign : Path
         Campaign folder (or its campaign.toml).
-    model : {"convection", "constant-lambda", "polytropic"}
+    model : {"convection", "constant-lambda", "polytropic", "friction"}
+        ``friction``: the friction law on a campaign of friction tests
+        (:mod:`pneumafit.frictiontest.command`).
     out : Path
         Output folder (created; its fit.json and chains.h5 are replaced).
     walkers, steps : int or None
@@ -142,13 +144,21 @@ def fit_command(
     """
     from pneumafit.campaign import read_campaign
 
+    if model == "friction":  # friction tests: the friction law on the rod-force balance
+        from pneumafit.frictiontest.command import friction_fit_command
+
+        return friction_fit_command(
+            campaign, out, walkers, steps, seed, mcmc, console, strict, friction, seal
+        )
     problems = [
         int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
         int_problem("--steps", steps, 1),
         int_problem("--seed", seed, 0),
     ]
     if model not in MODELS:
-        problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
+        problems.append(
+            f"option --model: expected one of {', '.join(MODELS)}, friction, found {model!r}"
+        )
     if valve not in VALVE_LAWS:
         problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
     if friction not in ("auto", *FRICTION_LAWS):

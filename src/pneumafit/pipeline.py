@@ -176,7 +176,7 @@ def run(
     status = check_campaign(path, console=console)
     if status != 0:
         console.print("[red]the campaign is not valid; nothing was run[/red]")
-        return status
+        return EXIT_BAD_INPUT
     campaign = read_campaign(path)
     out = Path(out)
     if report_problems(console, [folder_problem(out)]):

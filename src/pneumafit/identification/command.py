@@ -282,6 +282,12 @@ def _fmt(x: float | None, digits: int = 4) -> str:
 _DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
 
 
+def _with_unit(channel: str, value: float | None) -> str:
+    """'p_P 1.03 kPa': an SI RMSE in the units of the residual table (fit.json keeps SI)."""
+    scale, unit = _DISPLAY.get(channel[0], (1.0, ""))
+    return f"{channel} {_fmt(None if value is None else value * scale)} {unit}".rstrip()
+
+
 def _quality_table(result: FitResult, console: Console) -> None:
     """Residual RMS over sensor noise, per recording and channel (worst first per role)."""
     quality = result.quality
@@ -373,7 +379,7 @@ def _summary(result: FitResult, console: Console) -> None:
     for role in ("fit", "validate"):
         if rmse.get(role):
             console.print(
-                f"RMSE {role}: " + ", ".join(f"{c} {_fmt(v)}" for c, v in rmse[role].items())
+                f"RMSE {role}: " + ", ".join(_with_unit(c, v) for c, v in rmse[role].items())
             )
     for w in result.warnings:
         console.print(Text(f"warning: {w}", style="yellow"))

@@ -557,3 +557,26 @@ def test_known_bad_options(base: Path, tmp_path: Path, args: list[str], culprit:
         params if a == "P" else (work / a[2:] if a.startswith("O/") else a) for a in args
     ]
     assert_refused(work, resolved, [culprit])
+
+
+@pytest.mark.parametrize(
+    ("args", "culprit"),
+    [
+        (["rig", "--out", "O/rig", "--protocol", "bogus"], "protocol"),
+        (["rig", "--out", "O/rig", "--truth", "bogus"], "--truth"),
+        (["rig", "--out", "O/rig", "--truth", "O/campaign/campaign.toml"], "campaign.toml"),
+        (["rig", "--out", "O/rig", "--effect", "warp=1"], "warp"),
+        (["rig", "--out", "O/rig", "--seed=-1"], "--seed"),
+        (["fit-many", "O/campaign", "--out", "O/many", "--workers", "0"], "--workers"),
+        (["fit-many", "O/campaign", "--out", "O/many", "--model", "bogus"], "--model"),
+        (["fit-many", "O/campaign", "--out", "O/many", "--steps=-2"], "--steps"),
+    ],
+)
+def test_bad_options_of_rig_and_fit_many(
+    base: Path, tmp_path: Path, args: list[str], culprit: str
+) -> None:
+    """The other commands: refused before a rig is simulated or a cluster started."""
+    work = tmp_path / "w"
+    shutil.copytree(base, work)
+    resolved: list[object] = [work / a[2:] if a.startswith("O/") else a for a in args]
+    assert_refused(work, resolved, [culprit])

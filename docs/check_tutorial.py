@@ -172,15 +172,18 @@ def check_units(text: str) -> list[str]:
 def render_compare_units(display: dict) -> str:
     return (f"Held-out RMSE on the practice campaign, as `pneumafit compare` prints it "
             f"(pressures in {display['p_P'][1]}, position in {display['y'][1]}, temperatures "
-            f"in {display['T_P'][1]} after the sensor lag; * the best):\n")  # fmt: skip
+            f"in {display['T_P'][1]} after the sensor lag; the best in bold, starred on the "
+            f"console):\n")  # fmt: skip
 
 
 # --------------------------------------------------------------------------- full run
 
 
 def run_commands(work: Path, reuse: bool, say: Callable[[str], None]) -> dict[str, float]:
-    """Run the tutorial's commands in ``work``: seconds by command."""
-    seconds = {}
+    """Run the tutorial's commands in ``work``: wall seconds by command (kept in
+    ``work/seconds.json``, so that a ``--reuse`` run still knows them)."""
+    record = work / "seconds.json"
+    seconds = json.loads(record.read_text()) if reuse and record.exists() else {}
     for name, line, output in COMMANDS:
         if reuse and output and (work / output).exists():
             say(f"{name}: reused {output}")
@@ -190,6 +193,7 @@ def run_commands(work: Path, reuse: bool, say: Callable[[str], None]) -> dict[st
         res = subprocess.run(argv, cwd=work, capture_output=True, text=True)
         seconds[name] = time.perf_counter() - t0
         (work / f"{name.replace(' ', '_')}.log").write_text(res.stdout + res.stderr)
+        record.write_text(json.dumps(seconds, indent=1))
         say(f"{name}: exit {res.returncode}, {seconds[name]:.0f} s")
         if res.returncode != 0 and name != "fit polytropic":
             raise SystemExit(f"tutorial command failed: {line}\n{res.stdout[-3000:]}"
@@ -265,6 +269,8 @@ def render_full(work: Path, seconds: dict[str, float]) -> dict[str, str]:
         + (f"; the comparison {seconds['compare']:.0f} s and the discovery "
            f"{seconds['discover']:.0f} s" if "compare" in seconds and "discover" in seconds
            else "")
+        + (f"; every command of this page, from the rig to the report, "
+           f"{sum(seconds.values()) / 60:.0f} min" if len(seconds) == len(COMMANDS) else "")
         + ".\n"
     )  # fmt: skip
     return rendered

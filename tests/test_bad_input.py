@@ -43,7 +43,7 @@ from pneumafit.parameters_io import PARAMETER_FILE_KEYS
 
 HERE = Path(__file__).resolve().parent
 SETTINGS = settings(
-    max_examples=8, deadline=None, derandomize=True,
+    max_examples=20, deadline=None, derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )  # fmt: skip
 
@@ -255,23 +255,42 @@ def test_damaged_parameter_files_are_refused(
 
 # --------------------------------------------------------------------------- fit.json
 
-FIT_KEYS = ("format", "model", "parameters", "campaign", "structure")
+#: The keys of fit.json each command needs, so that removing one is bad input:
+#: compare replays a fit written before ``structure`` existed, and linear and
+#: export read a fit.json as a parameter file (its campaign does not matter).
+NEEDED = {
+    "discover": ("format", "model", "parameters", "campaign", "structure"),
+    "compare": ("format", "model", "parameters", "campaign"),
+    "linear": ("format", "model", "parameters"),
+    "export": ("format", "model", "parameters"),
+}
+#: The keys whose wrong type (a number, a list, a string) each command must refuse.
+TYPED = {
+    **NEEDED,
+    "compare": (*NEEDED["compare"], "structure"),
+    "linear": ("format", "model", "parameters", "structure"),
+    "export": ("format", "model", "parameters", "structure"),
+}
 
 
 @st.composite
-def damaged_fit(draw: st.DrawFn, text: str) -> tuple[str, list[str]]:
+def damaged_fit(draw: st.DrawFn, text: str, command: str) -> tuple[str, list[str]]:
     """A broken fit.json (from its text) and the words naming the culprit."""
     doc = json.loads(text)
     kind = draw(st.sampled_from(["truncated", "removed", "type", "parameter"]))
     if kind == "truncated":
         return text[: draw(st.integers(0, len(text) - 1))], ["fit.json"]
-    key = draw(st.sampled_from(FIT_KEYS))
     if kind == "removed":
+        key = draw(st.sampled_from(NEEDED[command]))
         del doc[key]
     elif kind == "type":
-        doc[key] = draw(st.one_of(st.integers(), st.lists(st.integers(), max_size=2),
-                                  st.just("x"),
-                                  st.none()))  # fmt: skip
+        key = draw(st.sampled_from(TYPED[command]))
+        wrong = [st.integers(), st.lists(st.integers(), max_size=2)]
+        if key != "format" or command in ("discover", "compare"):  # any format string is
+            wrong.append(st.just("x"))  # accepted by a parameter-file reader
+        if key in NEEDED[command]:
+            wrong.append(st.none())
+        doc[key] = draw(st.one_of(*wrong))
     else:
         key = draw(st.sampled_from(["xi", "beta", "bore"]))
         doc["parameters"][key] = draw(st.one_of(WRONG_TYPES, st.just({"value": "abc"}),
@@ -286,7 +305,7 @@ def test_damaged_fit_json_is_refused(
 ) -> None:
     work = workdir()
     fit = work / "fit" / "fit.json"
-    text, culprits = data.draw(damaged_fit(fit.read_text()))
+    text, culprits = data.draw(damaged_fit(fit.read_text(), command))
     fit.write_text(text)
     if command in ("linear", "export") and '"format"' not in text and text.count("{") > 1:
         # without its format key the file is read as a hand-written parameter file,

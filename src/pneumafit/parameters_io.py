@@ -107,6 +107,17 @@ def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tup
                     f"{where}: {key}: expected one of the parameter file's keys "
                     f"({', '.join(PARAMETER_FILE_KEYS)}), found unknown key {key!r}"
                 )
+    if "format" in document and not isinstance(document["format"], str):
+        raise PneumafitInputError(
+            f"{where}: format: expected a string such as 'pneumafit-fit', "
+            f"found {document['format']!r}"
+        )
+    structure = document.get("structure")
+    if structure is not None and not isinstance(structure, dict):
+        raise PneumafitInputError(
+            f"{where}: structure: expected an object (valve, friction, effects), "
+            f"found {structure!r}"
+        )
     if document.get("format") == "pneumafit-fit":  # a fit.json has both, always
         for key in ("model", "parameters"):
             if key not in document:

@@ -104,7 +104,7 @@ def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, dict[str, Any
             f"{path}: key 'format': expected 'pneumafit-fit', found {found!r}"
         )
     model = doc.get("model")
-    if model not in MODELS:
+    if not isinstance(model, str) or model not in MODELS:
         raise PneumafitInputError(
             f"{path}: key 'model': expected one of {', '.join(MODELS)}, found {model!r}"
         )

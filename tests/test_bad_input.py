@@ -43,7 +43,7 @@ from pneumafit.parameters_io import PARAMETER_FILE_KEYS
 
 HERE = Path(__file__).resolve().parent
 SETTINGS = settings(
-    max_examples=20, deadline=None, derandomize=True,
+    max_examples=30, deadline=None, derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )  # fmt: skip
 

@@ -235,9 +235,11 @@ def parse_effects(document: dict[str, Any], where: str = "parameters") -> dict[s
     key = "effects"
     structure = document.get("structure")
     if isinstance(structure, dict) and "effects" in structure:
-        effects, key = structure["effects"] or {}, "structure.effects"
+        effects, key = structure["effects"], "structure.effects"
     if "effects" in document:
-        effects, key = document["effects"] or {}, "effects"
+        effects, key = document["effects"], "effects"
+    if effects is None:  # null: none (an empty list or string is not a table)
+        effects = {}
     if not isinstance(effects, dict):
         raise PneumafitInputError(
             f"{where}: {key}: expected a table of effect = option, found {effects!r}"

@@ -37,6 +37,7 @@ from hypothesis import strategies as st
 
 from pneumafit.campaign import read_campaign
 from pneumafit.cli import main
+from pneumafit.identification.command import MAX_SAMPLED
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
 from pneumafit.parameters_io import PARAMETER_FILE_KEYS
@@ -449,7 +450,7 @@ def bad_option(draw: st.DrawFn) -> tuple[str, list[str], str]:
         known = (*MODELS, "iso6358", "map", "auto", "switch", "lugre", "on", "off")
         value = draw(WORD.filter(lambda w: w not in known))
     elif option == "--walkers":
-        value = str(draw(st.integers(-1000, 11)))
+        value = str(draw(st.integers(-1000, 2 * MAX_SAMPLED - 1)))
     elif option == "--seed":
         value = str(draw(st.integers(-1000, -1)))
     else:

@@ -600,3 +600,25 @@ def test_bad_options_of_rig_and_fit_many(
     shutil.copytree(base, work)
     resolved: list[object] = [work / a[2:] if a.startswith("O/") else a for a in args]
     assert_refused(work, resolved, [culprit])
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="bug (cli.py): main() prints the message as rich markup, so a culprit with square "
+    "brackets loses them: parameters.'x[i]y[/i]' is shown as 'xy', the file '[bold]p.json' as "
+    "'p.json' (needs rich.markup.escape or a Text in main)",
+)
+@pytest.mark.parametrize(
+    ("file", "content", "culprit"),
+    [
+        ("params.json", '{"parameters": {"x[i]y[/i]": 1}}', "x[i]y[/i]"),
+        ("[bold]params.json", "{", "[bold]params.json"),
+    ],
+)
+def test_culprits_with_square_brackets_are_shown_as_written(
+    base: Path, tmp_path: Path, file: str, content: str, culprit: str
+) -> None:
+    work = tmp_path / "w"
+    shutil.copytree(base, work)
+    (work / file).write_text(content)
+    assert_refused(work, _parameter_command("linear", work / file, work), [culprit])

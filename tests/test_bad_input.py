@@ -359,6 +359,16 @@ TOML_EDITS = [
     ('kind = "flow"', "kind = 3", "kind"),
     ('kind = "flow"', 'kind = "floww"', "kind"),
     ('chamber = "N"', 'chamber = "Q"', "chamber"),
+    ('"Pos [mm]" = "y"', '"Pos [mm]" = "zz"', "zz"),
+    ('"Pos [mm]" = "y"', '"Nowhere [mm]" = "y"', "Nowhere"),
+    ('kp = "60 V/m"', 'kp = "60 V/s"', "kp"),
+]
+#: (file, old, new, culprit) edits of a recording that make it invalid
+CSV_EDITS = [
+    ("free_1.csv", "y [m]", "y [kg]", "free_1.csv"),
+    ("free_1.csv", "0.2,0.11,1.0,0.1", "0.2,abc,1.0,0.1", "free_1.csv"),
+    ("flow_N_1.csv", "time [ms]", "time [bar]", "flow_N_1.csv"),
+    ("step_1.csv", "0.03,102.0,", "0.01,102.0,", "step_1.csv"),
 ]
 RECORDINGS = ("flow_N_1.csv", "step_1.csv", "free_1.csv", "charge_P_1.h5")
 
@@ -366,7 +376,18 @@ RECORDINGS = ("flow_N_1.csv", "step_1.csv", "free_1.csv", "charge_P_1.h5")
 @st.composite
 def damaged_campaign(draw: st.DrawFn) -> Callable[[Path], list[str]]:
     """A function breaking the campaign in a folder; it returns the culprit words."""
-    kind = draw(st.sampled_from(["toml", "toml", "missing", "truncated", "toml-syntax"]))
+    kind = draw(st.sampled_from(["toml", "toml", "missing", "truncated", "toml-syntax", "csv"]))
+    if kind == "csv":
+        name, before, after, where = draw(st.sampled_from(CSV_EDITS))
+
+        def edit_csv(folder: Path) -> list[str]:
+            path = folder / name
+            text = path.read_text()
+            assert before in text, before  # a broken test, not a broken campaign
+            path.write_text(text.replace(before, after, 1))
+            return [where]
+
+        return edit_csv
     if kind == "toml":
         old, new, culprit = draw(st.sampled_from(TOML_EDITS))
 

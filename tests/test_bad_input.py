@@ -324,9 +324,10 @@ def test_damaged_fit_json_is_refused(
 
 @pytest.mark.xfail(
     strict=True,
-    reason="bug: `pneumafit report` shows a damaged fit.json in the run folder as a section "
-    "'not run' and exits 0 having written report.html (needs the report --allow-partial "
-    "work in cli.py / outputs/report.py)",
+    reason="`pneumafit report` renders a damaged fit.json of the run folder as a section in "
+    "error and exits 0 having written report.html (the design so far: test_report.py::"
+    "test_malformed_inputs_are_reported_not_raised); issue 17 asks for exit 2, which the "
+    "report --allow-partial work in cli.py is to bring",
 )
 @pytest.mark.parametrize("content", ["{trunc", '{"format": "pneumafit-fit", "model": 3}'])
 def test_report_refuses_a_damaged_fit_json(base: Path, tmp_path: Path, content: str) -> None:

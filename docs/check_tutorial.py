@@ -195,7 +195,7 @@ def run_commands(work: Path, reuse: bool, say: Callable[[str], None]) -> dict[st
         (work / f"{name.replace(' ', '_')}.log").write_text(res.stdout + res.stderr)
         record.write_text(json.dumps(seconds, indent=1))
         say(f"{name}: exit {res.returncode}, {seconds[name]:.0f} s")
-        if res.returncode != 0 and name != "fit polytropic":
+        if res.returncode != 0:
             raise SystemExit(f"tutorial command failed: {line}\n{res.stdout[-3000:]}"
                              f"{res.stderr[-3000:]}")  # fmt: skip
     return seconds

@@ -110,5 +110,5 @@ def test_an_invalid_campaign_runs_nothing(tmp_path: Path) -> None:
     bad.mkdir()
     (bad / "campaign.toml").write_text("this is not toml = = =\n")
     console = _console()
-    assert run_pipeline(bad, tmp_path / "out", console, mcmc=False) != 0
+    assert run_pipeline(bad, tmp_path / "out", console, mcmc=False) == 2  # bad input
     assert not (tmp_path / "out" / "fits").exists()

@@ -7,7 +7,11 @@ Format (JSON)::
      "parameters": {"xi": 0.4, "bore": "32 mm", "supply_pressure": "7 bar"}}
 
 ``friction`` (optional) is the friction law of the structure, ``"switch"``
-(the default when absent) or ``"lugre"``.
+(the default when absent) or ``"lugre"``; ``effects`` and ``structure`` are
+optional too (see :func:`parse_effects`, :func:`read_valve_law`), and
+``description`` is free text. Any other top-level key is an error (a
+misspelt ``"paramters"`` would otherwise leave every default in place),
+except in documents with a ``format`` key (fit.json, truth.json).
 
 A value is a bare number in the parameter's SI unit (see
 :data:`pneumafit.models.PARAMETER_SPECS`) or a string with a unit, converted
@@ -32,6 +36,10 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import ureg
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
 from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
+
+#: Top-level keys of a hand-written parameter file (a document without
+#: ``format``; fit.json and truth.json carry more, and are read too).
+PARAMETER_FILE_KEYS = ("model", "friction", "effects", "parameters", "structure", "description")
 
 
 def _to_si(value: Any, name: str, where: str) -> float:
@@ -93,12 +101,37 @@ def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tup
         raise PneumafitInputError(
             f"{where}: expected a JSON object, found {type(document).__name__}"
         )
+    if "format" not in document:  # a hand-written parameter file: a misspelt key is an error
+        for key in document:
+            if key not in PARAMETER_FILE_KEYS:
+                raise PneumafitInputError(
+                    f"{where}: {key}: expected one of the parameter file's keys "
+                    f"({', '.join(PARAMETER_FILE_KEYS)}), found unknown key {key!r}"
+                )
+    if "format" in document and not isinstance(document["format"], str):
+        raise PneumafitInputError(
+            f"{where}: format: expected a string such as 'pneumafit-fit', "
+            f"found {document['format']!r}"
+        )
+    structure = document.get("structure")
+    if structure is not None and not isinstance(structure, dict):
+        raise PneumafitInputError(
+            f"{where}: structure: expected an object (valve, friction, effects), "
+            f"found {structure!r}"
+        )
+    if document.get("format") == "pneumafit-fit":  # a fit.json has both, always
+        for key in ("model", "parameters"):
+            if key not in document:
+                raise PneumafitInputError(
+                    f"{where}: {key}: expected a key of every fit.json, found it missing"
+                )
     model = document.get("model", "convection")
-    if model not in MODELS:
+    if not isinstance(model, str) or model not in MODELS:
         raise PneumafitInputError(
             f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
     parse_friction_law(document, where)  # a wrong law is an error wherever the file is read
+    parse_effects(document, where)  # so is a wrong effect (not only where effects are used)
     params = document.get("parameters", {})
     if not isinstance(params, dict):
         raise PneumafitInputError(
@@ -203,9 +236,11 @@ def parse_effects(document: dict[str, Any], where: str = "parameters") -> dict[s
     key = "effects"
     structure = document.get("structure")
     if isinstance(structure, dict) and "effects" in structure:
-        effects, key = structure["effects"] or {}, "structure.effects"
+        effects, key = structure["effects"], "structure.effects"
     if "effects" in document:
-        effects, key = document["effects"] or {}, "effects"
+        effects, key = document["effects"], "effects"
+    if effects is None:  # null: none (an empty list or string is not a table)
+        effects = {}
     if not isinstance(effects, dict):
         raise PneumafitInputError(
             f"{where}: {key}: expected a table of effect = option, found {effects!r}"

@@ -104,9 +104,11 @@ def fit_is_reusable(folder: Path, campaign: Campaign, model: str) -> bool:
     except (OSError, ValueError):
         return False
     return (
-        doc.get("format") == "pneumafit-fit"
+        isinstance(doc, dict)
+        and doc.get("format") == "pneumafit-fit"
         and doc.get("model") == model
-        and (doc.get("campaign") or {}).get("sha256") == campaign.sha256
+        and isinstance(doc.get("campaign"), dict)
+        and doc["campaign"].get("sha256") == campaign.sha256
     )
 
 

@@ -98,14 +98,17 @@ def read_fit(path: Path, option: str = "--fits") -> tuple[Path, dict[str, Any]]:
 
 def _same_campaign(file: Path, document: dict[str, Any], sha256: dict[str, str], name: str) -> str:
     """'' when the fit was made on this campaign (same file hashes), else the problem."""
-    theirs = (document.get("campaign") or {}).get("sha256")
+    campaign = document.get("campaign")
+    if not isinstance(campaign, dict):
+        return f"{file}: campaign: expected an object, found {type(campaign).__name__}"
+    theirs = campaign.get("sha256")
     if theirs == sha256:
         return ""
     if not isinstance(theirs, dict):
         return (f"{file}: campaign.sha256: expected the file hashes of campaign {name!r}, "
                 f"found {theirs!r}")  # fmt: skip
     differ = sorted(k for k in set(theirs) | set(sha256) if theirs.get(k) != sha256.get(k))
-    other = (document.get("campaign") or {}).get("name")
+    other = campaign.get("name")
     return (
         f"{file}: campaign.sha256: expected the file hashes of campaign {name!r} (the CAMPAIGN "
         f"argument), found those of campaign {other!r}, which differ for "

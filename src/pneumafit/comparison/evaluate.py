@@ -250,6 +250,11 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
         raise PneumafitInputError(
             f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
+    for key in ("structure", "nuisance"):
+        if not isinstance(document.get(key) or {}, Mapping):
+            raise PneumafitInputError(
+                f"{where}: {key}: expected an object, found {type(document.get(key)).__name__}"
+            )
     described = document.get("structure") or {}
     air = described.get("air_properties") or "sutherland"
     try:
@@ -262,9 +267,13 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
         friction = str(described.get("friction") or "switch")
         if friction != structure.friction:  # a fit with the LuGre law is replayed with it
             structure = dataclasses.replace(structure, friction=friction)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, AttributeError) as exc:
         raise PneumafitInputError(f"{where}: structure: {exc}") from None
     initial = (document.get("nuisance") or {}).get("initial_states") or {}
+    if not isinstance(initial, Mapping):
+        raise PneumafitInputError(
+            f"{where}: nuisance.initial_states: expected an object, found {type(initial).__name__}"
+        )
     for key, entry in initial.items():
         value = entry.get("value") if isinstance(entry, Mapping) else entry
         if isinstance(value, int | float) and math.isfinite(value):

@@ -104,12 +104,22 @@ def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, dict[str, Any
             f"{path}: key 'format': expected 'pneumafit-fit', found {found!r}"
         )
     model = doc.get("model")
-    if model not in MODELS:
+    if not isinstance(model, str) or model not in MODELS:
         raise PneumafitInputError(
             f"{path}: key 'model': expected one of {', '.join(MODELS)}, found {model!r}"
         )
-    recorded = (doc.get("campaign") or {}).get("sha256") or {}
+    for key in ("campaign", "parameters", "structure", "nuisance"):
+        if not isinstance(doc.get(key), dict):
+            raise PneumafitInputError(
+                f"{path}: key {key!r}: expected an object, found {type(doc.get(key)).__name__}"
+            )
+    recorded = doc["campaign"].get("sha256") or {}
     actual = dict(campaign.sha256)
+    if not isinstance(recorded, dict):
+        raise PneumafitInputError(
+            f"{path}: key 'campaign.sha256': expected an object of file: SHA-256, "
+            f"found {type(recorded).__name__}"
+        )
     if recorded != actual:
         differ = sorted(k for k in set(recorded) | set(actual) if recorded.get(k) != actual.get(k))
         shown = ", ".join(differ[:4]) + (" ..." if len(differ) > 4 else "")
@@ -118,14 +128,9 @@ def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, dict[str, Any
             f"{campaign.name!r}'s files, found a fit of another campaign "
             f"({(doc.get('campaign') or {}).get('name')!r}; files differing: {shown})"
         )
-    for key in ("parameters", "structure", "nuisance"):
-        if not isinstance(doc.get(key), dict):
-            raise PneumafitInputError(
-                f"{path}: key {key!r}: expected an object, found {type(doc.get(key)).__name__}"
-            )
     try:
         base = BaseFit.from_document(doc)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise PneumafitInputError(
             f"{path}: expected a complete pneumafit-fit document, found a problem: {exc}"
         ) from None

@@ -3,8 +3,9 @@
 ``fit_command`` never lets a traceback out for bad input: it prints one
 message naming the file or option, what was expected and what was found,
 and returns 2. It returns 1 when the fit itself fails (every simulation
-failed), 130 when interrupted (the chains so far are kept and the same
-command resumes them), 0 on success.
+failed), 130 when interrupted (with MCMC the chains sampled so far are kept
+and the same command resumes them after redoing the least-squares stages;
+with ``--no-mcmc`` nothing is kept), 0 on success.
 
 Output folder ``OUT``::
 
@@ -90,6 +91,38 @@ def _prepare_partial(partial: Path, fingerprint: str, console: Console) -> None:
     partial.unlink()
 
 
+def _interrupted_message(partial: Path | None) -> str:
+    """What an interrupted fit keeps, in words that hold.
+
+    Least-squares stages save nothing: a re-run does them again. Only MCMC
+    steps are stored (``partial``, one group per sampled stage) and resumed.
+    """
+    if partial is None:
+        return (
+            "interrupted: nothing is kept (a fit with --no-mcmc stores no intermediate "
+            "state); the same command starts again from the beginning"
+        )
+    try:
+        with h5py.File(partial, "r") as f:
+            stages = [
+                f"{name} {int(f[name].attrs.get('iteration', 0))} steps"
+                for name in f
+                if isinstance(f[name], h5py.Group) and f[name].attrs.get("iteration", 0) > 0
+            ]
+    except OSError:
+        stages = []
+    if not stages:
+        return (
+            f"interrupted before any MCMC step was stored: nothing is kept ({partial} holds "
+            "no chain yet); the same command starts again from the beginning"
+        )
+    return (
+        f"interrupted: the MCMC chains sampled so far are kept in {partial} "
+        f"({', '.join(stages)}); the same command redoes the least-squares stages and "
+        "resumes the chains where they stopped"
+    )
+
+
 def _stamp(partial: Path, fingerprint: str) -> None:
     with h5py.File(partial, "a") as f:
         f.attrs["pneumafit_fingerprint"] = fingerprint
@@ -140,7 +173,7 @@ def fit_command(
     -------
     int
         0 ok, 1 the fit failed, 2 bad input, 3 untrustworthy under ``strict``,
-        130 interrupted (resumable).
+        130 interrupted (MCMC chains resumable).
     """
     from pneumafit.campaign import read_campaign
 
@@ -218,8 +251,7 @@ def fit_command(
             log=lambda line: console.print(Text(line)),
         )  # fmt: skip
     except KeyboardInterrupt:
-        where = f"; the chains so far are in {partial}" if mcmc else ""
-        console.print(Text(f"interrupted{where}: run the same command again to resume", "yellow"))
+        console.print(Text(_interrupted_message(partial if mcmc else None), "yellow"))
         return EXIT_INTERRUPTED
     except PneumafitInputError as exc:
         console.print(Text(f"{campaign}: {exc}", style="bold red"))
@@ -258,6 +290,12 @@ def _fmt(x: float | None, digits: int = 4) -> str:
 
 #: Display scale and unit of the residual table, by the channel's first letter.
 _DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
+
+
+def _with_unit(channel: str, value: float | None) -> str:
+    """'p_P 1.03 kPa': an SI RMSE in the units of the residual table (fit.json keeps SI)."""
+    scale, unit = _DISPLAY.get(channel[0], (1.0, ""))
+    return f"{channel} {_fmt(None if value is None else value * scale)} {unit}".rstrip()
 
 
 def _quality_table(result: FitResult, console: Console) -> None:
@@ -351,7 +389,7 @@ def _summary(result: FitResult, console: Console) -> None:
     for role in ("fit", "validate"):
         if rmse.get(role):
             console.print(
-                f"RMSE {role}: " + ", ".join(f"{c} {_fmt(v)}" for c, v in rmse[role].items())
+                f"RMSE {role}: " + ", ".join(_with_unit(c, v) for c, v in rmse[role].items())
             )
     for w in result.warnings:
         console.print(Text(f"warning: {w}", style="yellow"))

@@ -322,13 +322,6 @@ def test_damaged_fit_json_is_refused(
     assert_refused(work, args, culprits)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="`pneumafit report` renders a damaged fit.json of the run folder as a section in "
-    "error and exits 0 having written report.html (the design so far: test_report.py::"
-    "test_malformed_inputs_are_reported_not_raised); issue 17 asks for exit 2, which the "
-    "report --allow-partial work in cli.py is to bring",
-)
 @pytest.mark.parametrize("content", ["{trunc", '{"format": "pneumafit-fit", "model": 3}'])
 def test_report_refuses_a_damaged_fit_json(base: Path, tmp_path: Path, content: str) -> None:
     work = tmp_path / "w"
@@ -561,32 +554,17 @@ def test_bad_options_of_the_parameter_commands_are_refused(
 
 KNOWN = [
     pytest.param(["simulate", "P", "--kind", "charge", "--rate", "0 Hz", "--out", "O/s.h5"],
-                 "--rate", id="simulate-rate-zero", marks=pytest.mark.xfail(strict=True,
-                 reason="bug (cli.py): simulate --rate '0 Hz' is an internal error "
-                 "(ZeroDivisionError), exit 1")),
+                 "--rate", id="simulate-rate-zero"),
     pytest.param(["simulate", "P", "--kind", "charge", "--duration", "-1 s", "--out", "O/s.h5"],
-                 "--duration", id="simulate-negative-duration", marks=pytest.mark.xfail(
-                 strict=True, reason="bug (cli.py): simulate --duration '-1 s' is refused, but "
-                 "the message ('experiment charge_P: time: expected at least 2 samples') does "
-                 "not name --duration")),
+                 "--duration", id="simulate-negative-duration"),
     pytest.param(["simulate", "P", "--kind", "charge", "--open-time", "nan s", "--out",
-                  "O/s.h5"], "--open-time", id="simulate-nan-open-time",
-                 marks=pytest.mark.xfail(strict=True, reason="bug (cli.py): simulate accepts "
-                 "--open-time 'nan s' and writes a recording (exit 0)")),
+                  "O/s.h5"], "--open-time", id="simulate-nan-open-time"),
     pytest.param(["linear", "P", "--positions", "250 mm", "--lambda-e=-5", "--out", "O/lin"],
-                 "--lambda-e", id="linear-negative-lambda", marks=pytest.mark.xfail(strict=True,
-                 reason="bug (cli.py): linear accepts a negative --lambda-e and writes its "
-                 "results (exit 0)")),
+                 "--lambda-e", id="linear-negative-lambda"),
     pytest.param(["closed-loop", "P", "--position", "9 m", "--out", "O/cl"], "--position",
-                 id="closed-loop-position-outside", marks=pytest.mark.xfail(strict=True,
-                 reason="bug (cli.py): closed-loop --position '9 m' is refused, but the message "
-                 "('equilibrium: y: expected a position in [0, 0.5] m') does not name "
-                 "--position")),
+                 id="closed-loop-position-outside"),
     pytest.param(["closed-loop", "P", "--umax", "-3 V", "--out", "O/cl"], "--umax",
-                 id="closed-loop-negative-umax", marks=pytest.mark.xfail(strict=True,
-                 reason="bug (cli.py): closed-loop --umax '-3 V' is refused, but the message "
-                 "('w0: no design of order 4 keeps a 30 mm step within -2.7 V') does not name "
-                 "--umax")),
+                 id="closed-loop-negative-umax"),
 ]  # fmt: skip
 
 
@@ -624,12 +602,6 @@ def test_bad_options_of_rig_and_fit_many(
     assert_refused(work, resolved, [culprit])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug (cli.py): main() prints the message as rich markup, so a culprit with square "
-    "brackets loses them: parameters.'x[i]y[/i]' is shown as 'xy', the file '[bold]p.json' as "
-    "'p.json' (needs rich.markup.escape or a Text in main)",
-)
 @pytest.mark.parametrize(
     ("file", "content", "culprit"),
     [

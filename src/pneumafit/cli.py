@@ -13,6 +13,7 @@ import errno
 import functools
 import inspect
 import logging
+import math
 import os
 import sys
 import time
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from pneumafit.campaign.errors import PneumafitInputError
@@ -148,14 +150,16 @@ def _quantity(text: str, unit: str, option: str) -> float:
     magnitude, _, unit_text = text.strip().partition(" ")
     try:
         value = float(magnitude)
-        if not unit_text:
-            return value
-        return float(ureg.Quantity(value, unit_text.strip()).to(unit).magnitude)
+        if unit_text:
+            value = float(ureg.Quantity(value, unit_text.strip()).to(unit).magnitude)
     except Exception as exc:  # pint or float: say what was expected
         raise PneumafitInputError(
             f"option {option}: expected a number in {unit} or a value with a unit "
             f"(e.g. '0.25' or '250 mm'), found {text!r} ({exc})"
         ) from None
+    if not math.isfinite(value):
+        raise PneumafitInputError(f"option {option}: expected a finite number, found {text!r}")
+    return value
 
 
 def _positive(value: float, option: str, text: str) -> float:
@@ -515,6 +519,16 @@ LambdaOption = Annotated[
 ]
 
 
+def _lambda_e(value: float | None) -> float | None:
+    """``--lambda-e`` when given: a positive finite heat-transfer coefficient."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise PneumafitInputError(
+            f"option --lambda-e: expected a positive heat-transfer coefficient in W/m^2/K, "
+            f"found {value!r}"
+        )
+    return value
+
+
 def _positions(text: str | None, stroke: float) -> np.ndarray:
     """Comma-separated positions, one optional unit for all ('50,250,450 mm')."""
     import numpy as np
@@ -551,6 +565,7 @@ def linear(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Equilibria, linear models and open-loop poles over the stroke (eqs. 10-14)."""
+    lambda_e = _lambda_e(lambda_e)
     check_output(out, "folder")
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_linear
@@ -576,6 +591,7 @@ def design(
     lambda_e: LambdaOption = None,
 ) -> None:
     """State-feedback gain schedule placing the ITAE poles (paper Figs. 6-7)."""
+    lambda_e = _lambda_e(lambda_e)
     check_output(out, "folder")
     from pneumafit.models.layout import P
     from pneumafit.outputs.linear_report import write_design
@@ -626,13 +642,27 @@ def closed_loop(
     lambda_e: LambdaOption = None,
 ) -> None:
     """Both state-feedback designs run on the nonlinear model: steps and air (Figs. 9-11)."""
+    lambda_e = _lambda_e(lambda_e)
     check_output(out, "folder")
     from pneumafit.outputs.closed_loop_report import run_closed_loop
 
     numbers, _, unit = steps.strip().partition(" ")
+    y_op = None
+    if position is not None:
+        from pneumafit.analysis.closed_loop import read_plant_file
+        from pneumafit.models.layout import P
+        from pneumafit.models.parameters import parameter_vector
+
+        y_op = _quantity(position, "m", "--position")
+        stroke = float(parameter_vector(read_plant_file(params)[1])[P["stroke"]])
+        if not 0.0 <= y_op <= stroke:
+            raise PneumafitInputError(
+                f"option --position: expected a position within the stroke [0, {stroke:g}] m, "
+                f"found {position!r}"
+            )
+    _positive(_quantity(umax, "V", "--umax"), "--umax", umax)
     results = run_closed_loop(
-        params, out, plant=plant, w0=w0,
-        position=None if position is None else _quantity(position, "m", "--position"),
+        params, out, plant=plant, w0=w0, position=y_op,
         steps=[_quantity(f"{v} {unit}".strip(), "m", "--steps") for v in numbers.split(",")],
         hold=_quantity(hold, "s", "--hold"), umax=_quantity(umax, "V", "--umax"),
         placement=placement, compensate=not no_compensation, lambda_e=lambda_e, console=console,
@@ -671,6 +701,7 @@ def export(
     ] = False,
 ) -> None:
     """Export the validated controller: parameters, linear models, gain schedule, C code."""
+    lambda_e = _lambda_e(lambda_e)
     check_output(out, "file")
     from pneumafit.models.layout import P
     from pneumafit.outputs.export import FORMATS, export_document, write_export
@@ -769,14 +800,15 @@ def main() -> None:
     except PneumafitInputError as exc:
         if debug:
             raise
-        err_console.print(f"[bold red]error:[/bold red] {exc}")
+        err_console.print(f"[bold red]error:[/bold red] {escape(str(exc))}")
         sys.exit(EXIT_BAD_INPUT)
     except OSError as exc:
         if debug or exc.errno not in _ENVIRONMENT_ERRNOS:
             _internal_error(exc, debug)
         where = exc.filename if exc.filename is not None else "a file"
         err_console.print(
-            f"[bold red]error:[/bold red] cannot write or read {where}: {exc.strerror}; "
+            f"[bold red]error:[/bold red] cannot write or read {escape(str(where))}: "
+            f"{escape(str(exc.strerror))}; "
             "check the path, its permissions and the free space"
         )
         sys.exit(EXIT_BAD_INPUT)
@@ -792,7 +824,8 @@ def _internal_error(exc: BaseException, debug: bool) -> None:
     if debug:
         raise exc
     err_console.print(
-        f"[bold red]internal error:[/bold red] {type(exc).__name__}: {exc}\n{_REPORT_BUG}"
+        f"[bold red]internal error:[/bold red] {type(exc).__name__}: {escape(str(exc))}\n"
+        f"{_REPORT_BUG}"
     )
     sys.exit(EXIT_FAILED)
 

@@ -240,17 +240,22 @@ class _Run:
         return any((self.dir / name).is_file() for name in RESULT_FILES)
 
     def disagreements(self, given: bool) -> list[str]:
-        """What makes this run's report untrue: the campaign cannot be read
-        (when it was given, or fits need it), or a fit, the comparison or the
-        main job's summary records other campaign files than the campaign's
+        """What makes this run's report untrue: a fit.json cannot be read, the
+        campaign cannot be read (when it was given, or fits need it), or a fit,
+        the comparison or the main job's summary records other campaign files
+        than the campaign's
         (``campaign.sha256``: file -> SHA-256). Call after :meth:`load_campaign`."""
+        # a fit.json that cannot be read makes a report of that model untrue too
+        unread = [f"fits/{m}/fit.json cannot be read ({e})" for m, e in self.fit_errors.items()]
         needed = given or bool(self.fits) or bool(self.fit_errors)
         if self.campaign is None:
             if not needed:
-                return []
+                return unread
             if self.campaign_path is None:
-                return ["no campaign folder was given (--campaign) or recorded in the fits"]
-            return [f"campaign {self.campaign_error}"]
+                return [
+                    *unread, "no campaign folder was given (--campaign) or recorded in the fits"
+                ]  # fmt: skip
+            return [*unread, f"campaign {self.campaign_error}"]
         ours = dict(self.campaign.sha256)
         recorded: list[tuple[str, Any]] = [
             (f"fits/{m}/fit.json", doc.get("campaign")) for m, (doc, _) in self.fits.items()
@@ -260,7 +265,7 @@ class _Run:
             recorded.append(("comparison/comparison.json", comparison.get("campaign")))
         if isinstance(self.summary, Mapping):
             recorded.append(("summary.json", self.summary.get("campaign")))
-        problems = []
+        problems = unread
         for origin, entry in recorded:
             theirs = entry.get("sha256") if isinstance(entry, Mapping) else None
             if not isinstance(theirs, Mapping) or dict(theirs) == ours:

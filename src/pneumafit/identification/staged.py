@@ -29,6 +29,7 @@ import copy
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -1166,14 +1167,15 @@ def identify(
                 + (f"up to {n_steps} steps, stopped when converged (checked every {check})"
                    if check else f"{n_steps} steps")
             )  # fmt: skip
-            # emcee's own bar on a terminal when asked for (opts.progress); the
-            # reporter's lines otherwise
-            with reporter.task(f"mcmc {stage_name}") as task:
+            # emcee's own bar on a terminal when asked for (opts.progress), and
+            # then no live line beside it; the reporter's lines otherwise
+            bar = opts.progress and reporter.live
+            with nullcontext() if bar else reporter.task(f"mcmc {stage_name}") as task:
                 res = run_mcmc(
                     post, ps, ps.to_internal(), cov, n_walkers=n_walkers, n_steps=n_steps,
                     seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
                     max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
-                    min_steps=check, report=None if opts.progress and reporter.live else task,
+                    min_steps=check, report=task,
                 )  # fmt: skip
             evaluations += res.evaluations
             stage_obj = next(s for s in stages if s.name == stage_name)

@@ -66,7 +66,7 @@ def test_reporter_in_a_log_says_lines_and_on_a_terminal_draws_a_live_line() -> N
         assert task.live is not None
     assert task.live is None  # the live line is gone with the loop
     assert lines == []  # nothing said as a line on a terminal
-    assert "joint: 12 points, 1 s" in screen.file.getvalue()
+    assert "joint (1 s): 12 points" in screen.file.getvalue()
 
 
 MEAN = np.array([1.0, -2.0])

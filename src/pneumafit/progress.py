@@ -8,8 +8,9 @@ one :class:`Progress`, made by the command's :class:`Reporter`:
   ``<label>: <status>, <elapsed> s`` at most every :data:`LOG_INTERVAL`
   seconds, at the first update after that interval (so a loop whose updates
   come every few seconds is never silent for much longer than the interval);
-- on a terminal, one live line (rich's status spinner) updated at most every
-  :data:`LIVE_INTERVAL` seconds and removed when the loop ends.
+- on a terminal, one live line ``<label> (<elapsed> s): <status>`` (rich's
+  status spinner) updated at most every :data:`LIVE_INTERVAL` seconds and
+  removed when the loop ends.
 
 The status is a string or a callable returning one; a callable is called only
 when a line is due, so an expensive status (an autocorrelation time) costs
@@ -100,11 +101,12 @@ class Progress:
             return
         self.last = now
         self.lines += 1
-        line = self.line(status)
         if self.live is not None:
-            self.live.update(line)
+            # the elapsed time first: a narrow terminal cuts the line's end
+            text = status() if callable(status) else status
+            self.live.update(f"{self.label} ({self.elapsed:.0f} s): {text}")
         else:
-            self.say(line)
+            self.say(self.line(status))
 
     def close(self) -> None:
         """End the loop: the live line is removed (a log gets nothing more)."""

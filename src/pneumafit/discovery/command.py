@@ -61,6 +61,7 @@ from pneumafit.fileio import atomic_path, write_text_atomic
 from pneumafit.identification.fitfile import json_safe
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
+from pneumafit.progress import Reporter
 
 __all__ = [
     "DISCOVERY_FORMAT",
@@ -500,10 +501,14 @@ def discover_command(
         f"discovery on {camp.name}: base model {fit_doc['model']} from {fit_path} "
         f"({len(camp.by_role('fit'))} fit, {len(camp.by_role('validate'))} validate recordings)"
     )
+
+    def say(line: str) -> None:
+        console.print(Text(line))
+
     try:
         result = discover(
-            camp, base, seed=seed, rounds=rounds, per_round=per_round,
-            log=lambda line: console.print(Text(line)),
+            camp, base, seed=seed, rounds=rounds, per_round=per_round, log=say,
+            progress=Reporter(say, console=console),
         )  # fmt: skip
     except KeyboardInterrupt:
         console.print(Text("interrupted: nothing written", "yellow"))

@@ -67,6 +67,7 @@ from pneumafit.identification.staged import (
     with_initial_states,
 )
 from pneumafit.models.structure import ModelStructure
+from pneumafit.progress import Progress, Reporter
 
 __all__ = [
     "PRESSURES",
@@ -424,6 +425,7 @@ def refit(
     *,
     rng: np.random.Generator,
     max_nfev: int = REFIT_NFEV,
+    progress: Progress | None = None,
 ) -> Model:
     """Refit ``current`` with ``effect`` added (see the module docstring).
 
@@ -443,6 +445,9 @@ def refit(
         Seeds the least squares.
     max_nfev : int
         Iterations per least-squares round.
+    progress : Progress, optional
+        Updated inside the least squares (points, log-likelihood, elapsed;
+        :func:`~pneumafit.identification.fit_least_squares`).
 
     Returns
     -------
@@ -462,7 +467,9 @@ def refit(
         prob.correct_solver({**model_vals, **dict(starts[0])} if starts else model_vals)
     like = LogLikelihood(prob, ps)
     full_starts = [{**ps.values(), **dict(s)} for s in starts] or [ps.values()]
-    est = fit_least_squares(like, starts=full_starts, seed=rng, max_nfev=max_nfev)
+    est = fit_least_squares(
+        like, starts=full_starts, seed=rng, max_nfev=max_nfev, progress=progress
+    )
     evaluations = est.n_evaluations
     new_values = dict(values)
     ll = est.log_likelihood
@@ -475,7 +482,9 @@ def refit(
                                  not k.startswith("initial:")})  # fmt: skip
             ps2 = ps.with_values({k: v for k, v in new_values.items() if k in ps})
             like = LogLikelihood(prob, ps2)
-            est2 = fit_least_squares(like, starts=[ps2.values()], seed=rng, max_nfev=max_nfev)
+            est2 = fit_least_squares(
+                like, starts=[ps2.values()], seed=rng, max_nfev=max_nfev, progress=progress
+            )
             evaluations += est2.n_evaluations
             if math.isfinite(est2.log_likelihood):
                 est = est2
@@ -589,6 +598,7 @@ def discover(
     n_bootstrap: int = 60,
     max_nfev: int = REFIT_NFEV,
     log: Logger | None = None,
+    progress: Reporter | None = None,
 ) -> Discovery:
     """Attribute the base fit's residual, refit with candidates, keep what helps.
 
@@ -611,12 +621,16 @@ def discover(
         Iterations per least-squares round of a refit.
     log : callable, optional
         Receives one line per step.
+    progress : Reporter, optional
+        Progress inside each refit (:mod:`pneumafit.progress`); default:
+        lines to ``log`` at most every few seconds.
 
     Returns
     -------
     Discovery
     """
     say = log or (lambda _m: None)
+    reporter = progress if progress is not None else Reporter(say)
     t0 = time.perf_counter()
     streams = np.random.SeedSequence(seed).spawn(rounds * (2 * per_round + 1) + 1)
     stream = iter(np.random.default_rng(s) for s in streams)
@@ -683,10 +697,11 @@ def discover(
             # when that refit failed or did not even improve the likelihood
             for start in _starts(cand):
                 say(f"round {r}: refit with {cand.effect} from {_fmt_start([start])} ...")
-                model = refit(
-                    campaign, base, current, cand.effect, [start], rng=next(stream),
-                    max_nfev=max_nfev,
-                )  # fmt: skip
+                with reporter.task(f"round {r}: refit with {cand.effect}") as task:
+                    model = refit(
+                        campaign, base, current, cand.effect, [start], rng=next(stream),
+                        max_nfev=max_nfev, progress=task,
+                    )  # fmt: skip
                 ok, reason = _accept(model, current)
                 say(f"  {cand.effect}: {reason} ({model.seconds:.1f} s)")
                 steps.append(Step(r, cand.effect, dict(start), model, ok, reason))

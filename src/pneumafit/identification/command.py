@@ -52,6 +52,7 @@ from pneumafit.identification.staged import (
 )
 from pneumafit.models.layout import FRICTION_LAWS, VALVE_LAWS
 from pneumafit.models.structure import MODELS
+from pneumafit.progress import Reporter
 
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
 
@@ -245,10 +246,14 @@ def fit_command(
         _stamp(partial, fingerprint)
         chains_path = partial
     console.print(f"fitting {model} to {camp.name} ({len(camp.by_role('fit'))} fit recordings)")
+
+    def say(line: str) -> None:
+        console.print(Text(line))
+
     try:
         result = identify(
-            camp, model, options=options, seed=seed, chains=chains_path,
-            log=lambda line: console.print(Text(line)),
+            camp, model, options=options, seed=seed, chains=chains_path, log=say,
+            progress=Reporter(say, console=console),
         )  # fmt: skip
     except KeyboardInterrupt:
         console.print(Text(_interrupted_message(partial if mcmc else None), "yellow"))

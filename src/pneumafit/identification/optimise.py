@@ -19,7 +19,6 @@ uncertainty when no MCMC is run, and the spread of the MCMC walkers' start.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,6 +29,7 @@ from scipy.optimize import least_squares
 
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.parameters import ParameterSet
+from pneumafit.progress import Progress
 
 __all__ = ["PointEstimate", "fit_least_squares", "laplace_covariance", "laplace_summary"]
 
@@ -154,16 +154,17 @@ class _Cached:
     ``stall`` = (window, gain), the solve is stopped when the cost (half the
     sum of squared whitened residuals, a log-likelihood difference at the
     held noise state) has fallen by less than ``gain`` over the last
-    ``window`` evaluated points. ``progress`` receives a line at most every
-    ``every`` seconds.
+    ``window`` evaluated points. ``progress`` is updated at every evaluated
+    point (it says a line when one is due, :mod:`pneumafit.progress`).
     """
 
     def __init__(
         self,
         whitened: _Whitened,
         stall: tuple[int, float] | None = None,
-        progress: Callable[[str], None] | None = None,
-        every: float = 30.0,
+        progress: Progress | None = None,
+        where: str = "",
+        log_likelihood: float = math.nan,
     ) -> None:
         self.whitened = whitened
         self.key: bytes | None = None
@@ -172,9 +173,19 @@ class _Cached:
         self.best: tuple[float, NDArray[np.float64]] | None = None
         self.history: list[float] = []
         self.progress = progress
-        self.every = every
-        self.started = self.last_said = time.perf_counter()
+        self.where = where
+        self.log_likelihood = log_likelihood
         self.cost0: float | None = None
+
+    def status(self) -> str:
+        """Points so far and the best log-likelihood (noise held) of this round."""
+        assert self.best is not None and self.cost0 is not None
+        gain = self.cost0 - self.best[0]
+        sims = self.whitened.like.n_evaluations
+        return (
+            f"{self.where}{len(self.history)} points ({sims} simulations), log-likelihood "
+            f"{self.log_likelihood + gain:.1f} ({gain:+.1f} this round)"
+        )
 
     def _get(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         key = x.tobytes()
@@ -190,13 +201,8 @@ class _Cached:
             self.best = (cost, x.copy())
         assert self.best is not None
         self.history.append(self.best[0])
-        now = time.perf_counter()
-        if self.progress is not None and now - self.last_said >= self.every:
-            self.last_said = now
-            self.progress(
-                f"{len(self.history)} points in {now - self.started:.0f} s, log-likelihood "
-                f"+{self.cost0 - self.best[0]:.1f} since the start of this round"
-            )
+        if self.progress is not None:
+            self.progress.update(self.status)
         if self.stall is not None:
             window, gain = self.stall
             if len(self.history) > window and self.history[-window - 1] - self.best[0] < gain:
@@ -219,7 +225,7 @@ def fit_least_squares(
     max_nfev: int = 60,
     tol: float = 1e-8,
     stall: tuple[int, float] | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | Callable[[str], None] | None = None,
 ) -> PointEstimate:
     """Maximise the profile log-likelihood from one or more starts.
 
@@ -246,14 +252,21 @@ def fit_least_squares(
         :data:`STALLED`, counted as converged). A model that cannot follow
         its data creeps for thousands of iterations with such gains, which
         move no estimate by a fraction of its uncertainty.
-    progress : callable, optional
-        Receives a progress line at most every 30 s.
+    progress : Progress or callable, optional
+        Updated at every evaluated point with the start, the round, the
+        points and simulations so far and the round's best log-likelihood
+        (noise parameters held at the round's start); it says a line at most
+        every few seconds (:class:`pneumafit.progress.Progress`). A callable
+        receives those lines (wrapped in a ``Progress`` labelled
+        ``least squares``). Reporting changes no number of the fit.
 
     Returns
     -------
     PointEstimate
         The best start's estimate (by log posterior).
     """
+    if progress is not None and not isinstance(progress, Progress):
+        progress = Progress("least squares", progress)
     ps = likelihood.parameters
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     lo, hi = ps.internal_bounds()
@@ -268,15 +281,17 @@ def fit_least_squares(
     width = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     margin = 1e-9 * width
     wh = _Whitened(likelihood)
-    for z0 in z_starts:
+    for i_start, z0 in enumerate(z_starts):
         z = np.clip(np.asarray(z0, float), lo + margin, hi - margin)
         ll = wh.set_state(z)
         nfev = 0
         message = "start is not finite" if not math.isfinite(ll) else ""
         status = 0
         if math.isfinite(ll):
-            for _ in range(max_reweight):
-                fj = _Cached(wh, stall, progress)
+            for i_round in range(max_reweight):
+                where = f"start {i_start + 1}/{len(z_starts)}, " if len(z_starts) > 1 else ""
+                where += f"round {i_round + 1}: "
+                fj = _Cached(wh, stall, progress, where, ll)
                 try:
                     sol = least_squares(
                         fj.fun, z, jac=fj.jac, bounds=(lo, hi),

@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 
 from pneumafit.identification.optimise import equilibrated_pinv
 from pneumafit.identification.parameters import ParameterSet
+from pneumafit.progress import Progress
 
 __all__ = [
     "MIN_TAU_MULTIPLE",
@@ -211,6 +212,7 @@ def run_mcmc(
     max_steps: int | None = None,
     log: Callable[[str], None] | None = None,
     min_steps: int | None = None,
+    report: Progress | None = None,
 ) -> MCMCResult:
     """Sample a log posterior with emcee; resume a stored run when possible.
 
@@ -239,7 +241,7 @@ def run_mcmc(
         shape and fewer steps is resumed; one with ``n_steps`` or more is
         read back without sampling; a different shape is started afresh.
     progress : bool or str
-        emcee's tqdm progress bar.
+        emcee's tqdm progress bar (a terminal; ``report`` for a log).
     moves : optional
         emcee moves (default :func:`default_moves`).
     max_steps : int, optional
@@ -259,6 +261,13 @@ def run_mcmc(
         check before ``n_steps``, extensions in rounds of half ``n_steps``.
         The checks see the stored chain only, so an interrupted run resumes
         to the same chain and the same stop.
+    report : Progress, optional
+        Updated after every step with the steps done and aimed at, the
+        acceptance so far and the largest autocorrelation time of the chain
+        so far (computed only when a line is due,
+        :class:`pneumafit.progress.Progress`). The chain is the same with
+        and without it: the steps are emcee's ``sample`` iterator, which
+        ``EnsembleSampler.run_mcmc`` iterates too.
 
     Returns
     -------
@@ -306,6 +315,31 @@ def run_mcmc(
     check = int(min_steps) if min_steps else 0
     target = min(check, n_steps) if check > 0 else n_steps
     limit = max(n_steps, int(max_steps or n_steps))
+    last: emcee.State | None = None
+
+    def status() -> str:
+        have = int(store.iteration)
+        chain = store.get_chain()
+        tau = _tau(chain) if have >= 2 else np.array([math.nan])
+        taus = tau[np.isfinite(tau)]
+        accepted = float(np.mean(np.asarray(store.accepted, dtype=float))) / max(have, 1)
+        aim = f"{target}" + (f" (limit {limit})" if limit > target else "")
+        return (
+            f"step {have} of {aim}, acceptance {accepted:.2f}, tau "
+            + (f"{taus.max():.1f} steps (largest, chain so far)" if taus.size else "not yet known")
+            + f", {evaluations} evaluations"
+        )
+
+    def advance(state: emcee.State | None, n: int) -> emcee.State | None:
+        # as EnsembleSampler.run_mcmc(state, n): None resumes from the last
+        # step (the backend's, for a sampler made on a stored chain)
+        first = sampler.get_last_sample() if state is None else state
+        for result in sampler.sample(first, iterations=n, progress=progress):
+            state = result
+            if report is not None:
+                report.update(status)
+        return state
+
     while True:
         have = int(store.iteration) if store.initialized else 0
         remaining = target - have
@@ -319,9 +353,9 @@ def run_mcmc(
                 state = emcee.State(
                     walkers, random_state=np.random.RandomState(seed % 2**32).get_state()
                 )
-                sampler.run_mcmc(state, remaining, progress=progress)
+                last = advance(state, remaining)
             else:
-                sampler.run_mcmc(None, remaining, progress=progress)
+                last = advance(last, remaining)
         chain = store.get_chain()[:target]
         lp = store.get_log_prob()[:target]
         # acceptance over the steps kept (emcee counts every step stored)

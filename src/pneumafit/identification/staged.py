@@ -29,6 +29,7 @@ import copy
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -84,6 +85,7 @@ from pneumafit.physics.valve_map import (
     MAP_KNOTS,
     map_from_iso,
 )
+from pneumafit.progress import Progress, Reporter
 
 __all__ = [
     "DEFAULT_CHANNELS",
@@ -209,6 +211,7 @@ def _iso_valve(
     values: Mapping[str, float],
     options: FitOptions,
     seed: int,
+    progress: Progress | None = None,
 ) -> dict[str, float]:
     """ISO 6358 fit of the flow tests (the valve map's start)."""
     iso = replace(structure, valve="iso6358")
@@ -218,7 +221,7 @@ def _iso_valve(
     prob = _problem(flows, iso, {**ps.values(), **rig}, options)
     starts = valve_starts(flows, rig)
     prob.linearize({**ps.values(), **starts[0]})
-    est = _least_squares(prob, ps, starts, seed)
+    est = _least_squares(prob, ps, starts, seed, progress=progress)
     return {n: est.parameters[n].value for n in ps.names if SPECS_GROUP.get(n) == "valve"}
 
 
@@ -698,7 +701,7 @@ def _least_squares(
     random_starts: int = 0,
     max_nfev: int = 60,
     stall: tuple[int, float] | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> PointEstimate:
     """Multi-start least squares (see :func:`fit_least_squares`)."""
     like = LogLikelihood(problem, parameters)
@@ -716,6 +719,7 @@ def identify(
     seed: int = 0,
     chains: str | Path | None = None,
     log: Logger | None = None,
+    progress: Reporter | None = None,
 ) -> FitResult:
     """Identify a model structure from a campaign, stage by stage.
 
@@ -733,6 +737,13 @@ def identify(
         run resumes from it.
     log : callable, optional
         Receives one line per step of progress.
+    progress : Reporter, optional
+        Progress inside each least-squares solve and MCMC chain
+        (:mod:`pneumafit.progress`): the stage, the points and simulations so
+        far, the log-likelihood, the elapsed time; MCMC steps, acceptance and
+        tau. Default: lines to ``log`` at most every
+        :data:`~pneumafit.progress.LOG_INTERVAL` seconds. Reporting changes
+        no number of the fit.
 
     Returns
     -------
@@ -747,6 +758,7 @@ def identify(
     """
     opts = options or FitOptions()
     say = log or (lambda _msg: None)
+    reporter = progress if progress is not None else Reporter(say)
     t_start = time.perf_counter()
     name = model if isinstance(model, str) else model.name
     if opts.friction not in (*FRICTION_LAWS, "auto"):
@@ -790,6 +802,7 @@ def identify(
         stage_seed: int,
         random_starts: int = 0,
         explicit_initial: bool = False,
+        label: str | None = None,
     ) -> Problem:
         # stages a-c profile the initial-state errors (cheap, linearised at the
         # first start); the joint stage fits the initial states as parameters
@@ -811,16 +824,17 @@ def identify(
                     f"gains less than {joint_stall[1]:.3g} in {joint_stall[0]} points"
                 )
             stall = joint_stall
-        est = _least_squares(
-            prob,
-            ps,
-            starts,
-            stage_seed,
-            random_starts,
-            opts.joint_iterations if explicit_initial else 60,
-            stall,
-            (lambda line: say(f"{stage.name}: {line}")) if explicit_initial else None,
-        )
+        with reporter.task(label or stage.name) as task:
+            est = _least_squares(
+                prob,
+                ps,
+                starts,
+                stage_seed,
+                random_starts,
+                opts.joint_iterations if explicit_initial else 60,
+                stall,
+                task,
+            )
         stage.estimate, stage.seconds = est, time.perf_counter() - t0
         evaluations += est.n_evaluations
         if math.isfinite(est.log_likelihood):
@@ -839,7 +853,8 @@ def identify(
     if structure.valve == "map" and flows and cached is None:
         # the map starts from the ISO 6358 fit of the same flow tests, sampled
         # at its knots; knots no flow level informs stay at that start
-        iso = _iso_valve(campaign, flows, structure, values, opts, seeds[0])
+        with reporter.task("valve (ISO 6358 start)") as task:
+            iso = _iso_valve(campaign, flows, structure, values, opts, seeds[0], task)
         values.update(map_from_iso({**values, **iso}))
         values["valve_m"] = iso["valve_m"]
         held = _uninformed_knots(campaign, values)
@@ -947,7 +962,15 @@ def identify(
             names = tuple(structure.friction_parameter_names)
             trial = StageResult("friction", [r.file for r in steps], names)
             starts = friction_starts(steps, rig, cand)
-            prob = run_stage(trial, steps, names, starts, seeds[2], opts.random_starts)
+            prob = run_stage(
+                trial,
+                steps,
+                names,
+                starts,
+                seeds[2],
+                opts.random_starts,
+                label=f"friction ({cand})",
+            )
             tried[cand] = (trial, dict(values), prob.n_data)
             say(
                 f"friction ({cand}): {trial.seconds:.1f} s, log-likelihood "
@@ -995,7 +1018,9 @@ def identify(
         names = (*friction_names, SEAL)
         trial = StageResult("friction", [r.file for r in steps], names)
         c0 = seal_start(steps, rig)
-        prob = run_stage(trial, steps, names, [{**values, SEAL: c0}], seeds[2])
+        prob = run_stage(
+            trial, steps, names, [{**values, SEAL: c0}], seeds[2], label="friction (seal)"
+        )
         gain = trial.estimate.log_likelihood - stage.estimate.log_likelihood
         over = _overcount(prob, trial.estimate.parameters, trial.estimate.parameters.values())
         penalty = 0.5 * math.log(max(prob.n_data / over, 2.0))
@@ -1044,7 +1069,10 @@ def identify(
         ps = with_initial_states(
             params.with_values(values).only_free(joint_free), screen_prob, values, free=True
         )
-        screen = _least_squares(screen_prob, ps, joint_starts, seeds[3], 0, JOINT_SCREEN_NFEV)
+        with reporter.task("joint (screening the heat-law starts)") as task:
+            screen = _least_squares(
+                screen_prob, ps, joint_starts, seeds[3], 0, JOINT_SCREEN_NFEV, progress=task
+            )
         evaluations += screen.n_evaluations
         ranked = sorted(
             (r for r in screen.starts if math.isfinite(r["log_likelihood"])),
@@ -1075,9 +1103,9 @@ def identify(
         ps = with_initial_states(
             params.with_values(values).only_free(joint_free), joint_problem, values, True
         )
-        est2 = _least_squares(joint_problem, ps, [dict(values)], seeds[3], 0,
-                              opts.joint_iterations, joint_stall,
-                              lambda line: say(f"joint (corrected): {line}"))  # fmt: skip
+        with reporter.task("joint (corrected)") as task:
+            est2 = _least_squares(joint_problem, ps, [dict(values)], seeds[3], 0,
+                                  opts.joint_iterations, joint_stall, task)  # fmt: skip
         evaluations += est2.n_evaluations
         if math.isfinite(est2.log_likelihood):
             est2.starts = est.starts + est2.starts
@@ -1139,12 +1167,16 @@ def identify(
                 + (f"up to {n_steps} steps, stopped when converged (checked every {check})"
                    if check else f"{n_steps} steps")
             )  # fmt: skip
-            res = run_mcmc(
-                post, ps, ps.to_internal(), cov, n_walkers=n_walkers, n_steps=n_steps,
-                seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
-                max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
-                min_steps=check,
-            )  # fmt: skip
+            # emcee's own bar on a terminal when asked for (opts.progress), and
+            # then no live line beside it; the reporter's lines otherwise
+            bar = opts.progress and reporter.live
+            with nullcontext() if bar else reporter.task(f"mcmc {stage_name}") as task:
+                res = run_mcmc(
+                    post, ps, ps.to_internal(), cov, n_walkers=n_walkers, n_steps=n_steps,
+                    seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
+                    max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
+                    min_steps=check, report=task,
+                )  # fmt: skip
             evaluations += res.evaluations
             stage_obj = next(s for s in stages if s.name == stage_name)
             stage_obj.mcmc = res

@@ -47,6 +47,7 @@ def _chains(path: Path) -> dict[str, np.ndarray]:
         return {name: np.asarray(f[name]["chain"]) for name in f}
 
 
+@pytest.mark.slow  # two fits with MCMC: about 80 s on the 2-core machine
 def test_a_fit_logs_progress_inside_its_stages_and_the_same_numbers(
     small: tuple, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

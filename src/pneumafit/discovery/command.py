@@ -480,7 +480,12 @@ def discover_command(
         0 done, 1 failed, 2 bad input, 130 interrupted.
     """
     from pneumafit.campaign import read_campaign
+    from pneumafit.frictiontest.discover_command import friction_discover_command, is_friction_fit
 
+    if is_friction_fit(Path(fit)):  # friction tests: the rod-force residual (frictiontest)
+        return friction_discover_command(
+            campaign, fit, out, seed=seed, rounds=rounds, per_round=per_round, console=console
+        )
     problems = [
         int_problem("--seed", seed, 0),
         int_problem("--rounds", rounds, 1),

@@ -322,7 +322,12 @@ def discover(
     fit: Annotated[Path, typer.Option("--fit", help="Base fit: fit.json or its folder.")],
     out: Annotated[Path, typer.Option("--out", help="Folder for discovery.json and the report.")],
     seed: Annotated[int, typer.Option(help="Seed of the bootstrap and the refits.")] = 0,
-    rounds: Annotated[int, typer.Option(help="Largest number of rounds.")] = 2,
+    rounds: Annotated[
+        int | None,
+        typer.Option(
+            help="Largest number of rounds (default 2; friction tests 3, one per effect)."
+        ),
+    ] = None,
     per_round: Annotated[int, typer.Option("--per-round", help="Refits per round.")] = 3,
 ) -> None:
     """Find the effect a fit's residual asks for, refit with it, report before/after."""

@@ -454,7 +454,7 @@ def discover_command(
     out: Path,
     *,
     seed: int = 0,
-    rounds: int = 2,
+    rounds: int | None = 2,
     per_round: int = 3,
     console: Console,
 ) -> int:
@@ -471,7 +471,7 @@ def discover_command(
     seed : int
         Seeds the bootstrap and the refits (saved in discovery.json).
     rounds, per_round : int
-        Largest number of rounds, and of refits per round.
+        Largest number of rounds (None: 2; on a friction fit 3), and of refits per round.
     console : rich.console.Console
 
     Returns
@@ -484,8 +484,10 @@ def discover_command(
 
     if is_friction_fit(Path(fit)):  # friction tests: the rod-force residual (frictiontest)
         return friction_discover_command(
-            campaign, fit, out, seed=seed, rounds=rounds, per_round=per_round, console=console
-        )
+            campaign, fit, out, seed=seed, rounds=3 if rounds is None else rounds,
+            per_round=per_round, console=console,
+        )  # fmt: skip
+    rounds = 2 if rounds is None else rounds
     problems = [
         int_problem("--seed", seed, 0),
         int_problem("--rounds", rounds, 1),

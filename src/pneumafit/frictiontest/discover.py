@@ -416,7 +416,10 @@ def discover_friction(
                 "rejected: BIC not lower" if results[best][2] >= bic_cur
                 else "rejected: held-out worse"),
         })  # fmt: skip
-        say(f"law again with {', '.join(kept)}: {best} " + ("kept" if ok else "not kept"))
+        if best == current_law:
+            say(f"law again with {', '.join(kept)}: {best} still the lowest BIC")
+        else:
+            say(f"law again with {', '.join(kept)}: {best} " + ("kept" if ok else "not kept"))
         if ok:
             like, est = results[best][0], results[best][1]
             current_law = best

@@ -333,7 +333,10 @@ def discover_friction(
     bic0 = _bic(like, est, power0)[0]
     base_est_values = est.parameters.values()
     loglike0 = float(est.log_likelihood)
-    rmse0 = force_rmse(all_tests, base_est_values)
+    # "before" is the base fit as written; the refits start from its
+    # reconverged estimate (the base fit's solver may have stopped short)
+    rmse0 = force_rmse(all_tests, values)
+    val_now = force_rmse(all_tests, base_est_values)["role"].get("validate")
     say(
         f"base {law}: force RMSE fit {rmse0['role'].get('fit', math.nan):.3g} N, validate "
         f"{rmse0['role'].get('validate', math.nan):.3g} N; BIC {bic0:.1f} (every block "
@@ -344,7 +347,6 @@ def discover_friction(
     history: list[list[dict[str, Any]]] = []
     refits: list[dict[str, Any]] = []
     current_law = law
-    val_now = rmse0["role"].get("validate")
     for rnd in range(1, rounds + 1):
         if not remaining:
             break
@@ -441,14 +443,16 @@ def discover_friction(
             "interval_90": list(p.interval_90) if p.interval_90 is not None else None,
             "effect": FRICTION_EFFECTS[name].name,
         }  # fmt: skip
-    final_values = est.parameters.values()
-    bic_after = _bic(like, est, power0)[0]
+    changed = len(kept) > len(already) or current_law != law
+    final_values = est.parameters.values() if changed else dict(values)
+    bic_after = _bic(like, est, power0)[0] if changed else bic0
     result = FrictionDiscovery(
         base_law=law, final_law=current_law, selected=[k for k in kept if k not in already],
         rounds=history, refits=refits, rmse_before=rmse0,
         rmse_after=force_rmse(all_tests, final_values), bic_before=bic0, bic_after=bic_after,
         log_likelihood_before=loglike0,
-        log_likelihood_after=float(est.log_likelihood), values_before=dict(base_est_values),
+        log_likelihood_after=float(est.log_likelihood) if changed else loglike0,
+        values_before=dict(values),
         values_after=dict(final_values), effect_parameters=effect_parameters, noise=noise,
         seed=seed, seconds=time.perf_counter() - started, tests=all_tests,
     )  # fmt: skip

@@ -188,9 +188,11 @@ def run(
 ) -> None:
     """The main job: check, fit the three models, compare, discover, design, report, export.
 
-    Finished stages in OUT are reused on a re-run (see OUT/stages.json). Exit
-    status: 0 ok, 1 a stage failed, 2 bad input, 3 a fit not trustworthy under
-    --strict, 130 interrupted.
+    A campaign of friction tests (every recording of kind friction) runs its
+    own job: check, fit --model friction, discover, report
+    (docs/measured-data.md). Finished stages in OUT are reused on a re-run
+    (see OUT/stages.json). Exit status: 0 ok, 1 a stage failed, 2 bad input,
+    3 a fit not trustworthy under --strict, 130 interrupted.
     """
     from pneumafit.pipeline import run as run_pipeline
 

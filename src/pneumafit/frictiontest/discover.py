@@ -62,8 +62,9 @@ from pneumafit.frictiontest.fit import (
     _structure_set,
 )
 from pneumafit.frictiontest.model import (
-    EFFECTS,
+    FRICTION_EFFECTS,
     KERNEL_ORDER,
+    FrictionEffect,
     FrictionTest,
     default_parameters,
     prepare,
@@ -84,44 +85,6 @@ __all__ = [
 #: A refit may raise the validate force RMSE by this factor and still be kept
 #: (the refit's own optimiser tolerance moves the held-out RMSE by ~1 %).
 VALIDATE_TOLERANCE = 1.02
-
-
-@dataclass(frozen=True)
-class FrictionEffect:
-    """One catalog effect of the friction-test model.
-
-    Attributes
-    ----------
-    name : str
-        Catalog name (``seal-friction``, ...).
-    parameter : str
-        The kernel parameter it frees (:data:`pneumafit.frictiontest.model.KERNEL_ORDER`).
-    unit : str
-        Unit of the parameter.
-    step : float
-        Step of the forward difference of the signature (in the parameter's unit).
-    description : str
-    """
-
-    name: str
-    parameter: str
-    unit: str
-    step: float
-    description: str
-
-
-#: The friction-test effects: one registry, shared by ``fit --seal-friction``
-#: (through :data:`pneumafit.frictiontest.model.EFFECTS`) and ``discover``.
-FRICTION_EFFECTS: dict[str, FrictionEffect] = {
-    e.parameter: e
-    for e in (
-        FrictionEffect("seal-friction", "seal_friction_coefficient", "N/Pa", 1e-6,
-                       EFFECTS["seal_friction_coefficient"]),
-        FrictionEffect("friction-asymmetry", "friction_asymmetry", "", 1e-2,
-                       EFFECTS["friction_asymmetry"]),
-        FrictionEffect("effective-area", "area_factor", "", 1e-2, EFFECTS["area_factor"]),
-    )
-}  # fmt: skip
 
 
 def _matrix(values: Mapping[str, float]) -> NDArray[np.float64]:

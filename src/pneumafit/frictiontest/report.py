@@ -213,6 +213,19 @@ def _discovery_section(folder: Path, disc: Any, error: str | None) -> Section:
             caption="force RMSE before and after discovery",
         )
         + table(["effect parameter", "value", "90 % interval (Laplace)"], effects)
+        + table(
+            ["parameter", "base fit", "after discovery"],
+            [
+                [
+                    esc(k),
+                    fmt((disc.get("parameters_before") or {}).get(k)),
+                    fmt((disc.get("parameters_after") or {}).get(k)),
+                ]
+                for k in KERNEL_ORDER
+            ],
+            caption=f"every parameter; law {(disc.get('final_structure') or {}).get('friction')} "
+            "after discovery",
+        )
     )
     for name in disc.get("figures") or []:
         if (folder / name).exists():

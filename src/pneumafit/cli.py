@@ -188,9 +188,11 @@ def run(
 ) -> None:
     """The main job: check, fit the three models, compare, discover, design, report, export.
 
-    Finished stages in OUT are reused on a re-run (see OUT/stages.json). Exit
-    status: 0 ok, 1 a stage failed, 2 bad input, 3 a fit not trustworthy under
-    --strict, 130 interrupted.
+    A campaign of friction tests (every recording of kind friction) runs its
+    own job: check, fit --model friction, discover, report
+    (docs/measured-data.md). Finished stages in OUT are reused on a re-run
+    (see OUT/stages.json). Exit status: 0 ok, 1 a stage failed, 2 bad input,
+    3 a fit not trustworthy under --strict, 130 interrupted.
     """
     from pneumafit.pipeline import run as run_pipeline
 
@@ -322,7 +324,12 @@ def discover(
     fit: Annotated[Path, typer.Option("--fit", help="Base fit: fit.json or its folder.")],
     out: Annotated[Path, typer.Option("--out", help="Folder for discovery.json and the report.")],
     seed: Annotated[int, typer.Option(help="Seed of the bootstrap and the refits.")] = 0,
-    rounds: Annotated[int, typer.Option(help="Largest number of rounds.")] = 2,
+    rounds: Annotated[
+        int | None,
+        typer.Option(
+            help="Largest number of rounds (default 2; friction tests 3, one per effect)."
+        ),
+    ] = None,
     per_round: Annotated[int, typer.Option("--per-round", help="Refits per round.")] = 3,
 ) -> None:
     """Find the effect a fit's residual asks for, refit with it, report before/after."""

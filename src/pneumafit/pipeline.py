@@ -179,6 +179,9 @@ def run(
     """
     started = time.perf_counter()
     path = Path(campaign_path) if campaign_path is not None else DEMO
+    friction = _friction_job(path, out, console, seed, mcmc, walkers, steps, strict)
+    if friction is not None:
+        return friction
     console.rule(f"[bold]pneumafit run[/bold]: {path}")
     status = check_campaign(path, console=console)
     if status != 0:
@@ -232,6 +235,20 @@ def run(
     console.print(f"report: {out / 'report.html'}")
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
     return EXIT_UNTRUSTWORTHY if strict and not trusted else 0
+
+
+def _friction_job(
+    path: Path, out: Path, console: Console, seed: int, mcmc: bool,
+    walkers: int | None, steps: int | None, strict: bool,
+) -> int | None:  # fmt: skip
+    """A campaign of friction tests runs its own job (check, fit, discover, report);
+    its exit status, or None for any other campaign."""
+    from pneumafit.frictiontest.pipeline import is_friction_campaign, run_friction
+
+    if not is_friction_campaign(path):
+        return None
+    return run_friction(path, out, console, seed=seed, mcmc=mcmc, walkers=walkers,
+                        steps=steps, strict=strict)  # fmt: skip
 
 
 def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:

@@ -455,7 +455,7 @@ def discover_command(
     out: Path,
     *,
     seed: int = 0,
-    rounds: int = 2,
+    rounds: int | None = 2,
     per_round: int = 3,
     console: Console,
 ) -> int:
@@ -472,7 +472,7 @@ def discover_command(
     seed : int
         Seeds the bootstrap and the refits (saved in discovery.json).
     rounds, per_round : int
-        Largest number of rounds, and of refits per round.
+        Largest number of rounds (None: 2; on a friction fit 3), and of refits per round.
     console : rich.console.Console
 
     Returns
@@ -481,7 +481,14 @@ def discover_command(
         0 done, 1 failed, 2 bad input, 130 interrupted.
     """
     from pneumafit.campaign import read_campaign
+    from pneumafit.frictiontest.discover_command import friction_discover_command, is_friction_fit
 
+    if is_friction_fit(Path(fit)):  # friction tests: the rod-force residual (frictiontest)
+        return friction_discover_command(
+            campaign, fit, out, seed=seed, rounds=3 if rounds is None else rounds,
+            per_round=per_round, console=console,
+        )  # fmt: skip
+    rounds = 2 if rounds is None else rounds
     problems = [
         int_problem("--seed", seed, 0),
         int_problem("--rounds", rounds, 1),

@@ -1,8 +1,10 @@
-"""Friction tests (imposed motion, rod force): force balance and friction-law fit.
+"""Friction tests (imposed motion, rod force): force balance, friction-law fit, discovery.
 
-``pneumafit fit CAMPAIGN --model friction`` (``docs/measured-data.md``).
+``pneumafit fit CAMPAIGN --model friction``, ``pneumafit discover`` on such a
+fit, ``pneumafit run`` on such a campaign (``docs/measured-data.md``).
 """
 
+from pneumafit.frictiontest.discover import FrictionDiscovery, discover_friction
 from pneumafit.frictiontest.fit import (
     LAWS,
     FrictionStructure,
@@ -11,6 +13,8 @@ from pneumafit.frictiontest.fit import (
 )
 from pneumafit.frictiontest.model import (
     EFFECTS,
+    FRICTION_EFFECTS,
+    FrictionEffect,
     FrictionTest,
     default_parameters,
     estimate_velocity,
@@ -20,11 +24,15 @@ from pneumafit.frictiontest.model import (
 
 __all__ = [
     "EFFECTS",
+    "FRICTION_EFFECTS",
     "LAWS",
+    "FrictionDiscovery",
+    "FrictionEffect",
     "FrictionStructure",
     "FrictionTest",
     "FrictionTestProblem",
     "default_parameters",
+    "discover_friction",
     "estimate_velocity",
     "friction_test_force",
     "identify_friction",

@@ -52,8 +52,10 @@ from pneumafit.identification.parameters import Parameter, ParameterSet
 
 __all__ = [
     "EFFECTS",
+    "FRICTION_EFFECTS",
     "KERNEL_ORDER",
     "STATIC_STIFFNESS",
+    "FrictionEffect",
     "FrictionTest",
     "default_parameters",
     "estimate_velocity",
@@ -81,12 +83,46 @@ KERNEL_ORDER: tuple[str, ...] = (
     "area_factor",
 )
 
-#: Optional effects (parameter -> what it adds), neutral and fixed by default.
-EFFECTS: dict[str, str] = {
-    "seal_friction_coefficient": "friction growing with the chamber pressure",
-    "friction_asymmetry": "direction asymmetry of the friction levels",
-    "area_factor": "effective piston area",
-}
+
+@dataclass(frozen=True)
+class FrictionEffect:
+    """One catalog effect of the friction-test model.
+
+    Attributes
+    ----------
+    name : str
+        Catalog name (``seal-friction``, ...).
+    parameter : str
+        The kernel parameter it frees (:data:`pneumafit.frictiontest.model.KERNEL_ORDER`).
+    unit : str
+        Unit of the parameter.
+    step : float
+        Step of the forward difference of the signature (in the parameter's unit).
+    description : str
+    """
+
+    name: str
+    parameter: str
+    unit: str
+    step: float
+    description: str
+
+
+#: The optional effects, neutral and fixed by default: one registry, shared by
+#: ``fit --seal-friction`` (:data:`EFFECTS`) and ``discover`` (signatures).
+FRICTION_EFFECTS: dict[str, FrictionEffect] = {
+    e.parameter: e
+    for e in (
+        FrictionEffect("seal-friction", "seal_friction_coefficient", "N/Pa", 1e-6,
+                       "friction growing with the chamber pressure"),
+        FrictionEffect("friction-asymmetry", "friction_asymmetry", "", 1e-2,
+                       "direction asymmetry of the friction levels"),
+        FrictionEffect("effective-area", "area_factor", "", 1e-2, "effective piston area"),
+    )
+}  # fmt: skip
+
+#: Optional effects (parameter -> what it adds), from :data:`FRICTION_EFFECTS`.
+EFFECTS: dict[str, str] = {k: e.description for k, e in FRICTION_EFFECTS.items()}
 
 
 def default_parameters() -> ParameterSet:

@@ -30,6 +30,7 @@ from pneumafit.models.layout import (
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.simulation import counter
 from pneumafit.simulation.experiment import Experiment
 from pneumafit.simulation.tableau import KUTTA3, TABLEAUS, Tableau
 
@@ -294,6 +295,7 @@ class Simulator:
             params, packed.cfgs, packed.ctrls, x0s, packed.t_all, packed.inp_all,
             nsub_all, packed.offsets, tab.a, tab.b, tab.c, self._ch_sel, out, status,
         )  # fmt: skip
+        counter.add(n_sets * n_exp)
         return out, status
 
     def simulate(

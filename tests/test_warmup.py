@@ -34,6 +34,13 @@ def test_after_the_warm_up_nothing_compiles_at_first_use(
     sets = np.tile(parameter_vector({}), (3, 1))
     _, status = sim.simulate_batch(sets, [step_experiment, charge_experiment])
     assert np.all(status == 0)
+    # one set on two experiments, and fitted initial states (read-only inputs
+    # would be another compiled type: the simulator makes them writable)
+    packed = sim.pack([step_experiment, charge_experiment])
+    sim.simulate_batch(np.broadcast_to(sets[0], (1, sets.shape[1])), packed)
+    x0s = np.broadcast_to(packed.x0s, (1, *packed.x0s.shape))
+    sim.simulate_batch(sets[:1], packed, initial_states=x0s)
+    sim.simulate_batch(sets[:1], sim.pack([step_experiment]), initial_states=x0s[:, :1])
     choose_step({}, y_range=(0.1, 0.4))
     t = step_experiment.time[:200]
     simulate_sampled({}, t, np.full(t.size, 0.26), lambda x, r: 50.0 * (r - x[0]))

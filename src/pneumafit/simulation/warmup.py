@@ -19,8 +19,9 @@ Entry points: the serial and parallel batch integrators
 (:meth:`Simulator.simulate`, :meth:`Simulator.simulate_batch`), the sampled
 closed loop (:func:`simulate_sampled`), the stiffness bound
 (:func:`choose_step` and the fits' step choice), the static valve flows
-(linear analysis) and the parameter check. Each is called once on a short
-test; the models differ only in configuration values, not in compiled code.
+(linear analysis), the parameter check, and the small kernels of the fits,
+the linear analysis and discovery. Each is called once on a short test; the
+models differ only in configuration values, not in compiled code.
 """
 
 from __future__ import annotations
@@ -78,7 +79,37 @@ def warm_up(log: Callable[[str], None] | None = None) -> dict[str, float]:
     timed("simulate_batch (parallel)", lambda: sim.simulate_batch(np.tile(params, (2, 1)), [step]))
     timed("simulate_sampled", lambda: simulate_sampled(params, t, step.y_ref,
                                                        lambda x, r: 60.0 * (r - x[0])))  # fmt: skip
+    timed("small kernels", lambda: _small_kernels(params))
     return seconds
+
+
+def _small_kernels(params: np.ndarray) -> None:
+    """The other compiled functions a run calls: the sensor lag of the fits
+    (its time array writable or read-only, both occur), the heat-exchange
+    areas of the linear analysis and discovery's rates along a trajectory."""
+    from pneumafit.discovery import attribution
+    from pneumafit.identification.problem import first_order_lag
+    from pneumafit.models import kernel
+    from pneumafit.models.layout import NX, P
+    from pneumafit.models.structure import get_structure
+    from pneumafit.physics.geometry import exchange_areas
+
+    t = np.linspace(0.0, 0.01, 11)
+    first_order_lag(np.ones((2, t.size)), t, 0.1)
+    t.flags.writeable = False
+    first_order_lag(np.ones((2, t.size)), t, 0.1)
+    names = ("stroke", "stroke", "bore", "rod", "dead_volume_P", "dead_volume_N")
+    exchange_areas(*(float(params[P[name]]) for name in names))
+    rates_along = getattr(attribution, "_rates_along", None)
+    if rates_along is not None:
+        d = np.empty(kernel.ND)
+        kernel.derive(params, d)
+        xs = np.zeros((2, NX))
+        kernel._initial_state(np.full(NX, np.nan), params, get_structure("convection").config(),
+                              xs[0])  # fmt: skip
+        xs[1] = xs[0]
+        cfg = get_structure("convection").config()
+        rates_along(xs, np.zeros(2, dtype=np.int64), np.zeros((2, 2)), params, d, cfg)
 
 
 def main() -> int:

@@ -229,6 +229,7 @@ def run(
     except StageFailed as exc:
         console.print(f"[red]{exc}; the finished stages are kept and reused next time[/red]")
         _summary(out, campaign, path, timings, started, sims, failed=exc.stage)
+        _print_stage_times(console, timings, sims)
         return 1 if exc.status not in (2, 130) else exc.status
     except KeyboardInterrupt:
         console.print("[yellow]interrupted: the finished stages are kept and reused next "

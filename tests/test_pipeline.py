@@ -72,6 +72,14 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
     assert summary["failed_stage"] is None
     assert summary["campaign"]["path"] == str(campaign)
     assert "xi" in summary["convection"] and "total time" in log
+    # where the time went: every stage's wall time, simulations and their rate
+    assert set(summary["simulations"]) == set(summary["seconds"])
+    assert set(summary["simulations_per_second"]) == set(summary["seconds"])
+    for model in RUN_MODELS:
+        assert summary["simulations"][f"fit {model}"] > 0
+        assert summary["simulations_per_second"][f"fit {model}"] > 0
+    assert summary["total_simulations"] == sum(summary["simulations"].values())
+    assert "simulations" in log and "per second" in log
 
 
 def test_a_second_run_reuses_every_stage(finished_run: tuple) -> None:
@@ -87,6 +95,9 @@ def test_a_second_run_reuses_every_stage(finished_run: tuple) -> None:
     # nothing but the run's own bookkeeping was rewritten
     changed = [p.name for p, t in before.items() if p.stat().st_mtime_ns != t]
     assert set(changed) <= {"summary.json"}, changed
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["simulations_per_second"].values()) == {None}  # all reused
+    assert summary["total_simulations"] == 0
 
 
 def test_a_changed_fit_reruns_the_stages_that_read_it(finished_run: tuple, tmp_path: Path) -> None:

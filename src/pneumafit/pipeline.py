@@ -33,6 +33,12 @@ resumes from its ``chains.partial.h5``. Every other stage is reused when
 the campaign, of the fit files it read, and the pneumafit version) and its
 outputs are still there. Each stage writes its files atomically, so an
 interrupted run never leaves a half-written file that a re-run would trust.
+
+Where the time goes: ``OUT/summary.json`` gives each stage's wall time
+(``seconds``), the simulations it ran in this process (``simulations``, one
+parameter set on one recording, :mod:`pneumafit.simulation.counter`) and
+their rate (``simulations_per_second``); the run's last console lines print
+the same table. A reused stage counts 0 s and no simulations.
 """
 
 from __future__ import annotations
@@ -57,6 +63,7 @@ from pneumafit.commandline import (
     report_problems,
 )
 from pneumafit.fileio import write_text_atomic
+from pneumafit.simulation import counter
 
 #: The bundled demo campaign: a virtual-rig recording of a rig like the paper's,
 #: whose valve, leak, friction and probe laws are not the fitted models'
@@ -194,6 +201,7 @@ def run(
     out.mkdir(parents=True, exist_ok=True)
     book = StageBook(out)
     timings: dict[str, float] = {}
+    sims: dict[str, int] = {}  # simulations run by each stage (not reused)
 
     def stage(name: str, inputs: Sequence[Path], outputs: Sequence[Path],
               body: Callable[[], int]) -> None:  # fmt: skip
@@ -203,15 +211,17 @@ def run(
             timings[name] = 0.0
             return
         console.rule(name)
-        t0 = time.perf_counter()
+        t0, n0 = time.perf_counter(), counter.simulations()
         code = body()
         if code != 0:
             raise StageFailed(name, code)
         timings[name] = time.perf_counter() - t0
+        sims[name] = counter.simulations() - n0
         book.mark(name, fp, timings[name])
 
     try:
-        fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings)
+        fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings,
+                          sims)  # fmt: skip
         for model, file in fit_files.items():  # fit times, for the report
             seconds = timings.get(f"fit {model}")
             if seconds:
@@ -219,20 +229,22 @@ def run(
         conv = fit_files["convection"]
         _analyses(campaign, path, out, console, seed, fit_files, stage)
         # the summary first: the report shows the stages and their times
-        _summary(out, campaign, path, timings, started, conv_fit=conv)
+        _summary(out, campaign, path, timings, started, sims, conv_fit=conv)
         _report(out, path, fit_files, console, stage)
     except StageFailed as exc:
         console.print(f"[red]{exc}; the finished stages are kept and reused next time[/red]")
-        _summary(out, campaign, path, timings, started, failed=exc.stage)
+        _summary(out, campaign, path, timings, started, sims, failed=exc.stage)
+        _print_stage_times(console, timings, sims)
         return 1 if exc.status not in (2, 130) else exc.status
     except KeyboardInterrupt:
         console.print("[yellow]interrupted: the finished stages are kept and reused next "
                       "time[/yellow]")  # fmt: skip
         return 130
-    total = _summary(out, campaign, path, timings, started, conv_fit=conv)
+    total = _summary(out, campaign, path, timings, started, sims, conv_fit=conv)
     console.rule("done")
     trusted = _verdicts(fit_files, console)
     console.print(f"report: {out / 'report.html'}")
+    _print_stage_times(console, timings, sims)
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
     return EXIT_UNTRUSTWORTHY if strict and not trusted else 0
 
@@ -272,9 +284,10 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
 
 def _fits(
     campaign: Campaign, path: Path, out: Path, console: Console, seed: int, mcmc: bool,
-    walkers: int | None, steps: int | None, timings: dict[str, float],
+    walkers: int | None, steps: int | None, timings: dict[str, float], sims: dict[str, int],
 ) -> dict[str, Path]:  # fmt: skip
-    """Fit the three models (or reuse finished fits); fit.json path per model."""
+    """Fit the three models (or reuse finished fits); fit.json path per model.
+    Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
     from pneumafit.identification import fit_command
 
     files = {}
@@ -286,11 +299,12 @@ def _fits(
             timings[name] = 0.0
         else:
             console.rule(name)
-            t0 = time.perf_counter()
+            t0, n0 = time.perf_counter(), counter.simulations()
             code = fit_command(path, model, folder, walkers, steps, seed, mcmc, console)
             if code != 0:
                 raise StageFailed(name, code)
             timings[name] = time.perf_counter() - t0
+            sims[name] = counter.simulations() - n0
         files[model] = folder / "fit.json"
     return files
 
@@ -472,19 +486,48 @@ def _export(fit: Path, closed_loop: Path, out: Path, console: Console) -> int:
     return 0 if ok else 1
 
 
+def _rates(timings: dict[str, float], sims: dict[str, int]) -> dict[str, float | None]:
+    """Simulations per second of each stage (None for a reused stage, 0 s)."""
+    return {
+        name: round(sims.get(name, 0) / seconds, 1) if seconds > 0 else None
+        for name, seconds in timings.items()
+    }
+
+
+def _print_stage_times(console: Console, timings: dict[str, float], sims: dict[str, int]) -> None:
+    """The run's stages with wall time, simulations and simulations per second."""
+    rates = _rates(timings, sims)
+    console.print(f"{'stage':<26s} {'time (s)':>9s} {'simulations':>12s} {'per second':>11s}")
+    for name, seconds in timings.items():
+        rate = rates[name]
+        shown = "reused" if rate is None else f"{rate:11.0f}"
+        console.print(Text(f"{name:<26s} {seconds:9.1f} {sims.get(name, 0):12d} {shown:>11s}"))
+
+
 def _summary(
     out: Path, campaign: Campaign, path: Path, timings: dict[str, float], started: float,
-    *, conv_fit: Path | None = None, failed: str | None = None,
+    sims: dict[str, int] | None = None, *, conv_fit: Path | None = None,
+    failed: str | None = None,
 ) -> float:  # fmt: skip
-    """Write ``OUT/summary.json`` (stages, their times, the headline results)."""
+    """Write ``OUT/summary.json`` (stages, their times and simulation rates, the
+    headline results).
+
+    ``seconds``: wall time per stage (0 for a reused one); ``simulations``:
+    simulations it ran in this process (one parameter set on one recording);
+    ``simulations_per_second``: their ratio (None for a reused stage).
+    """
     total = time.perf_counter() - started
+    sims = sims or {}
     doc: dict[str, Any] = {
         "format": "pneumafit-run",
         "version": 2,
         "pneumafit_version": __version__,
         "campaign": {"name": campaign.name, "path": str(path), "sha256": campaign.sha256},
         "seconds": {k: round(v, 2) for k, v in timings.items()},
+        "simulations": {k: int(sims.get(k, 0)) for k in timings},
+        "simulations_per_second": _rates(timings, sims),
         "total_seconds": round(total, 2),
+        "total_simulations": int(sum(sims.values())),
         "failed_stage": failed,
         "outputs": {
             "fits": "fits/<model>/fit.json",

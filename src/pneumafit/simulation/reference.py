@@ -9,8 +9,16 @@ no events; here its bristle relaxation rate is not limited (the compiled
 integrator limits it to its step), so this is the exact LuGre model.
 
 The right-hand side is the model's own :func:`pneumafit.models.kernel.rhs`,
-either compiled or as pure Python (:func:`pure_python`, used by the
-benchmark's "straightforward" reference).
+either compiled or as pure Python (:func:`pure_python`). The benchmark
+(``benchmarks/bench_simulate.py``) times both as scipy's peers of the
+compiled simulator:
+
+- ``compiled=False``: the "straightforward" reference, the RHS's own source
+  run by CPython;
+- ``compiled=True``: what a user would wire up instead, one compiled call per
+  right-hand-side evaluation (:func:`_evaluate`: sample lookup, valve
+  commands and RHS in one numba function, compiled once and cached), so that
+  scipy's own stepping and event handling are what remains in Python.
 """
 
 from __future__ import annotations
@@ -19,6 +27,7 @@ import types
 from collections.abc import Callable, Mapping
 
 import numpy as np
+from numba import njit
 from numba.core.dispatcher import Dispatcher
 from scipy.integrate import solve_ivp
 
@@ -52,6 +61,28 @@ def pure_python(fn: Callable) -> Callable:
         return new
 
     return convert(fn)
+
+
+@njit(cache=True)
+def _evaluate(
+    tt: float, xx: np.ndarray, mode: int, t: np.ndarray, inp: np.ndarray, cfg: np.ndarray,
+    ctrl: np.ndarray, p: np.ndarray, d: np.ndarray, aux: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """dx/dt at time ``tt`` in friction mode ``mode``, in one compiled call.
+
+    The same arithmetic as the pure-Python ``evaluate`` of
+    :func:`solve_reference` (sample interval, linear interpolation weight,
+    :func:`~pneumafit.models.kernel.commands`, :func:`~pneumafit.models.kernel.rhs`);
+    fills ``aux`` (friction forces for the event functions) and returns a new
+    array, as scipy keeps what the RHS returns.
+    """
+    k = np.searchsorted(t, tt, side="right") - 1
+    k = min(max(k, 0), t.size - 2)
+    w = (tt - t[k]) / (t[k + 1] - t[k])
+    u_p, u_n = kernel.commands(xx, inp, k, w, cfg, ctrl)
+    dx = np.empty(xx.size)
+    kernel.rhs(xx, mode, u_p, u_n, p, d, cfg, dx, aux)
+    return dx
 
 
 def _breakpoints(t: np.ndarray, inp: np.ndarray) -> np.ndarray:
@@ -128,11 +159,20 @@ def solve_reference(
     else:
         atol_v = np.full(NX, atol)
 
-    def evaluate(tt: float, xx: np.ndarray, mode: int) -> None:
-        k = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 2))
-        w = (tt - t[k]) / (t[k + 1] - t[k])
-        u_p, u_n = commands(xx, inp, k, w, cfg, ctrl)
-        rhs(xx, mode, u_p, u_n, p, d, cfg, dx, aux)
+    if compiled:
+        inp_c = np.ascontiguousarray(inp, dtype=float)
+
+        def evaluate(tt: float, xx: np.ndarray, mode: int) -> np.ndarray:
+            return _evaluate(tt, xx, mode, t, inp_c, cfg, ctrl, p, d, aux)
+
+    else:
+
+        def evaluate(tt: float, xx: np.ndarray, mode: int) -> np.ndarray:
+            k = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 2))
+            w = (tt - t[k]) / (t[k + 1] - t[k])
+            u_p, u_n = commands(xx, inp, k, w, cfg, ctrl)
+            rhs(xx, mode, u_p, u_n, p, d, cfg, dx, aux)
+            return dx.copy()
 
     blocked = experiment.blocked
     lugre = structure.friction == "lugre" and not blocked
@@ -158,8 +198,7 @@ def solve_reference(
             current = mode
 
             def f(tt, xx, current=current):
-                evaluate(tt, xx, current)
-                return dx.copy()
+                return evaluate(tt, xx, current)
 
             events = []
             if not blocked and not lugre:

@@ -59,6 +59,7 @@ from pneumafit.models.layout import (
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.simulation import counter
 from pneumafit.simulation.simulator import (
     DEFAULT_METHOD,
     DEFAULT_STEP,
@@ -285,6 +286,7 @@ def simulate_sampled(
                           ctrl, tab.a, tab.b, tab.c, kk, xs, xn, xe, dx, aux)  # fmt: skip
         if status != kernel.STATUS_OK:
             break
+    counter.add(1)
     chans = {name: out[:, j].copy() for j, name in enumerate(names)}
     units = {name: CHANNEL_UNITS[CHANNELS.index(name)] for name in names}
     air = None

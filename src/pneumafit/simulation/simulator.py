@@ -30,6 +30,7 @@ from pneumafit.models.layout import (
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.simulation import counter
 from pneumafit.simulation.experiment import Experiment
 from pneumafit.simulation.tableau import KUTTA3, TABLEAUS, Tableau
 
@@ -265,7 +266,9 @@ class Simulator:
         packed = (
             experiments if isinstance(experiments, PackedExperiments) else self.pack(experiments)
         )
-        params = np.ascontiguousarray(np.atleast_2d(parameter_sets), dtype=float)
+        # writable C arrays only: numba compiles a read-only array as another
+        # type, so a read-only input would compile the integrator a second time
+        params = np.require(np.atleast_2d(parameter_sets), dtype=float, requirements="CW")
         if params.shape[1] != NP:
             raise ValueError(
                 f"simulator: parameter sets: expected shape (n, {NP}), found {params.shape}"
@@ -276,9 +279,9 @@ class Simulator:
         status = np.zeros((n_sets, n_exp), dtype=np.int64)
         tab = self.tableau if tableau is None else tableau
         if initial_states is None:
-            x0s = np.ascontiguousarray(np.broadcast_to(packed.x0s, (n_sets, n_exp, NX)))
+            x0s = np.broadcast_to(packed.x0s, (n_sets, n_exp, NX)).copy()  # writable
         else:
-            x0s = np.ascontiguousarray(initial_states, dtype=float)
+            x0s = np.require(initial_states, dtype=float, requirements="CW")
             if x0s.shape != (n_sets, n_exp, NX):
                 raise ValueError(
                     f"simulator: initial_states: expected shape {(n_sets, n_exp, NX)}, "
@@ -294,6 +297,7 @@ class Simulator:
             params, packed.cfgs, packed.ctrls, x0s, packed.t_all, packed.inp_all,
             nsub_all, packed.offsets, tab.a, tab.b, tab.c, self._ch_sel, out, status,
         )  # fmt: skip
+        counter.add(n_sets * n_exp)
         return out, status
 
     def simulate(

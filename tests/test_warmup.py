@@ -1,0 +1,47 @@
+"""The warm-up compiles what the simulator's entry points later call: after
+it, a step test, a blocked charge, a batch, a step choice and a sampled loop
+add no compiled signature, so nothing is compiled at first use."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pneumafit.models import kernel
+from pneumafit.models.parameters import parameter_vector
+from pneumafit.simulation import Experiment, Simulator, choose_step, simulate_sampled
+from pneumafit.simulation.warmup import warm_up
+
+ENTRY_POINTS = (
+    kernel.integrate_many, kernel.integrate_many_serial, kernel.stiffness_bound,
+    kernel.static_valve_flows, kernel.check_parameters,
+)  # fmt: skip
+
+
+def _signatures() -> dict[str, int]:
+    return {f.__name__: len(f.signatures) for f in ENTRY_POINTS}
+
+
+def test_after_the_warm_up_nothing_compiles_at_first_use(
+    step_experiment: Experiment, charge_experiment: Experiment
+) -> None:
+    seconds = warm_up()
+    assert {"simulate (serial)", "simulate_batch (parallel)", "simulate_sampled"} <= set(seconds)
+    warmed = _signatures()
+    assert all(n >= 1 for n in warmed.values()), warmed
+    sim = Simulator("convection", channels=["y", "p_P"])
+    assert sim.simulate({}, step_experiment).ok
+    assert sim.simulate({"xi": 0.4}, charge_experiment).ok
+    sets = np.tile(parameter_vector({}), (3, 1))
+    _, status = sim.simulate_batch(sets, [step_experiment, charge_experiment])
+    assert np.all(status == 0)
+    # one set on two experiments, and fitted initial states (read-only inputs
+    # would be another compiled type: the simulator makes them writable)
+    packed = sim.pack([step_experiment, charge_experiment])
+    sim.simulate_batch(np.broadcast_to(sets[0], (1, sets.shape[1])), packed)
+    x0s = np.broadcast_to(packed.x0s, (1, *packed.x0s.shape))
+    sim.simulate_batch(sets[:1], packed, initial_states=x0s)
+    sim.simulate_batch(sets[:1], sim.pack([step_experiment]), initial_states=x0s[:, :1])
+    choose_step({}, y_range=(0.1, 0.4))
+    t = step_experiment.time[:200]
+    simulate_sampled({}, t, np.full(t.size, 0.26), lambda x, r: 50.0 * (r - x[0]))
+    assert _signatures() == warmed

@@ -151,7 +151,10 @@ def test_interrupted_fit_resumes_to_the_same_chains(
     monkeypatch.setattr(likelihood_module.LogPosterior, "__call__", interrupted)
     out = tmp_path / "cut"
     assert _run(folder, out, console) == 130
-    assert "run the same command again to resume" in console.file.getvalue()
+    # the message says what is kept (the chains by stage) and what a rerun does
+    said = console.file.getvalue()
+    assert "the MCMC chains sampled so far are kept" in said
+    assert "resumes the chains where they stopped" in said
     assert (out / "chains.partial.h5").exists() and not (out / "fit.json").exists()
     monkeypatch.setattr(likelihood_module.LogPosterior, "__call__", original)
     assert _run(folder, out, console) == 0

@@ -10,7 +10,7 @@ for the virtual rig happen to be the truth.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -95,25 +95,9 @@ def friction_starts(
     squares; while the piston is stuck |F_d| stays below F_s, so the 99th
     percentile of |F_d| on stuck samples is a lower estimate of F_s.
     """
-    s_p, s_n = piston_areas(rig["bore"], rig["rod"])
     m = rig["moving_mass"]
-    f_ext = (
-        rig["exhaust_pressure"] * (s_p - s_n)
-        + rig.get("external_force", 0.0)
-        + m * G0 * math.sin(rig.get("mounting_angle", 0.0))
-    )
     rows_v, rows_f, stuck = [], [], []
-    for rec in steps:
-        ch = rec.channels
-        if not all(k in ch for k in ("y", "p_P", "p_N")):
-            continue
-        dt = float(np.median(np.diff(rec.time)))
-        win = max(5, round(0.021 / dt) | 1)
-        if rec.n_samples <= win:
-            continue
-        v = savgol_filter(ch["y"], win, 2, deriv=1, delta=dt)
-        a = savgol_filter(ch["y"], win, 2, deriv=2, delta=dt)
-        f_d = s_p * ch["p_P"] - s_n * ch["p_N"] - f_ext
+    for _ch, v, a, f_d in _force_balance(steps, rig):
         slide = np.abs(v) > 0.02
         rows_v.append(v[slide])
         rows_f.append((f_d - m * a)[slide])
@@ -152,26 +136,10 @@ def seal_start(steps: Sequence[Recording], rig: Mapping[str, float]) -> float:
     with F_c and b; clipped to [0, 1e-4] (at 1e-4 N/Pa a 25-mm piston would
     double its friction every 0.1 bar). 0.0 without sliding samples.
     """
-    s_p, s_n = piston_areas(rig["bore"], rig["rod"])
     m = rig["moving_mass"]
     p_e = rig["exhaust_pressure"]
-    f_ext = (
-        p_e * (s_p - s_n)
-        + rig.get("external_force", 0.0)
-        + m * G0 * math.sin(rig.get("mounting_angle", 0.0))
-    )
     rows: list[NDArray[np.float64]] = []
-    for rec in steps:
-        ch = rec.channels
-        if not all(k in ch for k in ("y", "p_P", "p_N")):
-            continue
-        dt = float(np.median(np.diff(rec.time)))
-        win = max(5, round(0.021 / dt) | 1)
-        if rec.n_samples <= win:
-            continue
-        v = savgol_filter(ch["y"], win, 2, deriv=1, delta=dt)
-        a = savgol_filter(ch["y"], win, 2, deriv=2, delta=dt)
-        f_d = s_p * ch["p_P"] - s_n * ch["p_N"] - f_ext
+    for ch, v, a, f_d in _force_balance(steps, rig):
         slide = np.abs(v) > 0.02
         dp = ch["p_P"] + ch["p_N"] - 2.0 * p_e
         rows.append(
@@ -184,6 +152,40 @@ def seal_start(steps: Sequence[Recording], rig: Mapping[str, float]) -> float:
         return 0.0
     coef, *_ = np.linalg.lstsq(x[:, 1:], x[:, 0], rcond=None)
     return float(np.clip(coef[1], 0.0, 1e-4))
+
+
+def _force_balance(
+    steps: Sequence[Recording], rig: Mapping[str, float]
+) -> Iterator[
+    tuple[
+        Mapping[str, NDArray[np.float64]],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+    ]
+]:
+    """Per step test with position and both pressures: its channels, the velocity
+    and acceleration (quadratic Savitzky-Golay over ~21 ms, m/s and m/s^2) and
+    the drive force F_d = S_P P_P - S_N P_N - P_atm (S_P - S_N) - F_ext - M g
+    sin(angle) (N). Recordings shorter than the filter window are skipped."""
+    s_p, s_n = piston_areas(rig["bore"], rig["rod"])
+    m = rig["moving_mass"]
+    f_ext = (
+        rig["exhaust_pressure"] * (s_p - s_n)
+        + rig.get("external_force", 0.0)
+        + m * G0 * math.sin(rig.get("mounting_angle", 0.0))
+    )
+    for rec in steps:
+        ch = rec.channels
+        if not all(k in ch for k in ("y", "p_P", "p_N")):
+            continue
+        dt = float(np.median(np.diff(rec.time)))
+        win = max(5, round(0.021 / dt) | 1)
+        if rec.n_samples <= win:
+            continue
+        v = savgol_filter(ch["y"], win, 2, deriv=1, delta=dt)
+        a = savgol_filter(ch["y"], win, 2, deriv=2, delta=dt)
+        yield ch, v, a, s_p * ch["p_P"] - s_n * ch["p_N"] - f_ext
 
 
 def _bristle_start(sigma0: float, mass: float, zeta: float = 0.3) -> dict[str, float]:

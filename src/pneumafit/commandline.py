@@ -18,8 +18,8 @@ from __future__ import annotations
 import logging
 import os
 import sys
-from collections.abc import Iterable
-from typing import Any
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
 
 from rich.console import Console
 from rich.text import Text
@@ -42,6 +42,7 @@ __all__ = [
     "output_problem",
     "release_output",
     "report_problems",
+    "run_guarded",
 ]
 
 EXIT_OK = 0
@@ -108,6 +109,38 @@ class LogConsole(Console):
 
         rule = Rule(title, characters=characters, style=style, align=align)
         self.print(rule, width=min(self.width, LOG_RULE_WIDTH))
+
+
+_T = TypeVar("_T")
+
+
+def run_guarded(
+    console: Console, work: Callable[[], _T], *, campaign: object, failed: str,
+    interrupted: str | Callable[[], str],
+) -> tuple[_T | None, int | None]:  # fmt: skip
+    """Run a command's long service and turn its ends into exit statuses.
+
+    Returns ``(result, None)``, or ``(None, status)`` after one console line:
+    Ctrl-C (``interrupted``, or what it returns when called then: what was
+    kept, :data:`EXIT_INTERRUPTED`), bad input found while
+    working (``"CAMPAIGN: message"``, :data:`EXIT_BAD_INPUT`) or a failure of
+    the work (``"FAILED: message"``, :data:`EXIT_FAILED`). Anything else is a
+    bug and propagates.
+    """
+    from pneumafit.campaign.errors import PneumafitInputError
+
+    try:
+        return work(), None
+    except KeyboardInterrupt:
+        said = interrupted if isinstance(interrupted, str) else interrupted()
+        console.print(Text(said, "yellow"))
+        return None, EXIT_INTERRUPTED
+    except PneumafitInputError as exc:
+        console.print(Text(f"{campaign}: {exc}", style="bold red"))
+        return None, EXIT_BAD_INPUT
+    except RuntimeError as exc:
+        console.print(Text(f"{failed}: {exc}", style="bold red"))
+        return None, EXIT_FAILED
 
 
 def make_console(*, stderr: bool = False) -> Console:

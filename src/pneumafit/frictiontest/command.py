@@ -25,12 +25,12 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.commandline import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
-    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_UNTRUSTWORTHY,
     folder_problem,
     int_problem,
     report_problems,
+    run_guarded,
 )
 from pneumafit.frictiontest.fit import identify_friction
 from pneumafit.frictiontest.model import EFFECTS
@@ -101,21 +101,17 @@ def friction_fit_command(
     partial.unlink(missing_ok=True)  # the friction chain is short: always afresh
     n_fit = len([r for r in camp.by_kind("friction") if r.role == "fit"])
     console.print(f"fitting friction to {camp.name} ({n_fit} fit friction tests)")
-    try:
-        result = identify_friction(
+    result, status = run_guarded(
+        console,
+        lambda: identify_friction(
             camp, law=_LAW[friction], effects=_EFFECTS[seal], mcmc=mcmc, walkers=walkers,
             steps=steps, seed=seed, chains=partial if mcmc else None,
             log=lambda line: console.print(Text(line)),
-        )  # fmt: skip
-    except KeyboardInterrupt:
-        console.print(Text("interrupted", "yellow"))
-        return EXIT_INTERRUPTED
-    except PneumafitInputError as exc:
-        console.print(Text(f"{campaign}: {exc}", style="bold red"))
-        return EXIT_BAD_INPUT
-    except RuntimeError as exc:
-        console.print(Text(f"fit failed: {exc}", style="bold red"))
-        return EXIT_FAILED
+        ),
+        campaign=campaign, failed="fit failed", interrupted="interrupted",
+    )  # fmt: skip
+    if status is not None:
+        return status
     document = fit_document(
         result, camp, seed=seed, command=command, options=None,
         chains=CHAINS_FILE if mcmc else None,

@@ -31,11 +31,11 @@ from pneumafit.campaign.model import Campaign
 from pneumafit.commandline import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
-    EXIT_INTERRUPTED,
     EXIT_OK,
     folder_problem,
     int_problem,
     report_problems,
+    run_guarded,
 )
 from pneumafit.fileio import write_text_atomic
 from pneumafit.frictiontest.discover import (
@@ -326,20 +326,16 @@ def friction_discover_command(
         f"({sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role == 'validate' for r in recs)} validate friction tests)"
     )
-    try:
-        result = discover_friction(
+    result, status = run_guarded(
+        console,
+        lambda: discover_friction(
             camp, fit_doc, seed=seed, rounds=rounds, per_round=per_round,
             log=lambda line: console.print(Text(line)),
-        )  # fmt: skip
-    except KeyboardInterrupt:
-        console.print(Text("interrupted: nothing written", "yellow"))
-        return EXIT_INTERRUPTED
-    except PneumafitInputError as exc:
-        console.print(Text(f"{campaign}: {exc}", style="bold red"))
-        return EXIT_BAD_INPUT
-    except RuntimeError as exc:
-        console.print(Text(f"discovery failed: {exc}", style="bold red"))
-        return EXIT_FAILED
+        ),
+        campaign=campaign, failed="discovery failed", interrupted="interrupted: nothing written",
+    )  # fmt: skip
+    if status is not None:
+        return status
     command = (
         f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"
         f" --seed {seed} --rounds {rounds} --per-round {per_round}"

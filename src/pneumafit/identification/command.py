@@ -42,6 +42,7 @@ from pneumafit.commandline import (
     folder_problem,
     int_problem,
     report_problems,
+    run_guarded,
 )
 from pneumafit.identification.fitfile import _version, fit_document, write_fit_json
 from pneumafit.identification.staged import (
@@ -250,20 +251,17 @@ def fit_command(
     def say(line: str) -> None:
         console.print(Text(line))
 
-    try:
-        result = identify(
+    result, status = run_guarded(
+        console,
+        lambda: identify(
             camp, model, options=options, seed=seed, chains=chains_path, log=say,
             progress=Reporter(say, console=console),
-        )  # fmt: skip
-    except KeyboardInterrupt:
-        console.print(Text(_interrupted_message(partial if mcmc else None), "yellow"))
-        return EXIT_INTERRUPTED
-    except PneumafitInputError as exc:
-        console.print(Text(f"{campaign}: {exc}", style="bold red"))
-        return EXIT_BAD_INPUT
-    except RuntimeError as exc:
-        console.print(Text(f"fit failed: {exc}", style="bold red"))
-        return EXIT_FAILED
+        ),
+        campaign=campaign, failed="fit failed",
+        interrupted=lambda: _interrupted_message(partial if mcmc else None),
+    )  # fmt: skip
+    if status is not None:
+        return status
     document = fit_document(
         result, camp, seed=seed, command=command, options=options,
         chains=CHAINS_FILE if mcmc else None,

@@ -17,3 +17,14 @@ def test_python_dash_m_runs_the_command_line() -> None:
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert bad.returncode == 2 and "Traceback" not in bad.stderr + bad.stdout
+
+
+def test_version_prints_the_installed_version() -> None:
+    from pneumafit import __version__
+
+    done = subprocess.run(
+        [sys.executable, "-m", "pneumafit", "--version"], capture_output=True, text=True,
+        timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"pneumafit {__version__}"

@@ -143,6 +143,26 @@ app = _App(
 )
 
 
+def _version(value: bool) -> None:
+    """``--version``: the installed version, then exit."""
+    if value:
+        from pneumafit import __version__
+
+        typer.echo(f"pneumafit {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True,
+                     help="Print the version and exit."),
+    ] = False,
+) -> None:  # fmt: skip
+    """Identify and validate models of electropneumatic actuators."""
+
+
 def _quantity(text: str, unit: str, option: str) -> float:
     """An option value: a bare number in ``unit`` or a string such as '250 mm'."""
     from pneumafit.campaign.units import ureg

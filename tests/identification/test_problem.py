@@ -138,6 +138,43 @@ def test_initial_states_are_parameters(small: tuple) -> None:
     assert not np.allclose(warmer.blocks[0][0], base)
 
 
+def test_initial_states_have_priors_from_the_sensor_noise(small: tuple) -> None:
+    """A measured initial state gets its sensor's noise (with the offset
+    tolerance in quadrature when the offset is profiled), an unmeasured gas
+    temperature 5 K around the wall; the free parameters carry those priors,
+    centred on the data's value even when started elsewhere."""
+    from pneumafit.identification.problem import OFFSET_TOLERANCE, UNMEASURED_TEMPERATURE_STD
+    from pneumafit.identification.quality import estimate_noise
+    from pneumafit.identification.staged import with_initial_states
+
+    prob, ps, truth = _setup(small, ("charge", "step"))
+    priors = prob.initial_priors()
+    for name, (i, state, default, _unit) in prob.initial_parameters.items():
+        rec = prob.recordings[i]
+        if state in rec.channels:
+            sigma, _n = estimate_noise(rec, state)
+            if state.startswith("p"):
+                # pressure offsets are profiled by default
+                assert priors[name] == pytest.approx(np.hypot(sigma, OFFSET_TOLERANCE["pressure"]))
+            else:
+                assert priors[name] == pytest.approx(sigma)
+        elif state.startswith("T"):
+            assert priors[name] == UNMEASURED_TEMPERATURE_STD
+            assert default == truth["wall_temperature"]
+    # no offsets profiled: the pressure priors are the sensor noise alone
+    bare = Problem(prob.recordings, STRUCTURE, truth, offsets=()).initial_priors()
+    p_name = next(n for n, v in prob.initial_parameters.items() if v[1] == "p_P")
+    assert bare[p_name] < priors[p_name] and bare[p_name] < 1e3
+    moved = {p_name: prob.initial_parameters[p_name][2] + 5e4}
+    free = with_initial_states(ps, prob, moved, free=True)
+    par = free[p_name]
+    assert par.value == pytest.approx(moved[p_name])
+    assert par.prior.mean == pytest.approx(prob.initial_parameters[p_name][2])
+    assert par.prior.std == pytest.approx(priors[p_name])
+    fixed = with_initial_states(ps, prob, {}, free=False)
+    assert fixed[p_name].prior is None and fixed[p_name].fixed
+
+
 def test_temperature_lag_needs_its_nuisance_parameter(small: tuple) -> None:
     _, campaign, truth = small
     prob = Problem(

@@ -115,6 +115,18 @@ REST_SPACING = 0.02
 REST_AFTER = 0.2
 #: Window (s) at the start of a recording averaged for the initial state.
 INITIAL_WINDOW = 0.05
+#: Static error band (SI) of a sensor whose offset the likelihood profiles
+#: (``offsets``), added in quadrature to its noise in the prior of a measured
+#: initial state (:meth:`Problem.initial_priors`): 0.25 % of a 10-bar span for
+#: an industrial pressure transmitter, 1 K for a thermocouple.
+OFFSET_TOLERANCE: dict[str, float] = {"pressure": 2.5e3, "temperature": 1.0}
+#: Standard deviation (K) of the prior of an initial gas temperature that the
+#: recording does not measure, around the wall temperature: a test begun at
+#: rest, at least two thermal time constants after the last move (~0.7-1.5 s
+#: each, see ``REST_AFTER``), is within e^-2 of an adiabatic excursion of at
+#: most ~40 K (a 1-to-7-bar compression is far more, but the gas exchanges
+#: heat while it is compressed).
+UNMEASURED_TEMPERATURE_STD = 5.0
 
 
 @njit(cache=True)
@@ -838,6 +850,55 @@ class Problem:
     def initial_values(self) -> dict[str, float]:
         """Estimated initial states by parameter name (see :attr:`initial_parameters`)."""
         return {n: v[2] for n, v in self.initial_parameters.items()}
+
+    def initial_priors(self) -> dict[str, float]:
+        """Standard deviation (SI) of the Gaussian prior of each initial state.
+
+        A state the recording measures is known at its first samples to the
+        sensor's noise (estimated from the recording's quiet windows, else the
+        median over the problem's recordings), with :data:`OFFSET_TOLERANCE`
+        added in quadrature when the likelihood profiles that sensor's
+        offset. Why a prior at all: at the first sample the model's error is
+        zero (the simulation starts from that state), so the first samples
+        pin the state to the sensor's precision; the profiled likelihood
+        weighs them with the model error of the whole recording instead, and
+        a law that cannot follow its data then uses the initial states as
+        knobs (the polytropic fit of the demo started its charge tests at
+        1.5 bar against a measured 1.015 bar, and crawled along that valley
+        for 876 s). A gas temperature the recording does not measure gets
+        :data:`UNMEASURED_TEMPERATURE_STD` around its default (the wall
+        temperature). States with no estimate of their sensor's noise get
+        no prior (their bounds only).
+        """
+        from pneumafit.identification.quality import estimate_noise
+
+        own: dict[tuple[int, str], float] = {}
+        for i, rec in enumerate(self.recordings):
+            for ch in ("y", "p_P", "p_N", "T_P", "T_N"):
+                if ch in rec.channels:
+                    sigma, _n = estimate_noise(rec, ch)
+                    if sigma is not None and sigma > 0.0:
+                        own[(i, ch)] = sigma
+        pooled = {
+            ch: float(np.median([s for (_i, c), s in own.items() if c == ch]))
+            for ch in {c for _i, c in own}
+        }
+        out: dict[str, float] = {}
+        for name, (i, state, _v, _u) in self.initial_parameters.items():
+            if state not in self.recordings[i].channels:
+                if state.startswith("T"):
+                    out[name] = UNMEASURED_TEMPERATURE_STD
+                continue
+            sigma = own.get((i, state), pooled.get(state))
+            if sigma is None:
+                continue
+            quantity = QUANTITIES[state]
+            if quantity in self.offsets:
+                if quantity not in OFFSET_TOLERANCE:
+                    continue
+                sigma = math.hypot(sigma, OFFSET_TOLERANCE[quantity])
+            out[name] = float(sigma)
+        return out
 
     def initial_states(self, values: Mapping[str, ArrayLike], n_sets: int) -> NDArray[np.float64]:
         """Initial states (n_sets, n_recordings, NX): packed ones, parameters set."""

@@ -53,7 +53,7 @@ from pneumafit.identification.optimise import (
     laplace_covariance,
     laplace_summary,
 )
-from pneumafit.identification.parameters import Parameter, ParameterSet
+from pneumafit.identification.parameters import Normal, Parameter, ParameterSet
 from pneumafit.identification.problem import (
     MAX_STEP,
     Problem,
@@ -591,9 +591,12 @@ def with_initial_states(
 
     Bounds: gas temperatures -40/+80 K, position +-2 mm, pressures x0.5..1.5
     around the value in ``values`` (else the problem's data-based default).
-    ``free`` makes them free parameters (else fixed at that value).
+    ``free`` makes them free parameters (else fixed at that value), each
+    with the Gaussian prior of :meth:`Problem.initial_priors` around the
+    data-based default.
     """
     out = parameters
+    priors = problem.initial_priors() if free else {}
     for name, (_i, state, default, unit) in problem.initial_parameters.items():
         v = float(values.get(name, default))
         if state.startswith("T"):
@@ -602,11 +605,17 @@ def with_initial_states(
             lo, hi = v - 2e-3, v + 2e-3
         else:
             lo, hi = 0.5 * v, 1.5 * v
+        # centred on the data's value (or the wall temperature), never on an
+        # earlier estimate: a refit from an estimate must not move the prior
+        prior = Normal(float(default), priors[name]) if name in priors else None
         par = Parameter(
-            name, v, unit, lo, hi, fixed=not free, group="initial",
+            name, v, unit, lo, hi, fixed=not free, group="initial", prior=prior,
             description=f"initial {state} of {problem.recordings[_i].file}",
         )  # fmt: skip
-        out = out.replace(name, value=v, fixed=not free) if name in out else out.add(par)
+        out = (
+            out.replace(name, value=v, fixed=not free, prior=prior) if name in out
+            else out.add(par)
+        )  # fmt: skip
     return out
 
 

@@ -164,22 +164,21 @@ def _root(
 
 
 def _quantity(text: str, unit: str, option: str) -> float:
-    """An option value: a bare number in ``unit`` or a string such as '250 mm'."""
-    from pneumafit.campaign.units import ureg
+    """An option value: a bare number in ``unit`` or a string such as '250 mm',
+    read as campaigns are (``"250mm"``, ``"6 barg"`` against the standard
+    atmosphere)."""
+    from pneumafit.campaign.units import UnitError, parse_quantity
+    from pneumafit.models.layout import SPECS
 
-    magnitude, _, unit_text = text.strip().partition(" ")
     try:
-        value = float(magnitude)
-        if unit_text:
-            value = float(ureg.Quantity(value, unit_text.strip()).to(unit).magnitude)
-    except Exception as exc:  # pint or float: say what was expected
+        return parse_quantity(
+            text, unit, exhaust_pressure=SPECS["exhaust_pressure"].default
+        )  # fmt: skip
+    except UnitError as exc:
         raise PneumafitInputError(
             f"option {option}: expected a number in {unit} or a value with a unit "
-            f"(e.g. '0.25' or '250 mm'), found {text!r} ({exc})"
+            f"(e.g. '0.25' or '250 mm'), found {exc.found}"
         ) from None
-    if not math.isfinite(value):
-        raise PneumafitInputError(f"option {option}: expected a finite number, found {text!r}")
-    return value
 
 
 def _positive(value: float, option: str, text: str) -> float:

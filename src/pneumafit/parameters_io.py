@@ -30,10 +30,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-import pint
-
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.campaign.units import ureg
+from pneumafit.campaign.units import UnitError, parse_quantity
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
 from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
 
@@ -42,7 +40,9 @@ from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
 PARAMETER_FILE_KEYS = ("model", "friction", "effects", "parameters", "structure", "description")
 
 
-def _to_si(value: Any, name: str, where: str) -> float:
+def _to_si(
+    value: Any, name: str, where: str, exhaust_pressure: float | None = None
+) -> float:
     spec = SPECS.get(name)
     if spec is None:
         raise PneumafitInputError(
@@ -58,14 +58,16 @@ def _to_si(value: Any, name: str, where: str) -> float:
         number = float(value)
     else:
         try:
-            magnitude, _, unit_text = value.strip().partition(" ")
-            quantity = ureg.Quantity(float(magnitude), unit_text.strip() or "dimensionless")
-            unit = spec.unit.replace("^", "**") if spec.unit else "dimensionless"
-            number = float(quantity.to(unit).magnitude)
-        except (pint.errors.PintError, ValueError, TypeError, AttributeError) as exc:
+            # read as campaigns are ("32mm", "7 barg"); gauge pressures refer
+            # to the file's exhaust pressure, else the rig default's
+            reference = SPECS["exhaust_pressure"].default if exhaust_pressure is None else (
+                exhaust_pressure
+            )  # fmt: skip
+            number = parse_quantity(value, spec.unit, exhaust_pressure=reference)
+        except UnitError as exc:
             raise PneumafitInputError(
                 f"{where}: parameters.{name}: expected a value in {spec.unit or 'no unit'} "
-                f"(e.g. {spec.default:g}), found {value!r} ({exc})"
+                f"(e.g. {spec.default:g}), found {exc.found}"
             ) from None
     if not math.isfinite(number) or not spec.lower <= number <= spec.upper:
         raise PneumafitInputError(
@@ -137,7 +139,7 @@ def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tup
         raise PneumafitInputError(
             f"{where}: parameters: expected an object of name: value, found {params!r}"
         )
-    values: dict[str, float] = {}
+    texts: dict[str, Any] = {}
     for name, value in params.items():
         if isinstance(value, dict):  # fit.json entry
             if "value" not in value:
@@ -146,7 +148,13 @@ def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tup
                 )
             unit = value.get("unit")
             value = value["value"] if not unit else f"{value['value']} {unit}"
-        values[name] = _to_si(value, name, where)
+        texts[name] = value
+    # the exhaust pressure first: the reference of gauge pressures ("7 barg")
+    exhaust = (
+        _to_si(texts["exhaust_pressure"], "exhaust_pressure", where)
+        if "exhaust_pressure" in texts else None
+    )  # fmt: skip
+    values = {name: _to_si(value, name, where, exhaust) for name, value in texts.items()}
     return model, values
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pneumafit.campaign import parse_unit, parse_value
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import UnitError, from_si, split_header, to_si
 
 EXHAUST = 101_325.0
@@ -102,3 +103,24 @@ def test_array_conversion_with_offsets() -> None:
 )
 def test_split_header(cell: str, parts: tuple[str, str] | None) -> None:
     assert split_header(cell) == parts
+
+
+def test_parameter_files_and_options_read_units_as_campaigns_do() -> None:
+    """"32mm" and "7 barg" are accepted in a parameter file (and an option)
+    exactly as in a campaign; a unit of another dimension is named."""
+    from pneumafit.campaign.units import UnitError, parse_quantity, parse_value
+    from pneumafit.parameters_io import parse_parameters
+
+    _, values = parse_parameters(
+        {"parameters": {"bore": "32mm", "supply_pressure": "6 barg", "exhaust_pressure": "1 bar",
+                        "lambda": "15 W/m^2/K"}}
+    )  # fmt: skip
+    assert values["bore"] == pytest.approx(parse_value("32 mm", "length"))
+    assert values["supply_pressure"] == pytest.approx(7.0e5)  # gauge over the file's 1 bar
+    assert values["lambda"] == pytest.approx(15.0)
+    assert parse_quantity("1 kHz", "Hz") == pytest.approx(1e3)
+    assert parse_quantity("4 V s/m", "V*s/m") == pytest.approx(4.0)
+    with pytest.raises(UnitError, match="a pressure, not m"):
+        parse_quantity("6 bar", "m")
+    with pytest.raises(PneumafitInputError, match=r"parameters\.bore.*no number in front"):
+        parse_parameters({"parameters": {"bore": "mm 32"}})

@@ -36,6 +36,7 @@ __all__ = [
     "describe_unit",
     "format_value",
     "from_si",
+    "parse_quantity",
     "parse_unit",
     "parse_value",
     "split_header",
@@ -350,6 +351,62 @@ def parse_value(value: object, kind: str, *, exhaust_pressure: float | None = No
         return float(to_si(number, unit, exhaust_pressure=exhaust_pressure))
     except UnitError as exc:
         raise UnitError(exc.expected, f'"{value}" ({_reason(exc, unit_text)})') from None
+
+
+def parse_quantity(
+    value: str, si_unit: str, *, exhaust_pressure: float | None = None
+) -> float:
+    """Read ``"<number> <unit>"`` as a float in ``si_unit``, as campaigns are read.
+
+    The same reading as :func:`parse_value` (a space between number and unit
+    is optional: ``"32mm"``; gauge pressures such as ``"7 barg"``), for
+    quantities that are not one of :data:`QUANTITY_KINDS` (a heat-transfer
+    coefficient in W/m^2/K, a conductance in m^3/(s Pa)): parameter files and
+    command-line options.
+
+    Parameters
+    ----------
+    value : str
+        The value with its unit; no unit means a number already in ``si_unit``.
+    si_unit : str
+        Unit of the result, pint syntax or ``^`` for powers (``"W/m^2/K"``);
+        ``""`` for a dimensionless number.
+    exhaust_pressure : float, optional
+        Exhaust pressure [Pa absolute], the reference of gauge pressures.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    UnitError
+        No number in front, an unknown unit, a unit of another dimension, a
+        gauge pressure without a reference, or a non-finite value.
+    """
+    target = si_unit.replace("^", "**") if si_unit else "dimensionless"
+    expected = f'a value in {si_unit or "no unit"}'
+    match = _NUMBER.match(value)
+    if match is None:
+        raise UnitError(expected, f'"{value}" (no number in front)')
+    number = float(match["num"])
+    unit_text = match["unit"].strip()
+    if unit_text:
+        try:
+            unit = parse_unit(unit_text)
+            number = float(to_si(number, unit, exhaust_pressure=exhaust_pressure))
+            # to_si gives base units: convert them to the target (e.g. W, not kg m^2/s^3)
+            base = ureg.Quantity(1.0, unit.unit).to_base_units().units
+            number = float(ureg.Quantity(number, base).to(target).magnitude)
+        except UnitError as exc:
+            raise UnitError(expected, f'"{value}" ({_reason(exc, unit_text)})') from None
+        except pint.errors.DimensionalityError:
+            raise UnitError(
+                expected, f'"{value}" ({describe_unit(unit.unit)}, not {si_unit or "a number"})'
+            ) from None
+    if not math.isfinite(number):
+        raise UnitError(expected, f'"{value}" (not a finite number)')
+    return number
 
 
 def _reason(exc: UnitError, unit_text: str) -> str:

@@ -147,3 +147,15 @@ def test_parameter_rejects_inconsistent_definitions() -> None:
         Parameter("xi", 2.0, lower=0.0, upper=1.0)
     with pytest.raises(ValueError, match="unique names"):
         ParameterSet([Parameter("a", 1.0), Parameter("a", 2.0)])
+
+
+def test_repr_is_one_short_line_and_summary_is_a_table() -> None:
+    from pneumafit.identification import fit_structure
+
+    ps = ParameterSet.for_model(fit_structure("convection"), {})
+    text = repr(ps)
+    assert "\n" not in text and len(text) < 200, text
+    assert text.startswith(f"ParameterSet({len(list(ps))} parameters, {ps.n_free} free")
+    table = ps.summary().splitlines()
+    assert table[0].split()[0] == "parameter"
+    assert [line.split()[0] for line in table[1:]] == list(ps.free_names)

@@ -57,35 +57,24 @@ def test_point_estimates_recover_the_truth(small: tuple) -> None:
     "model", ["constant-lambda", pytest.param("polytropic", marks=pytest.mark.slow)]
 )
 def test_other_structures_converge_on_the_same_data(small: tuple, model: str) -> None:
-    """Both simpler structures end with a finite likelihood, every stage's
-    least squares on a termination test, or, where the joint one stopped at
-    its iteration limit, the fit says so. The polytropic joint fit cannot
-    follow the thermal relaxation and creeps along a flat valley with k on
-    its adiabatic bound 1.4 (the fast phases are adiabatic): it converged in
-    ~2000 iterations with the packages of 2026-11 (scipy, numpy as installed
-    then), and stops at the 6 x 500-iteration limit with scipy 1.17.1 and
-    numpy 2.4.6 (measured on the code before and after the quality check:
-    the same estimate). What must hold either way: the fit reports the
-    unconverged joint stage and the bound, and is not called trustworthy.
+    """Both simpler structures end with a finite likelihood and every stage's
+    least squares, the joint one included, on a termination test.
 
-    The polytropic case caps the joint stage at 60 evaluations per start
-    (``joint_iterations``): it stops unconverged either way, and at the
-    default 500 the test took 7.5 of the suite's 14.7 minutes to check the
-    same report (1.4 min capped, both structures). The k and friction
-    checks below hold at the capped estimate."""
+    The polytropic law cannot follow the thermal relaxation (k ends on its
+    adiabatic bound 1.4). Before the initial states had priors
+    (``Problem.initial_priors``) its joint stage used them as knobs and
+    crawled: it stopped at the 6 x 500-iteration limit (7.5 of the suite's
+    14.7 minutes; the test then capped it at 60 iterations and only checked
+    that the fit said so). Uncapped, with the priors, it converged in 52 s
+    and 3500 simulations (2026-11-25, load ~4). An unconverged joint stage
+    is still reported as such (the next test)."""
     _, campaign, truth = small
-    cap = {"joint_iterations": 60} if model == "polytropic" else {}
-    result = identify(campaign, model, options=FitOptions(mcmc=False, **cap), seed=0)
+    result = identify(campaign, model, options=FitOptions(mcmc=False), seed=0)
     for stage in result.stages:
         assert stage.estimate is not None, stage.name
         assert np.isfinite(stage.estimate.log_likelihood)
-        if stage.name != "joint" or model == "constant-lambda":
-            assert stage.estimate.success, stage.name
-    joint = result.stage("joint").estimate
-    if not joint.success:
-        assert any(u.startswith("joint") for u in result.quality.unconverged)
-        assert not result.quality.trustworthy
-        assert any("stopped before converging" in p for p in result.quality.problems())
+        assert stage.estimate.success, (stage.name, stage.estimate.message)
+    assert not any(u.startswith("joint") for u in result.quality.unconverged)
     if model == "constant-lambda":
         # the rig's lambda varies 0..~27 W/m^2/K; its heat-weighted mean is ~15
         assert 5.0 < result.parameters["lambda"].value < 30.0
@@ -94,6 +83,24 @@ def test_other_structures_converge_on_the_same_data(small: tuple, model: str) ->
     # friction stays near the truth with the simpler heat laws (within 5 %)
     for name in ("friction_static", "friction_coulomb"):
         assert result.parameters[name].value == pytest.approx(truth[name], rel=0.05)
+
+
+def test_a_joint_stage_stopped_at_its_limit_is_reported(small: tuple) -> None:
+    """A joint stage cut at 3 iterations (``joint_iterations``) cannot reach
+    a termination test from the staged estimates; the fit must say so and
+    not call itself trustworthy."""
+    _, campaign, _truth = small
+    result = identify(
+        campaign, "constant-lambda", options=FitOptions(mcmc=False, joint_iterations=3), seed=0
+    )
+    joint = result.stage("joint").estimate
+    assert not joint.success
+    assert any(u.startswith("joint") for u in result.quality.unconverged)
+    assert not result.quality.trustworthy
+    assert any("stopped before converging" in p for p in result.quality.problems())
+    # what a notebook user sees first: one line, then the verdict's reasons
+    assert "\n" not in repr(result) and "constant-lambda" in repr(result)
+    assert "stopped before converging" in result.summary()
 
 
 #: Seeds of the calibration test: the first six, declared before looking.

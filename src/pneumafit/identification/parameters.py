@@ -463,6 +463,34 @@ class ParameterSet:
         if dupes:
             raise ValueError(f"parameter set: expected unique names, found {dupes} repeated")
 
+    def __repr__(self) -> str:
+        """One short line: counts and the first free parameters (see :meth:`summary`)."""
+        free = self.free
+        shown = ", ".join(f"{p.name}={p.value:.4g}" for p in free[:4])
+        more = f", ... ({len(free) - 4} more)" if len(free) > 4 else ""
+        return (
+            f"ParameterSet({len(self.parameters)} parameters, {len(free)} free"
+            + (f": {shown}{more})" if free else ")")
+        )
+
+    def summary(self, *, free_only: bool = True) -> str:
+        """A plain-text table: name, value, unit, 90 % interval, where it comes from.
+
+        Parameters
+        ----------
+        free_only : bool
+            Only the free parameters (default), else every one.
+        """
+        rows = [("parameter", "value", "unit", "90 % interval", "uncertainty")]
+        for p in self.free if free_only else self.parameters:
+            lo_hi = p.interval_90
+            iv = "" if lo_hi is None else f"[{lo_hi[0]:.4g}, {lo_hi[1]:.4g}]"
+            rows.append((p.name, f"{p.value:.6g}", p.unit, iv, p.uncertainty or ""))
+        widths = [max(len(r[j]) for r in rows) for j in range(len(rows[0]))]
+        return "\n".join(
+            "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows
+        )
+
     # ---------------------------------------------------------- mapping view
     def __iter__(self) -> Iterator[Parameter]:
         return iter(self.parameters)

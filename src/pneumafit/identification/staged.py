@@ -550,6 +550,21 @@ class FitResult:
     blocks: list[dict[str, Any]] = field(default_factory=list)
     quality: FitQuality | None = None
 
+    def __repr__(self) -> str:
+        verdict = self.quality.verdict() if self.quality is not None else "not assessed"
+        return (
+            f"FitResult({self.model}, {len(self.parameters.free)} free parameters, "
+            f"log-likelihood {self.metrics.get('log_likelihood', float('nan')):.1f}, "
+            f"{self.seconds:.0f} s: {verdict})"
+        )
+
+    def summary(self) -> str:
+        """The verdict, then the free parameters' table (:meth:`ParameterSet.summary`)."""
+        lines = [repr(self)]
+        if self.quality is not None:
+            lines += [f"  - {p}" for p in self.quality.problems()]
+        return "\n".join([*lines, self.parameters.summary()])
+
     def stage(self, name: str) -> StageResult:
         for s in self.stages:
             if s.name == name:

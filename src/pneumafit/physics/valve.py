@@ -340,7 +340,7 @@ def _open(u: float, overlap: float, inv_range: float) -> float:
     return frac if frac < 1.0 else 1.0
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def flows_core(
     u: float,
     pres: float,

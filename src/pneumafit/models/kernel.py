@@ -142,7 +142,15 @@ from pneumafit.physics.friction import (
 )
 from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
-from pneumafit.physics.valve import NVC, VC_RTA, flows_core, laminar_tail, valve_constants
+from pneumafit.physics.valve import (
+    NVC,
+    VC_NE,
+    VC_NS,
+    VC_RTA,
+    flows_core,
+    laminar_tail,
+    valve_constants,
+)
 from pneumafit.physics.valve_map import (
     NVM,
     VM_BE,
@@ -340,7 +348,10 @@ def _valve(
     # flows of one valve under the configured law (cfg[C_VALVE_LAW])
     if law == VALVE_MAP:
         return flows_core_map(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:D_VM], d[D_VM:])
-    return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:])
+    if d[D_VC + VC_NS] == 1.0 and d[D_VC + VC_NE] == 1.0:
+        # linear opening (the default): no pow in this path (flows_core's linear)
+        return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], True)
+    return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], False)
 
 
 @njit(cache=True)

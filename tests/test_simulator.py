@@ -299,3 +299,20 @@ def test_compiled_code_is_cached():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     hits, misses = (int(v) for v in out.stdout.split())
     assert hits >= 1 and misses == 0, out.stdout
+
+
+def test_per_stage_functions_skip_reference_counting():
+    """The functions called once per Runge-Kutta stage are compiled without
+    numba's reference counting (``_nrt=False``): with it, every call that
+    LLVM does not inline increments and decrements each array argument's
+    count atomically, 60 % of a simulation's CPU time (README, Performance)."""
+    from pneumafit.models import kernel
+    from pneumafit.physics import valve, valve_map
+
+    hot = [
+        kernel.rhs, kernel.commands, kernel.rk_step, kernel.locate_event, kernel._valve,
+        kernel.heat_coefficient, kernel.chamber_rates, kernel._event_function, kernel._record,
+        valve.flows_core, valve_map.flows_core_map, valve_map.map_conductances,
+        valve_map.map_critical_ratios,
+    ]  # fmt: skip
+    assert [f.py_func.__name__ for f in hot if f.targetoptions.get("_nrt", True)] == []

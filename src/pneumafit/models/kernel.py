@@ -142,7 +142,15 @@ from pneumafit.physics.friction import (
 )
 from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
-from pneumafit.physics.valve import NVC, VC_RTA, flows_core, laminar_tail, valve_constants
+from pneumafit.physics.valve import (
+    NVC,
+    VC_NE,
+    VC_NS,
+    VC_RTA,
+    flows_core,
+    laminar_tail,
+    valve_constants,
+)
 from pneumafit.physics.valve_map import (
     NVM,
     VM_BE,
@@ -181,6 +189,16 @@ STATUS_BAD_PARAMETERS = 3
 STATUS_BAD_INPUT = 4
 
 _FM = FASTMATH
+
+# The functions called once per stage (rhs, commands, rk_step and what they
+# call, down to the valve laws) are compiled with ``_nrt=False``: numba's
+# reference counting otherwise increments and decrements, with atomic
+# instructions in out-of-line calls, the count of every array argument and
+# slice at every call that LLVM does not inline. That was 60 % of the CPU time
+# of the benchmark step test (5.0 -> 2.1 ms per simulation, results bit for
+# bit). Such functions cannot allocate arrays (numba refuses to compile it);
+# the arrays they use are owned by their caller (integrate), which keeps them
+# alive. tests/test_simulator.py checks the list.
 
 
 @njit(cache=True)
@@ -269,7 +287,7 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     valve_arrays(p, d[D_VC:D_VM], d[D_VM:])
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def heat_coefficient(
     heat: int,
     p: np.ndarray,
@@ -292,7 +310,7 @@ def heat_coefficient(
     return 0.0
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def chamber_rates(
     heat: int,
     k_poly: float,
@@ -315,7 +333,7 @@ def chamber_rates(
     return dp, dt
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def _valve(
     u: float,
     pres: float,
@@ -330,7 +348,10 @@ def _valve(
     # flows of one valve under the configured law (cfg[C_VALVE_LAW])
     if law == VALVE_MAP:
         return flows_core_map(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:D_VM], d[D_VM:])
-    return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:])
+    if d[D_VC + VC_NS] == 1.0 and d[D_VC + VC_NE] == 1.0:
+        # linear opening (the default): no pow in this path (flows_core's linear)
+        return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], True)
+    return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], False)
 
 
 @njit(cache=True)
@@ -370,7 +391,7 @@ def static_valve_flows(
     return flows_core(u, pres, 1.0 / pres, temp, rt, p_s, 1.0 / p_s, vc)
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def rhs(
     x: np.ndarray,
     mode: int,
@@ -604,7 +625,7 @@ def rhs(
     dx[X_ME] = qe_total
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def commands(
     x: np.ndarray, inp: np.ndarray, k: int, w: float, cfg: np.ndarray, ctrl: np.ndarray
 ) -> tuple[float, float]:
@@ -639,7 +660,7 @@ def commands(
     return (1.0 - w) * inp[k, 0] + w * inp[k1, 0], (1.0 - w) * inp[k, 1] + w * inp[k1, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def active_states(cfg: np.ndarray) -> int:
     """Number of leading state slots that can change: 8 (y, v, P, T, air
     accounts) unless an effect adds wall-temperature or spool states or the
@@ -649,7 +670,7 @@ def active_states(cfg: np.ndarray) -> int:
     return 8
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def rk_step(
     x: np.ndarray,
     mode: int,
@@ -742,7 +763,7 @@ def rk_step(
         xn[i] = x[i] + h * acc
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def _event_function(kind: int, xe: np.ndarray, aux: np.ndarray) -> float:
     # kind 0: sliding piston comes to rest (g = v); kind 1: stuck piston breaks
     # away (g = |F_d| - F_s)
@@ -751,7 +772,7 @@ def _event_function(kind: int, xe: np.ndarray, aux: np.ndarray) -> float:
     return abs(aux[A_FD]) - aux[A_FS]
 
 
-@njit(cache=True, fastmath=_FM)
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def locate_event(
     kind: int,
     g0: float,
@@ -815,7 +836,7 @@ def locate_event(
     return theta
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _record(out: np.ndarray, row: int, x: np.ndarray, aux: np.ndarray, ch_sel: np.ndarray) -> None:
     # layout.CHANNELS: y v p_N p_P T_N T_P | qm_N qm_P u_N u_P lambda_N lambda_P | m_supply
     # m_exhaust | F_f  ->  states 0-5 | aux 0-5 | state X_MS | state X_ME | aux A_FF

@@ -236,7 +236,7 @@ def map_constants(
     _fill_path(u, ce, vm, VM_CK_E, VM_COEF_E, slopes)
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def map_conductances(u: float, vm: np.ndarray) -> tuple[float, float]:
     """Sonic conductances (C_S(u), C_E(u)) (m^3/s/Pa) from the map constants.
 
@@ -263,7 +263,7 @@ def map_conductances(u: float, vm: np.ndarray) -> tuple[float, float]:
     return c_s, c_e
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def _ratio(f: float, vm: np.ndarray, i0: int, di: int) -> float:
     # piecewise-linear b over the opening fraction f (b_0 for f <= 0)
     if f <= 0.0:
@@ -275,14 +275,14 @@ def _ratio(f: float, vm: np.ndarray, i0: int, di: int) -> float:
     return vm[i0 + 2]
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def map_critical_ratios(u: float, vm: np.ndarray) -> tuple[float, float]:
     """Critical ratios (b_S(u), b_E(u)) (-) from the map constants."""
     f = u * vm[VM_IUSAT]
     return _ratio(f, vm, VM_BS, VM_DBS), _ratio(-f, vm, VM_BE, VM_DBE)
 
 
-@njit(cache=True, fastmath=FASTMATH)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def flows_core_map(
     u: float,
     pres: float,

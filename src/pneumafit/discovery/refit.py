@@ -908,5 +908,5 @@ def _statement(
         f"The pressure residual ({fit_after:.0f} Pa RMS without the sensor offsets, against "
         f"{noise:.0f} Pa of sensor noise) "
         "stays unexplained: no catalog effect improves both the held-out error and the "
-        "information criterion."
+        "information criterion without making a measured channel worse."
     )

@@ -30,6 +30,7 @@ from pneumafit.rig.protocol import (
 )
 from pneumafit.rig.sensors import SensorModel, first_order_lag
 from pneumafit.rig.virtual import (
+    DEMO_CLEAN_TRUTH_PRESET,
     DEMO_SEED,
     DEMO_TRUTH,
     DEMO_TRUTH_PRESET,
@@ -48,6 +49,7 @@ from pneumafit.rig.virtual import (
 )
 
 __all__ = [
+    "DEMO_CLEAN_TRUTH_PRESET",
     "DEMO_SEED",
     "DEMO_TRUTH",
     "DEMO_TRUTH_PRESET",

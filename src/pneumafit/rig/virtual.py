@@ -111,8 +111,14 @@ DEMO_SEED = 2026
 #: Independent truth of the committed demo campaign (a preset of
 #: :data:`pneumafit.rig.truth.PRESETS`): data/demo is
 #: ``pneumafit rig --out data/demo --seed 2026 --truth demo``, a rig whose
-#: valve, leak, friction and probes are not the fitted models' laws.
+#: valve, leak, friction and probes are not the fitted models' laws and whose
+#: chambers leak to the atmosphere (an effect campaign.toml does not declare).
 DEMO_TRUTH_PRESET = "demo"
+#: Independent truth of the clean demo campaign: data/demo-clean is
+#: ``pneumafit rig --out data/demo-clean --seed 2026 --truth demo-clean``, the
+#: same rig without the undeclared leak (its recordings are those of data/demo
+#: before 2026-11-26).
+DEMO_CLEAN_TRUTH_PRESET = "demo-clean"
 #: Largest integration step of the truth (s); the fitting default is 1 ms.
 TRUTH_STEP = 1.0e-4
 #: Integration method of the truth (fixed-step Dormand-Prince, 5th order).
@@ -775,6 +781,15 @@ def _independent_truth_lines(independent: Mapping[str, Any]) -> list[str]:
         f"- heat: {part(cfg['heat'], 'model')}",
         "- temperature probes: " + (part(cfg["probe"], "model") if "probe" in cfg else
                                     "the sensor model's"),
+        *(
+            [
+                "- external leak, **an undeclared effect** (campaign.toml does not name it; "
+                "the fitted models have no leak to the atmosphere unless discovery adds "
+                f"`external_leakage`): {part(cfg['external_leak'], 'model')}"
+            ]
+            if "external_leak" in cfg
+            else []
+        ),
         "- reference quantities: "
         + ", ".join(f"{k} = {_fmt(v)}" for k, v in ref.items()),
         "- the valve, heat and friction entries of the parameter set are not used by this "

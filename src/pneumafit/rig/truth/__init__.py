@@ -13,7 +13,10 @@ in structure from the fitted ones, chosen by configuration:
   with the chamber pressures, and end stops;
 - heat transfer (:data:`HEAT_MODELS`: ``nusselt``) with an exchange-area
   convention (``full`` or ``barrel_only``) and its own wall temperature;
-- temperature probes with their own lags and offset (:data:`PROBE_MODELS`).
+- temperature probes with their own lags and offset (:data:`PROBE_MODELS`);
+- optionally, external leaks from the chambers to the atmosphere
+  (:data:`EXTERNAL_LEAKS`: ``orifice``, ``none``), an effect the fitted
+  models do not declare.
 
 Nothing here imports :mod:`pneumafit.models` kernels, :mod:`pneumafit.physics`
 or the fitting simulator.
@@ -28,6 +31,7 @@ from pneumafit.rig.truth.config import (
 )
 from pneumafit.rig.truth.friction import FRICTION_MODELS, DahlFriction, EndStops, LuGreFriction
 from pneumafit.rig.truth.heat import AREA_CONVENTIONS, HEAT_MODELS, NusseltConvection
+from pneumafit.rig.truth.leak import EXTERNAL_LEAKS, NoExternalLeak, OrificeLeak
 from pneumafit.rig.truth.probe import PROBE_MODELS, LaggedProbe
 from pneumafit.rig.truth.simulator import CHANNELS, TruthSimulation, TruthSimulator
 from pneumafit.rig.truth.valve import (
@@ -49,6 +53,7 @@ __all__ = [
     "AREA_CONVENTIONS",
     "CHANNELS",
     "CONDUCTANCE_FAMILIES",
+    "EXTERNAL_LEAKS",
     "FRICTION_MODELS",
     "HEAT_MODELS",
     "LEAK_SHAPES",
@@ -62,8 +67,10 @@ __all__ = [
     "IsoLinearConductance",
     "LaggedProbe",
     "LuGreFriction",
+    "NoExternalLeak",
     "NoLeak",
     "NusseltConvection",
+    "OrificeLeak",
     "PowerConductance",
     "ServoValve",
     "SigmoidLeak",

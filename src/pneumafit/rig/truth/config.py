@@ -39,6 +39,10 @@ docstring)::
     [probe]                      # optional: the temperature probes' own lag/offset
     model = "lagged"
     time_constant = 0.5
+    [external_leak]              # optional: air escaping from the chambers
+    model = "orifice"            # orifice | none
+    C_P = 1.4e-11                # m^3/s/Pa
+    C_N = 2.6e-11
     [parameters]                 # optional: rig geometry/conditions overriding the rig's
 
 :data:`PRESETS` holds named configurations; :func:`get_truth` resolves a
@@ -61,6 +65,7 @@ from typing import Any
 from pneumafit.campaign import PneumafitInputError
 from pneumafit.rig.truth.friction import FRICTION_MODELS, EndStops
 from pneumafit.rig.truth.heat import HEAT_MODELS, exchange_area
+from pneumafit.rig.truth.leak import EXTERNAL_LEAKS
 from pneumafit.rig.truth.probe import PROBE_MODELS
 from pneumafit.rig.truth.valve import CONDUCTANCE_FAMILIES, LEAK_SHAPES, ServoValve
 
@@ -73,7 +78,7 @@ __all__ = [
 ]
 
 _SECTIONS = ("name", "description", "valve", "friction", "heat", "end_stops", "probe",
-             "parameters")  # fmt: skip
+             "external_leak", "parameters")  # fmt: skip
 
 
 def _init_fields(cls: type) -> dict[str, Any]:
@@ -153,6 +158,9 @@ class TruthConfig:
     end_stops : EndStops
     probe : LaggedProbe or None
         Temperature probes; None keeps the rig's :class:`SensorModel`.
+    external_leak : OrificeLeak or None
+        Air escaping from the chambers to the atmosphere
+        (:mod:`pneumafit.rig.truth.leak`); None: tight chambers.
     parameters : dict of str to float
         Rig geometry/conditions (PARAMETER_SPECS names, SI) overriding the
         virtual rig's true parameters.
@@ -168,6 +176,7 @@ class TruthConfig:
     probe: Any = None
     parameters: Mapping[str, float] = field(default_factory=dict)
     description: str = ""
+    external_leak: Any = None
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "truth") -> TruthConfig:
@@ -225,6 +234,10 @@ class TruthConfig:
         probe = None
         if data.get("probe") is not None:
             probe = _build(PROBE_MODELS, "model", data["probe"], f"{source}: probe")
+        external_leak = None
+        if data.get("external_leak") is not None:
+            external_leak = _build(EXTERNAL_LEAKS, "model", data["external_leak"],
+                                   f"{source}: external_leak")  # fmt: skip
         params = data.get("parameters", {})
         if not isinstance(params, Mapping):
             raise PneumafitInputError(f"{source}: parameters: expected a table, found {params!r}")
@@ -239,7 +252,8 @@ class TruthConfig:
         if not isinstance(description, str):
             raise PneumafitInputError(f"{source}: description: expected a text")
         return cls(name=name, valve=valve, friction=friction, heat=heat, end_stops=stops,
-                   probe=probe, parameters=clean, description=description)  # fmt: skip
+                   probe=probe, parameters=clean, description=description,
+                   external_leak=external_leak)  # fmt: skip
 
     @classmethod
     def from_file(cls, path: str | os.PathLike[str]) -> TruthConfig:
@@ -287,6 +301,8 @@ class TruthConfig:
         }
         if self.probe is not None:
             out["probe"] = _part_dict(self.probe, "model")
+        if self.external_leak is not None:
+            out["external_leak"] = _part_dict(self.external_leak, "model")
         if self.parameters:
             out["parameters"] = dict(self.parameters)
         return out
@@ -388,8 +404,8 @@ _PRESET_DATA: dict[str, dict[str, Any]] = {
         "probe": {"model": "lagged", "time_constant": 0.38, "second_time_constant": 0.09,
                   "offset": -0.45, "noise": 0.05},
     },
-    "demo": {
-        "description": "the bundled demo's rig (data/demo): power-law valve paths that differ "
+    "demo-clean": {
+        "description": "the clean demo's rig (data/demo-clean): power-law valve paths that differ "
         "(their own overlaps and full-scale commands), a slightly shifted Gaussian centre "
         "leak, LuGre friction with a small additive seal term, full-area Nusselt heat, "
         "lagging temperature probes with an offset; no value round",
@@ -408,6 +424,14 @@ _PRESET_DATA: dict[str, dict[str, Any]] = {
         "probe": {"model": "lagged", "time_constant": 0.29, "second_time_constant": 0.065,
                   "offset": 0.35, "noise": 0.05},
     },
+    "demo": {
+        "description": "the bundled demo's rig (data/demo): the clean demo's rig (preset "
+        "demo-clean) "
+        "with leaking chambers, an undeclared effect: air escapes to the atmosphere through "
+        "a worn rod seal and fittings, about 1.1 l/min (ANR) out of chamber N and 0.6 l/min "
+        "out of chamber P at 7 bar, orifice law",
+        "external_leak": {"model": "orifice", "C_P": 1.41e-11, "C_N": 2.63e-11, "b": 0.47},
+    },
     "fit-laws": {
         "description": "the fitted laws where the truth can express them (linear ramps, the "
         "fit's leak shape, full area); a control, not a mismatch",
@@ -423,6 +447,8 @@ _PRESET_DATA: dict[str, dict[str, Any]] = {
         "heat": {"model": "nusselt", "xi": 0.4, "beta": 0.27, "area": "full"},
     },
 }  # fmt: skip
+# demo is demo-clean's rig (every part) plus its own description and external leak
+_PRESET_DATA["demo"] = {**copy.deepcopy(_PRESET_DATA["demo-clean"]), **_PRESET_DATA["demo"]}
 
 #: Named truth configurations (name -> nested dict, as a TOML file would hold).
 PRESETS: Mapping[str, Mapping[str, Any]] = {

@@ -9,8 +9,9 @@ x = [P, T, m].
 
 Chamber balance (physics notes; perfect gas, homogeneous chamber), with
 inflows q_in carrying their upstream temperatures (H_in = sum q_in,i T_in,i),
-outflow q_out at the chamber temperature T, volume V(y) and wall heat flow
-Q = lambda A (T_w - T):
+outflow q_out at the chamber temperature T (through the valve and, when the
+configuration has one, the external leak to the atmosphere), volume V(y)
+and wall heat flow Q = lambda A (T_w - T):
 
     dP/dt = gamma r / V (H_in - q_out T) - gamma P / V dV/dt + (gamma - 1) / V Q
     dT/dt = (gamma - 1) T / (P V) [c_v (gamma H_in - T q_in) - (gamma - 1) c_v T q_out
@@ -112,6 +113,7 @@ class _Plant:
         self.friction = config.friction
         self.heat = config.heat
         self.stops = config.end_stops
+        self.leak = config.external_leak
         self.bore = float(par["bore"])
         self.rod = float(par["rod"])
         self.stroke = float(par["stroke"])
@@ -166,10 +168,23 @@ class _Plant:
         return q_in, h_in, q_out
 
     def chamber(
-        self, u: float, pres: float, temp: float, vol: float, dvol: float, area: float
-    ) -> tuple[float, float, float, float]:
-        """(dP/dt (Pa/s), dT/dt (K/s), net inflow (kg/s), lambda) of one chamber."""
+        self, u: float, pres: float, temp: float, vol: float, dvol: float, area: float,
+        name: str = "P",
+    ) -> tuple[float, float, float, float]:  # fmt: skip
+        """(dP/dt (Pa/s), dT/dt (K/s), net valve inflow (kg/s), lambda) of chamber ``name``.
+
+        The external leak (if any) enters the balance but not the returned
+        valve inflow (the flow meter's quantity and the m_P, m_N states).
+        """
         q_in, h_in, q_out = self.valve_flows(u, pres, temp)
+        q_valve = q_in - q_out
+        if self.leak is not None:
+            q_l, t_l = self.leak.flow(name, pres, temp, self.p_e, self.t_amb)
+            if q_l >= 0.0:
+                q_out += q_l
+            else:
+                q_in -= q_l
+                h_in -= q_l * t_l
         lam = self.lam(pres, temp)
         heat = lam * area * (self.t_wall - temp)
         dp = (
@@ -183,7 +198,7 @@ class _Plant:
             - pres * dvol
             + heat
         )  # fmt: skip
-        return dp, dt, q_in - q_out, lam
+        return dp, dt, q_valve, lam
 
     def delta(self, p_p: float, p_n: float) -> float:
         """Pressure excess of the seals, P_P + P_N - 2 P_atm (Pa)."""
@@ -194,10 +209,10 @@ class _Plant:
         """dx/dt of a moving-piston test and the friction force (N)."""
         y, v, z, p_p, p_n, t_p, t_n = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
         dp_p, dt_p, q_p, _ = self.chamber(
-            u_p, p_p, t_p, self.volume("P", y), self.s_p * v, self.area("P", y)
+            u_p, p_p, t_p, self.volume("P", y), self.s_p * v, self.area("P", y), "P"
         )
         dp_n, dt_n, q_n, _ = self.chamber(
-            u_n, p_n, t_n, self.volume("N", y), -self.s_n * v, self.area("N", y)
+            u_n, p_n, t_n, self.volume("N", y), -self.s_n * v, self.area("N", y), "N"
         )
         dz, f_f = self.friction.rates(v, z, self.delta(p_p, p_n))
         force = (
@@ -209,7 +224,7 @@ class _Plant:
     def blocked(self, x: NDArray[np.float64], u: float, chamber: str, y: float) -> list[float]:
         """dx/dt of a blocked-piston test, x = [P, T, m]."""
         dp, dt, q, _ = self.chamber(u, x[0], x[1], self.volume(chamber, y), 0.0,
-                                    self.area(chamber, y))  # fmt: skip
+                                    self.area(chamber, y), chamber)  # fmt: skip
         return [dp, dt, q]
 
 

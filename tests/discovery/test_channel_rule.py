@@ -1,0 +1,73 @@
+"""The refit loop's channel rule: a kept effect must not buy its gain from a measured channel."""
+
+from __future__ import annotations
+
+from pneumafit.discovery.refit import (
+    MAX_CHANNEL_LOSS,
+    NOISE_FACTOR,
+    Model,
+    _accept,
+    channel_losses,
+)
+from pneumafit.models.structure import ModelStructure
+
+STRUCTURE = ModelStructure("convection")
+
+
+def _model(ll: float, rmse: dict[str, dict[str, float]], effects: tuple[str, ...] = ()) -> Model:
+    values = {"supply_line_resistance": 2.86e6} if effects else {}
+    structure = (
+        STRUCTURE
+        if not effects
+        else ModelStructure("convection", effects={"supply_pressure_drop": 1})
+    )
+    return Model(effects=effects, structure=structure, values=values, parameters=None,
+                 log_likelihood=ll, n_parameters=30 + len(effects), n_data=21889,
+                 rmse=rmse)  # fmt: skip
+
+
+# the former demo's round-1 refit (data/demo-clean, 2026-11-25): a supply-line
+# drop standing in for the valve law's shape; qm from the flow tests
+BEFORE = {
+    "fit": {"qm_P": 5.657e-05, "qm_N": 5.639e-05, "p_P": 2339.0, "p_N": 3170.0, "T_P": 1.889,
+            "T_N": 1.552, "y": 4.743e-4},
+    "validate": {"p_P": 1332.0, "p_N": 2646.0, "T_P": 1.161, "T_N": 1.759, "y": 5.472e-4},
+}  # fmt: skip
+PROXY = {
+    "fit": {"qm_P": 1.347e-04, "qm_N": 1.349e-04, "p_P": 2263.0, "p_N": 2631.0, "T_P": 1.871,
+            "T_N": 1.534, "y": 2.948e-4},
+    "validate": {"p_P": 1187.0, "p_N": 1835.0, "T_P": 1.142, "T_N": 1.745, "y": 2.348e-4},
+}  # fmt: skip
+NOISE = {"p_P": 401.0, "p_N": 402.0, "qm_P": 2.15e-5, "qm_N": 2.15e-5, "T_P": 0.05,
+         "T_N": 0.05, "y": 6e-6}  # fmt: skip
+
+
+def test_proxy_that_worsens_the_measured_flow_is_rejected() -> None:
+    """BIC -4905 and the held-out pressure 2095 -> 1545 Pa, but the flow tests'
+    measured mass flow 2.4 times worse: rejected, the channels named."""
+    base = _model(-63803.471, BEFORE)
+    proxy = _model(-61346.107, PROXY, ("supply_pressure_drop",))
+    losses = channel_losses(proxy, base, NOISE)
+    assert [t.split()[0] for t in losses] == ["qm_N", "qm_P"]
+    ok, reason = _accept(proxy, base, NOISE)
+    assert not ok
+    assert "more than 10% worse" in reason and "qm_P (fit) 5.66e-05 -> 0.000135" in reason
+
+
+def test_an_effect_that_improves_every_channel_is_kept() -> None:
+    base = _model(-63803.471, BEFORE)
+    better = {r: {c: 0.6 * v for c, v in chans.items()} for r, chans in BEFORE.items()}
+    ok, reason = _accept(_model(-61346.107, better, ("supply_pressure_drop",)), base, NOISE)
+    assert ok, reason
+
+
+def test_small_rises_and_channels_at_their_noise_are_not_losses() -> None:
+    """Within MAX_CHANNEL_LOSS, or still within NOISE_FACTOR of the channel's
+    noise, a rise is not a loss."""
+    old = {"fit": {"y": 1e-3, "T_P": 0.05}, "validate": {"p_P": 2000.0}}
+    new = {"fit": {"y": (1.0 + 0.9 * MAX_CHANNEL_LOSS) * 1e-3, "T_P": 0.058},
+           "validate": {"p_P": 1000.0}}  # fmt: skip
+    assert 0.058 < NOISE_FACTOR * 0.05
+    assert channel_losses(_model(0.0, new), _model(0.0, old), {"T_P": 0.05}) == []
+    # without the noise the temperature's 16 % rise counts
+    assert channel_losses(_model(0.0, new), _model(0.0, old)) == ["T_P (fit) 0.05 -> 0.058"]

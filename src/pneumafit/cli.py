@@ -417,8 +417,9 @@ def rig(
         str | None,
         typer.Option(
             "--truth",
-            help="Independent truth: a preset (demo, power-valve, table-valve-asym, "
-            "lugre-pressure, dahl-bump-leak, mixed, fit-laws) or a TOML/JSON file.",
+            help="Independent truth: a preset (demo, demo-clean, power-valve, "
+            "table-valve-asym, lugre-pressure, dahl-bump-leak, mixed, fit-laws) or a TOML/JSON "
+            "file.",
         ),
     ] = None,
 ) -> None:

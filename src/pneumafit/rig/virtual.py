@@ -842,6 +842,8 @@ def truth_readme(run: RigRun) -> str:
             ", ".join(f"`{k}` = {v}" for k, v in truth["model"]["effects"].items())
             if truth["model"]["effects"]
             else "none"
+            if "truth_model" not in truth
+            else "none of `--effect`'s (the independent truth's own parts are listed below)"
         ),
     ]
     independent = truth.get("truth_model")

@@ -117,7 +117,7 @@ DEMO_TRUTH_PRESET = "demo"
 #: Independent truth of the clean demo campaign: data/demo-clean is
 #: ``pneumafit rig --out data/demo-clean --seed 2026 --truth demo-clean``, the
 #: same rig without the undeclared leak (its recordings are those of data/demo
-#: before 2026-11-26).
+#: before commit ab282c3 of 2026-11-25).
 DEMO_CLEAN_TRUTH_PRESET = "demo-clean"
 #: Largest integration step of the truth (s); the fitting default is 1 ms.
 TRUTH_STEP = 1.0e-4

@@ -102,6 +102,8 @@ PLANTS = {
             "forced_convection": 1,
             "supply_pressure_drop": 1,
             "seal_friction": 1,
+            "friction_asymmetry": 1,
+            "effective_area": 1,
         },
         "parameters": {
             "chamber_leak_conductance": 2e-10,
@@ -111,6 +113,19 @@ PLANTS = {
             "forced_convection_gain": 2000.0,
             "supply_line_resistance": 2e7,
             "seal_friction_coefficient": 2e-5,
+            "friction_asymmetry": 0.3,
+            "area_factor": 1.08,
+        },
+    },
+    "lugre-seal": {
+        "model": "constant-lambda",
+        "friction": "lugre",
+        "effects": {"seal_friction": 1, "friction_asymmetry": 1, "effective_area": 1},
+        "parameters": {
+            "lambda": "20 W/m^2/K",
+            "seal_friction_coefficient": 1.5e-5,
+            "friction_asymmetry": -0.25,
+            "area_factor": 0.93,
         },
     },
 }

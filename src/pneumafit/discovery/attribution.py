@@ -353,15 +353,26 @@ def _rates_along(
     xs: np.ndarray, modes: np.ndarray, cmds: np.ndarray, p: np.ndarray, d: np.ndarray,
     cfg: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """dP_P/dt, dP_N/dt, q_P, q_N, lambda_P, lambda_N, dv/dt at each state row (kernel rhs)."""
+    """dP_P/dt, dP_N/dt, q_P, q_N, lambda_P, lambda_N, dv/dt at each state row (kernel rhs).
+
+    With the LuGre law (cfg's friction slot) a moving row's bristle deflection
+    is set to its steady sliding value sign(v) g(v) / sigma0 for these
+    parameters (:func:`~pneumafit.models.kernel.initial_deflection`, seal and
+    asymmetry included): the measurement does not give z, and after the
+    pre-sliding travel g / sigma0 (~0.1 mm) a sliding piston's bristles sit
+    there, so the LuGre friction is the switch model's s g(v) + b v.
+    """
     n = xs.shape[0]
     out = np.empty((n, 7))
     dx = np.empty(xs.shape[1])
     aux = np.empty(kernel.NAUX)
     x = np.empty(xs.shape[1])
+    lugre = cfg[layout.C_FRICTION_LAW] == kernel.FRICTION_LUGRE
     for k in range(n):
         for i in range(xs.shape[1]):
             x[i] = xs[k, i]
+        if lugre and x[layout.X_V] != 0.0:
+            x[layout.X_Z] = kernel.initial_deflection(x, p, cfg, 0.0)
         kernel.rhs(x, modes[k], cmds[k, 0], cmds[k, 1], p, d, cfg, dx, aux)
         out[k, 0] = dx[layout.X_PP]
         out[k, 1] = dx[layout.X_PN]

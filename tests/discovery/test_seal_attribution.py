@@ -86,3 +86,18 @@ def test_hidden_seal_effect_is_proposed(name: str, model: VirtualRig) -> None:
     hidden = EFFECT_DEFAULTS[e.parameter] - e.neutral
     assert 0.5 < best.coefficient / hidden < 2.0, best.coefficient
     assert best.suggested[e.parameter] == pytest.approx(e.neutral + best.coefficient)
+
+
+def test_lugre_model_sees_the_friction_effects(model: VirtualRig) -> None:
+    """A LuGre base model (bristle state not measured: set to its steady
+    sliding value per row) gives the friction effects the same evidence as
+    the switch model: the hidden asymmetry first, a within 20 %."""
+    from pneumafit.models import ModelStructure
+
+    lugre = ModelStructure("convection", air_properties=model.structure.air_properties,
+                           friction="lugre")  # fmt: skip
+    run = VirtualRig(effects={"friction_asymmetry": None}, seed=SEED).run("quick")
+    rows = build_rows(run.campaign, lugre, model.parameters)
+    best = attribute(rows, rng=np.random.default_rng(0), n_bootstrap=30).candidates[0]
+    assert best.effect == "friction_asymmetry" and best.supported
+    assert best.coefficient == pytest.approx(0.2, rel=0.2)

@@ -179,6 +179,8 @@ class Rows:
     channel : ndarray of str, shape (n,), optional
         ``pressure`` (r_X, Pa/s) or ``motion`` (the acceleration residual,
         m/s^2) per row; None: all ``pressure``.
+    nuisance_values : dict of str to float
+        The base model's value of each nuisance parameter (SI).
     """
 
     rate: NDArray[np.float64]
@@ -189,6 +191,7 @@ class Rows:
     source: list[str] = field(default_factory=list)
     nuisance: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     channel: NDArray[np.str_] | None = None
+    nuisance_values: dict[str, float] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -736,6 +739,7 @@ def build_rows(
         source=sources,
         nuisance={k: np.concatenate(v) for k, v in nuis.items()},
         channel=np.concatenate(channels),
+        nuisance_values={k: float(model[k]) for k in nuis if k in model},
     )
 
 
@@ -1071,6 +1075,53 @@ def _rank_key(c: Candidate) -> tuple[float, float, float, str]:
     return (-c.score, -c.inclusion_probability, -c.variance_explained, c.effect)
 
 
+#: Base parameters a friction effect's refit may start shifted: the levels,
+#: which enter the acceleration linearly (the Stribeck velocity and the
+#: bristle constants enter nonlinearly: a first-order shift is not trusted).
+LEVEL_PARAMETERS: tuple[str, ...] = ("friction_static", "friction_coulomb", "friction_viscous")
+
+
+def _level_starts(
+    rows: Rows,
+    sel: NDArray[np.bool_],
+    name: str,
+    coefficient: float,
+    w: NDArray[np.float64],
+    y_raw: NDArray[np.float64],
+) -> dict[str, float]:
+    """Refit starts of the friction levels that go with an effect's coefficient.
+
+    A base fit without a friction effect absorbs its mean into the levels
+    (a hidden seal friction c Delta raised F_c and F_s by c mean(Delta):
+    30 -> 39 N on the seal campaign), and a refit that adds the effect on
+    top of them starts with the friction counted twice (the piston sticks;
+    measured: BIC +36000 from there). On the acceleration rows the least
+    squares of (residual - coefficient x effect) on the level parameters'
+    sensitivities gives the shift of each level that the effect replaces
+    (Frisch-Waugh's other half): the start is the base value plus that
+    shift, clipped to the physical bounds and F_s >= F_c. Motion rows with
+    the levels among the nuisance parameters only; empty otherwise.
+    """
+    from pneumafit.models.layout import SPECS
+
+    names = [k for k in LEVEL_PARAMETERS if k in rows.nuisance and k in rows.nuisance_values]
+    chan = rows.channels()[sel]
+    if not names or not math.isfinite(coefficient) or not np.all(chan == "motion"):
+        return {}
+    n_mat = np.column_stack([rows.nuisance[k][sel] * w for k in names])
+    if not np.any(n_mat):
+        return {}
+    resid = y_raw - coefficient * rows.features[name][sel] * w
+    shift, *_ = np.linalg.lstsq(n_mat, resid, rcond=None)
+    out = {}
+    for k, dv in zip(names, shift, strict=True):
+        spec = SPECS[k]
+        out[k] = float(np.clip(rows.nuisance_values[k] + dv, spec.lower, spec.upper))
+    if "friction_static" in out and "friction_coulomb" in out:
+        out["friction_static"] = max(out["friction_static"], out["friction_coulomb"])
+    return out
+
+
 def _departs(name: str, coefficient: float) -> bool:
     """A signed effect's coefficient departs from neutral by MIN_SIGNED_DEPARTURE."""
     eff = get_effect(name)
@@ -1097,6 +1148,7 @@ def _attribute_channel(
     """Sparse regression and bootstrap on the rows ``sel`` of one channel."""
     w = rows.weight[sel]
     y = rows.rate[sel] * w
+    y_raw = y.copy()
     phase = rows.phase[sel]
     group = rows.group[sel]
     cols = np.column_stack([rows.features[n][sel] * w for n in names])
@@ -1163,7 +1215,10 @@ def _attribute_channel(
                 coefficient=coef,
                 coefficient_interval=(lo, hi),
                 coefficient_unit=_COEFFICIENT_UNIT.get(name, ""),
-                suggested=suggested_start(name, coef),
+                suggested={
+                    **suggested_start(name, coef),
+                    **_level_starts(rows, sel, name, coef, w, y_raw),
+                },
                 phases=dict(zip(PHASES, (float(s) for s in share), strict=True)),
                 supported=prob >= MIN_INCLUSION
                 and r2 >= MIN_VARIANCE

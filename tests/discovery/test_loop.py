@@ -101,7 +101,8 @@ _CHANNEL_RULE = (
     "measured 2026-11-25: the refit is a large gain (asymmetry BIC -2812, held-out "
     "4174 -> 752 Pa; area BIC -18702, held-out 7115 -> 769 Pa) but the channel rule "
     "(refit.py, owned elsewhere) rejects it: the flow tests' qm_P gets 11 % (asymmetry) "
-    "and 69 % (area) worse as the refit moves the valve"
+    "and 69 % (area) worse as the refit moves the valve back towards the truth's (the "
+    "base fit's bent centre leak fitted the flows better than the true one; docs/effects.md)"
 )
 
 

@@ -1075,10 +1075,14 @@ def _rank_key(c: Candidate) -> tuple[float, float, float, str]:
     return (-c.score, -c.inclusion_probability, -c.variance_explained, c.effect)
 
 
-#: Base parameters a friction effect's refit may start shifted: the levels,
-#: which enter the acceleration linearly (the Stribeck velocity and the
-#: bristle constants enter nonlinearly: a first-order shift is not trusted).
-LEVEL_PARAMETERS: tuple[str, ...] = ("friction_static", "friction_coulomb", "friction_viscous")
+#: Base parameters a friction effect's refit may start shifted: the Coulomb
+#: level and the viscous coefficient, which enter the sliding acceleration
+#: linearly; the static level moves with the Coulomb one (the seal friction
+#: adds the same to both, the asymmetry scales both; alone, F_s is poorly
+#: conditioned on sliding rows: a free shift started it at 332 N on the
+#: asymmetry campaign). The Stribeck velocity and the bristle constants enter
+#: nonlinearly: a first-order shift is not trusted.
+LEVEL_PARAMETERS: tuple[str, ...] = ("friction_coulomb", "friction_viscous")
 
 
 def _level_starts(
@@ -1099,7 +1103,8 @@ def _level_starts(
     squares of (residual - coefficient x effect) on the level parameters'
     sensitivities gives the shift of each level that the effect replaces
     (Frisch-Waugh's other half): the start is the base value plus that
-    shift, clipped to the physical bounds and F_s >= F_c. Motion rows with
+    shift (F_c, b; F_s by F_c's shift), clipped to the physical bounds and
+    F_s >= F_c. Motion rows with
     the levels among the nuisance parameters only; empty otherwise.
     """
     from pneumafit.models.layout import SPECS
@@ -1117,8 +1122,10 @@ def _level_starts(
     for k, dv in zip(names, shift, strict=True):
         spec = SPECS[k]
         out[k] = float(np.clip(rows.nuisance_values[k] + dv, spec.lower, spec.upper))
-    if "friction_static" in out and "friction_coulomb" in out:
-        out["friction_static"] = max(out["friction_static"], out["friction_coulomb"])
+    if "friction_coulomb" in out and "friction_static" in rows.nuisance_values:
+        shift_c = out["friction_coulomb"] - rows.nuisance_values["friction_coulomb"]
+        f_s = rows.nuisance_values["friction_static"] + shift_c
+        out["friction_static"] = float(max(f_s, out["friction_coulomb"]))
     return out
 
 

@@ -15,6 +15,12 @@ integration step from choose_step), largest differences over the 4 s:
     convection-map         0.492 ms  0.0069 Pa  0.00045 um  3.1e-6 K  (measured valve map)
     convection-effects     0.585 ms  0.0038 Pa  0.00036 um  7.1e-7 K  (all seven effects)
 
+and after the seal and barrel effects joined (2026-11-25, the same machine):
+
+    convection-effects     0.585 ms  0.0025 Pa  0.00034 um  9.3e-8 K  (all nine effects)
+    lugre-seal             0.585 ms  0.0063 Pa  0.00038 um  1.2e-7 K  (LuGre, seal friction,
+                                                          asymmetry -0.25, area factor 0.93)
+
 (the C code is the kernel's arithmetic; what is left is rounding, numba
 fusing multiply-adds where gcc does not); 0.0005 Pa with Sutherland air.
 
@@ -102,6 +108,8 @@ PLANTS = {
             "forced_convection": 1,
             "supply_pressure_drop": 1,
             "seal_friction": 1,
+            "friction_asymmetry": 1,
+            "effective_area": 1,
         },
         "parameters": {
             "chamber_leak_conductance": 2e-10,
@@ -111,6 +119,19 @@ PLANTS = {
             "forced_convection_gain": 2000.0,
             "supply_line_resistance": 2e7,
             "seal_friction_coefficient": 2e-5,
+            "friction_asymmetry": 0.3,
+            "area_factor": 1.08,
+        },
+    },
+    "lugre-seal": {
+        "model": "constant-lambda",
+        "friction": "lugre",
+        "effects": {"seal_friction": 1, "friction_asymmetry": 1, "effective_area": 1},
+        "parameters": {
+            "lambda": "20 W/m^2/K",
+            "seal_friction_coefficient": 1.5e-5,
+            "friction_asymmetry": -0.25,
+            "area_factor": 0.93,
         },
     },
 }

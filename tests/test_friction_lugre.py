@@ -80,7 +80,8 @@ def test_structure_field_layout_and_parameters() -> None:
                        r"found 'karnopp'"):  # fmt: skip
         ModelStructure("convection", friction="karnopp")
     assert FRICTION_LAWS == {"switch": 0, "lugre": 1}
-    assert (C_FRICTION_LAW, NCFG, X_Z, NX) == (14, 15, 14, 15)
+    # NCFG 15 -> 17: the seal effects' slots friction_asymmetry and effective_area
+    assert (C_FRICTION_LAW, NCFG, X_Z, NX) == (14, 17, 14, 15)
     assert (STATE_NAMES[X_Z], STATE_UNITS[X_Z]) == ("z_f", "m")
     assert LUGRE.config()[C_FRICTION_LAW] == 1
     assert ModelStructure("convection").config()[C_FRICTION_LAW] == 0
@@ -96,7 +97,9 @@ def test_structure_field_layout_and_parameters() -> None:
     assert values["friction_damping"] == 1.0e3
     # the map block follows the base block; every index is taken by name
     assert P["friction_damping"] == P["friction_stiffness"] + 1 == P["stop_damping"] + 2
-    assert P["valve_map_CS_00"] == P["friction_damping"] + 1
+    # then the seal effects' two parameters (appended, physics.seal_effects)
+    assert P["area_factor"] == P["friction_asymmetry"] + 1 == P["friction_damping"] + 2
+    assert P["valve_map_CS_00"] == P["area_factor"] + 1
 
 
 def test_parameter_sets_carry_the_law_parameters() -> None:

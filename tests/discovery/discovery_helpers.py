@@ -90,7 +90,44 @@ LOOP_EFFECTS: dict[str, float | None] = {
     "wall_thermal_mass": None,
     "forced_convection": None,
     "supply_pressure_drop": None,
+    "seal_friction": None,
+    "friction_asymmetry": None,
+    "effective_area": None,
 }
+
+
+def _fit_laws_truth(**parts: Any) -> dict[str, Any]:
+    """The independent truth's ``fit-laws`` preset (the fitted laws where the
+    truth can express them; LuGre bristle friction) with some parts changed."""
+    import copy
+
+    from pneumafit.rig.truth import PRESETS
+
+    data = copy.deepcopy(dict(PRESETS["fit-laws"]))
+    for key, value in parts.items():
+        if isinstance(value, dict) and isinstance(data.get(key), dict):
+            data[key] = {**data[key], **value}
+        else:
+            data[key] = value
+    return data
+
+
+#: Campaigns recorded by the *independent* truth (:mod:`pneumafit.rig.truth`,
+#: written apart from the fitting kernel): the ``fit-laws`` preset with one
+#: seal or barrel effect at the catalog's typical size, the preset itself
+#: (nothing hidden), and a valve law no catalog effect describes (power-law
+#: supply path: the effect outside the catalog). Keys name the cases.
+TRUTH_CASES: dict[str, dict[str, Any]] = {
+    "truth:seal_friction": _fit_laws_truth(friction={"seal": "additive", "c_p": 1.5e-5}),
+    "truth:friction_asymmetry": _fit_laws_truth(friction={"asymmetry": 0.2}),
+    # a bore 2.5 % wider than the declared 32 mm: area factor 1.0506
+    "truth:effective_area": _fit_laws_truth(barrel={"bore": 0.0328}),
+    "truth:clean": _fit_laws_truth(),
+    "truth:outside": _fit_laws_truth(
+        valve={"supply": {"family": "power", "C_max": 1.0e-8, "u0": 0.3, "u_sat": 10.0,
+                          "n": 1.6, "b": 0.3}},
+    ),
+}  # fmt: skip
 
 
 def discovery_protocol() -> Any:
@@ -157,13 +194,17 @@ def run_case(root: Any, effect: str | None, value: float | None = None) -> Disco
     from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
 
     t0 = time.perf_counter()
-    name = effect or "clean"
+    name = (effect or "clean").replace(":", "_")
     folder = root / name
-    if effect is None:
-        effects: dict[str, float | None] = {}
+    if effect in TRUTH_CASES:
+        rig = VirtualRig(seed=LOOP_SEED, truth=TRUTH_CASES[effect])
     else:
-        effects = {effect: LOOP_EFFECTS.get(effect) if value is None else value}
-    run = VirtualRig(seed=LOOP_SEED, effects=effects).write(folder, discovery_protocol())
+        if effect is None:
+            effects: dict[str, float | None] = {}
+        else:
+            effects = {effect: LOOP_EFFECTS.get(effect) if value is None else value}
+        rig = VirtualRig(seed=LOOP_SEED, effects=effects)
+    run = rig.write(folder, discovery_protocol())
     campaign = read_campaign(folder)
     options = FitOptions(mcmc=False, correct_solver=False)
     fit = identify(campaign, "convection", options=options, seed=0)
@@ -184,7 +225,8 @@ def run_case(root: Any, effect: str | None, value: float | None = None) -> Disco
 #: Every campaign of the loop tests, longest first (two workers share them).
 LOOP_CASES: tuple[str | None, ...] = (
     "forced_convection", "seal_friction", "external_leakage", "valve_dynamics",
-    "chamber_leakage", "supply_pressure_drop", "wall_thermal_mass", None,
+    "chamber_leakage", "supply_pressure_drop", "wall_thermal_mass", "friction_asymmetry",
+    "effective_area", None,
 )  # fmt: skip
 
 
@@ -253,8 +295,7 @@ def _record(effect: str | None, result: Any, truth: dict[str, Any], seconds: flo
         "values": {k: final.values[k] for e in final.effects
                    for k in EFFECT_PARAMETERS.get(e, ())},
         "truth": {k: truth["parameters"].get(k) for k in truth["parameters"]
-                  if k in {p for v in EFFECT_PARAMETERS.values() for p in v}
-                  or k == "seal_friction_coefficient"},
+                  if k in {p for v in EFFECT_PARAMETERS.values() for p in v}},
     }  # fmt: skip
     with open(target, "a", encoding="utf-8") as f:
         f.write(json.dumps(line, default=float) + "\n")
@@ -268,4 +309,7 @@ EFFECT_PARAMETERS = {
     "wall_thermal_mass": ("wall_heat_capacity", "wall_outer_coefficient"),
     "forced_convection": ("forced_convection_gain",),
     "supply_pressure_drop": ("supply_line_resistance",),
+    "seal_friction": ("seal_friction_coefficient",),
+    "friction_asymmetry": ("friction_asymmetry",),
+    "effective_area": ("area_factor",),
 }

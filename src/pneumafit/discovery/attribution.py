@@ -99,6 +99,15 @@ R_AIR = 287.0
 MIN_INCLUSION = 0.5
 #: ... and this share of the residual rate's (weighted) sum of squares explained alone.
 MIN_VARIANCE = 0.05
+#: A signed effect (a neutral value inside its bounds: friction asymmetry,
+#: area factor) is supported only when its coefficient departs from the
+#: neutral value by at least this fraction of the half-range on its side
+#: (|a| >= 0.05, |k_A - 1| >= 0.02), the size below which the refit loop
+#: calls it vanished (refit.VANISHING). Below it the acceleration rows cannot
+#: tell the effect from a pressure-sensor offset: on quick campaigns without
+#: any effect (seeds 5-7, offsets of the order of 1 kPa) the area factor
+#: explained 5-54 % of the acceleration residual with |k_A - 1| = 0.001-0.010.
+MIN_SIGNED_DEPARTURE = 0.1
 #: Width (s) of the Savitzky-Golay window of the residual rate.
 WINDOW = 0.05
 #: Rows kept: one sample in ``DECIMATE`` (the rate is smooth over the window).
@@ -121,6 +130,25 @@ MAX_SENSITIVITY = 100.0
 #: noise): a row's weight is 1 / sqrt(s_rate^2 + (S * PRESSURE_UNCERTAINTY)^2),
 #: S the rate's sensitivity to the pressure (1/s).
 PRESSURE_UNCERTAINTY = 1000.0
+#: Rows of the piston's acceleration are kept where the measured speed stays
+#: above this (m/s) over the whole window: the switch friction model's
+#: acceleration at the measured state means something only while sliding
+#: (a stuck piston's friction balances whatever drives it). The motion phase's
+#: threshold (:class:`~.phases.PhaseRules`).
+MIN_SLIDING_SPEED = 2.0e-3
+#: Smallest position noise (m) assumed for the acceleration's noise (an
+#: encoder's quantisation makes the robust estimate 0 at rest).
+MIN_POSITION_NOISE = 1.0e-6
+#: Effects whose pressure-rate regressor is written out in
+#: :func:`signature_features`; every other catalog effect gets the kernel's
+#: own derivative at the measured state (:func:`model_rates`, ``effects``).
+ANALYTIC_SIGNATURES: tuple[str, ...] = (
+    "chamber_leakage", "external_leakage", "valve_dynamics", "wall_thermal_mass",
+    "forced_convection", "supply_pressure_drop",
+)  # fmt: skip
+#: Channels of the regression rows: the chambers' pressure rates and the
+#: piston's acceleration.
+ROW_CHANNELS: tuple[str, ...] = ("pressure", "motion")
 
 
 # ----------------------------------------------------------------- rows
@@ -146,7 +174,13 @@ class Rows:
         Base-model parameter -> the rate's sensitivity to it (Pa/s per
         unit): what a refit of the base parameters alone could change.
     source : list of str
-        ``"<file>:<chamber>"`` per segment (for messages).
+        ``"<file>:<chamber>"`` per segment (for messages), ``"<file>:v"``
+        for the acceleration rows.
+    channel : ndarray of str, shape (n,), optional
+        ``pressure`` (r_X, Pa/s) or ``motion`` (the acceleration residual,
+        m/s^2) per row; None: all ``pressure``.
+    nuisance_values : dict of str to float
+        The base model's value of each nuisance parameter (SI).
     """
 
     rate: NDArray[np.float64]
@@ -156,10 +190,18 @@ class Rows:
     weight: NDArray[np.float64]
     source: list[str] = field(default_factory=list)
     nuisance: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    channel: NDArray[np.str_] | None = None
+    nuisance_values: dict[str, float] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
         return int(self.rate.size)
+
+    def channels(self) -> NDArray[np.str_]:
+        """Channel of each row (:data:`ROW_CHANNELS`; all ``pressure`` if not set)."""
+        if self.channel is None:
+            return np.full(self.n, "pressure")
+        return self.channel
 
 
 def _rate(values: NDArray[np.float64], width: int, dt: float) -> NDArray[np.float64]:
@@ -314,15 +356,26 @@ def _rates_along(
     xs: np.ndarray, modes: np.ndarray, cmds: np.ndarray, p: np.ndarray, d: np.ndarray,
     cfg: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """dP_P/dt, dP_N/dt, q_P, q_N, lambda_P, lambda_N at each state row (kernel rhs)."""
+    """dP_P/dt, dP_N/dt, q_P, q_N, lambda_P, lambda_N, dv/dt at each state row (kernel rhs).
+
+    With the LuGre law (cfg's friction slot) a moving row's bristle deflection
+    is set to its steady sliding value sign(v) g(v) / sigma0 for these
+    parameters (:func:`~pneumafit.models.kernel.initial_deflection`, seal and
+    asymmetry included): the measurement does not give z, and after the
+    pre-sliding travel g / sigma0 (~0.1 mm) a sliding piston's bristles sit
+    there, so the LuGre friction is the switch model's s g(v) + b v.
+    """
     n = xs.shape[0]
-    out = np.empty((n, 6))
+    out = np.empty((n, 7))
     dx = np.empty(xs.shape[1])
     aux = np.empty(kernel.NAUX)
     x = np.empty(xs.shape[1])
+    lugre = cfg[layout.C_FRICTION_LAW] == kernel.FRICTION_LUGRE
     for k in range(n):
         for i in range(xs.shape[1]):
             x[i] = xs[k, i]
+        if lugre and x[layout.X_V] != 0.0:
+            x[layout.X_Z] = kernel.initial_deflection(x, p, cfg, 0.0)
         kernel.rhs(x, modes[k], cmds[k, 0], cmds[k, 1], p, d, cfg, dx, aux)
         out[k, 0] = dx[layout.X_PP]
         out[k, 1] = dx[layout.X_PN]
@@ -330,6 +383,7 @@ def _rates_along(
         out[k, 3] = aux[kernel.A_QN]
         out[k, 4] = aux[kernel.A_LAMP]
         out[k, 5] = aux[kernel.A_LAMN]
+        out[k, 6] = dx[layout.X_V]
     return out
 
 
@@ -347,6 +401,7 @@ def model_rates(
     sim: Mapping[str, NDArray[np.float64]],
     width: int,
     parameters: Sequence[str] = (),
+    effects: Sequence[str] = (),
 ) -> dict[str, NDArray[np.float64]]:
     """The model's pressure rates at the measured state, and its flows there.
 
@@ -365,8 +420,18 @@ def model_rates(
         (kg/s), ``lambda_P``, ``lambda_N`` (W/m^2/K) at the measured state,
         the rates' sensitivities to their own pressure ``sens_P``,
         ``sens_N`` (1/s) and to each of ``parameters``
-        (``param:<name>:P``, ``param:<name>:N``; central differences), and
-        the state used: ``p_P``, ``p_N``, ``T_P``, ``T_N``, ``y``.
+        (``param:<name>:P``, ``param:<name>:N``, ``param:<name>:v`` for
+        the acceleration; central differences), the acceleration ``dv``
+        (m/s^2) at the measured state with the pressures as recorded (no
+        offset removed, see the code) and the velocity used ``v`` (m/s,
+        Savitzky-Golay slope of the position; 0 in blocked tests), each of
+        ``effects``' *kernel signature* (``effect:<name>:P``, ``:N``, ``:v``:
+        the derivative of dP_P/dt, dP_N/dt and dv/dt with respect to the
+        effect's principal parameter with the effect switched on, at its
+        neutral value, or at the current one if the structure has the effect:
+        central differences for a signed parameter, forward ones from 0 for
+        a one-sided one; per unit parameter), and the state used: ``p_P``,
+        ``p_N``, ``T_P``, ``T_N``, ``y``.
     """
     from pneumafit.models.layout import (
         NX,
@@ -400,15 +465,18 @@ def model_rates(
         return savgol_filter(x, short, 1, mode="interp") if n > short else x
 
     state: dict[str, NDArray[np.float64]] = {}
+    raw: dict[str, NDArray[np.float64]] = {}
     for ch in ("p_P", "p_N"):
         meas = rec.channels.get(ch)
         if meas is None:
             state[ch] = np.asarray(sim[ch], float)
+            raw[ch] = state[ch]
             continue
         # the sensor's offset (the fit profiles one per recording) is not in the gas
         resid = np.asarray(meas, float) - sim[ch]
         offset = float(np.nanmedian(resid)) if np.isfinite(resid).any() else 0.0
         state[ch] = smooth(np.asarray(meas, float) - offset)
+        raw[ch] = smooth(np.asarray(meas, float))
     for ch in ("T_P", "T_N"):
         state[ch] = np.asarray(sim[ch], float)
     if exp.blocked:
@@ -463,7 +531,20 @@ def model_rates(
             _rates_along(hi, modes, cmds, p, d, cfg)[:, col]
             - _rates_along(lo, modes, cmds, p, d, cfg)[:, col]
         ) / (2.0 * SENS_STEP)
+    # the acceleration at the measured pressures as recorded: the median
+    # offset above also takes in any constant pressure shift the missing
+    # effect caused in closed loop, and a constant force offset is what a
+    # friction asymmetry looks like while sliding (dF_f/da = g both ways).
+    # A real sensor offset d biases the force by S d instead (0.2 N for the
+    # virtual rig's 236 Pa on p_P; 1.2 N for 1.5 kPa), which the rows'
+    # weight allows for (PRESSURE_UNCERTAINTY).
+    xr = xs.copy()
+    xr[:, X_PP] = raw["p_P"]
+    xr[:, X_PN] = raw["p_N"]
+    out["dv"] = base[:, 6] if exp.blocked else _rates_along(xr, modes, cmds, p, d, cfg)[:, 6]
+    out["v"] = vel
     # sensitivities to the base model's own parameters (Pa/s per unit)
+    from pneumafit.models.layout import SPECS
     from pneumafit.models.layout import P as P_INDEX
 
     for name in parameters:
@@ -480,6 +561,35 @@ def model_rates(
             rates.append(_rates_along(xs, modes, cmds, q, dq, cfg))
         out[f"param:{name}:P"] = (rates[0][:, 0] - rates[1][:, 0]) / (2.0 * h)
         out[f"param:{name}:N"] = (rates[0][:, 1] - rates[1][:, 1]) / (2.0 * h)
+        out[f"param:{name}:v"] = (rates[0][:, 6] - rates[1][:, 6]) / (2.0 * h)
+    # kernel signatures of effects without a written-out regressor: the
+    # right-hand side's own derivative with respect to the effect's parameter
+    for name in effects:
+        eff = get_effect(name)
+        principal = eff.parameter_names()[0]
+        par = eff.parameter(principal)
+        j = P_INDEX[principal]
+        neutral = par.neutral if par.neutral is not None else SPECS[principal].default
+        on = bool(structure.effects.get(name))
+        theta = float(model.get(principal, neutral)) if on else float(neutral)
+        cfg_e = structure.with_effects(**{name: eff.option}).config(
+            blocked=exp.blocked, chamber=exp.chamber, closed_loop=0
+        )
+        size = abs(par.typical - neutral) or abs(par.typical) or 1.0
+        h = 1e-2 * size
+        points = (
+            (theta + h, theta - h) if par.signed or theta - h >= par.lower else (theta + h, theta)
+        )
+        rates = []
+        for value in points:
+            q = p.copy()
+            q[j] = value
+            dq = np.empty(kernel.ND)
+            kernel.derive(q, dq)
+            rates.append(_rates_along(xs, modes, cmds, q, dq, cfg_e))
+        span = points[0] - points[1]
+        for col, key in ((0, "P"), (1, "N"), (6, "v")):
+            out[f"effect:{name}:{key}"] = (rates[0][:, col] - rates[1][:, col]) / span
     out.update(state)
     return out
 
@@ -536,6 +646,8 @@ def build_rows(
     """
     rates: list[NDArray[np.float64]] = []
     feats: dict[str, list[NDArray[np.float64]]] = {name: [] for name in EFFECTS}
+    kernel_effects = [name for name in EFFECTS if name not in ANALYTIC_SIGNATURES]
+    channels: list[NDArray[np.str_]] = []
     phases: list[NDArray[np.str_]] = []
     groups: list[NDArray[np.int64]] = []
     weights: list[NDArray[np.float64]] = []
@@ -555,7 +667,7 @@ def build_rows(
         if width < 3:
             continue
         dt = float(np.median(np.diff(t)))
-        at = model_rates(rec, structure, values, sim, width, parameters)
+        at = model_rates(rec, structure, values, sim, width, parameters, kernel_effects)
         labels = label_phases(rec)
         chambers = [rec.chamber] if rec.kind in ("charge", "discharge") else ["P", "N"]
         for ch in chambers:
@@ -569,6 +681,8 @@ def build_rows(
             meas = np.where(mask, meas, np.interp(t, t[mask], meas[mask]))
             rate = _rate(meas, width, dt) - _smooth_rate(at[f"dp_{ch}"], width)
             terms = signature_features(at, ch, model, t, width)
+            for k in kernel_effects:
+                terms[k] = at[f"effect:{k}:{ch}"]
             keep = mask & np.isfinite(rate)
             sens = _smooth_max(np.abs(at[f"sens_{ch}"]), width)
             keep &= sens <= max_sensitivity
@@ -596,6 +710,21 @@ def build_rows(
             groups.append(blk + next_group)
             next_group += int(blk.max(initial=0)) + 1
             sources.append(f"{rec.file}:{ch}")
+            channels.append(np.full(int(keep.sum()), "pressure"))
+        if exp_moving(rec) and "y" in rec.channels:
+            got = _motion_rows(rec, at, model, t, width, dt, parameters, feats, decimate)
+            if got is not None:
+                rate_m, weight_m, keep, nuis_m = got
+                rates.append(rate_m)
+                weights.append(weight_m)
+                for name in parameters:
+                    nuis.setdefault(name, []).append(nuis_m[name])
+                phases.append(labels[keep])
+                blk = np.floor((t[keep] - t[0]) / block).astype(np.int64)
+                groups.append(blk + next_group)
+                next_group += int(blk.max(initial=0)) + 1
+                sources.append(f"{rec.file}:v")
+                channels.append(np.full(int(keep.sum()), "motion"))
     if not rates:
         raise ValueError(
             f"campaign {campaign.name!r}: attribution: expected {role or 'any'} charge, discharge "
@@ -609,7 +738,91 @@ def build_rows(
         weight=np.concatenate(weights),
         source=sources,
         nuisance={k: np.concatenate(v) for k, v in nuis.items()},
+        channel=np.concatenate(channels),
+        nuisance_values={k: float(model[k]) for k in nuis if k in model},
     )
+
+
+def exp_moving(rec: Recording) -> bool:
+    """True for a recording whose piston moves (a step test)."""
+    return rec.kind == "step"
+
+
+def _filter_norm(width: int, dt: float) -> float:
+    """Noise gain of the acceleration estimate: the Savitzky-Golay slope of
+    the slope of the position, sum of its squared weights to the root (1/s^2)."""
+    n = 6 * width + 1
+    impulse = np.zeros(n)
+    impulse[n // 2] = 1.0
+    kern = _rate(_rate(impulse, width, dt), width, dt)[2 * width : n - 2 * width]
+    return float(np.sqrt(np.sum(kern * kern)))
+
+
+def _motion_rows(
+    rec: Recording,
+    at: Mapping[str, NDArray[np.float64]],
+    model: Mapping[str, float],
+    t: NDArray[np.float64],
+    width: int,
+    dt: float,
+    parameters: Sequence[str],
+    feats: dict[str, list[NDArray[np.float64]]],
+    decimate: int,
+) -> tuple[Any, Any, Any, dict[str, NDArray[np.float64]]] | None:
+    """The acceleration residual of a moving-piston recording, while sliding.
+
+    a_meas = SG slope of v (v the SG slope of the measured position: the
+    position's second derivative, smoothed twice); the model's dv/dt at the
+    measured state (pressures, position, velocity; the friction mode the
+    sign of v) smoothed twice with the weights of :func:`_smooth_rate`, so
+    both sides see the same filter. Rows: sliding at more than
+    :data:`MIN_SLIDING_SPEED` over two windows, away from the end stops.
+    Weight 1 / sqrt(s_a^2 + (PRESSURE_UNCERTAINTY (S_P + S_N) / M)^2): the
+    estimate's noise (position noise times the filter's gain) and the
+    acceleration error of a pressure error as large as the one the pressure
+    rows allow for. Each effect's regressor is its kernel signature on dv/dt
+    (0 for the chambers' effects: they act on the motion only through the
+    pressures, which are measured). Appends to ``feats``; returns the rate,
+    weight, kept mask and nuisance columns, or None when nothing is kept.
+    """
+    from scipy.ndimage import minimum_filter1d
+
+    vel = np.asarray(at["v"], float)
+    acc = _rate(vel, width, dt) - _smooth_rate(_smooth_rate(at["dv"], width), width)
+    y = np.asarray(at["y"], float)
+    stroke = float(model.get("stroke", 0.5))
+    margin = 1.0e-3
+    inside = (y > margin) & (y < stroke - margin)
+    sliding = minimum_filter1d(np.abs(vel), size=2 * width + 1, mode="nearest")
+    keep = np.isfinite(acc) & (sliding > MIN_SLIDING_SPEED)
+    keep &= minimum_filter1d(inside.astype(np.int64), size=2 * width + 1, mode="nearest") > 0
+    keep &= np.arange(t.size) % max(int(decimate), 1) == 0
+    cols: dict[str, NDArray[np.float64]] = {}
+    for k in feats:
+        raw = at.get(f"effect:{k}:v")
+        col = np.zeros(t.size) if raw is None else _smooth_rate(_smooth_rate(raw, width), width)
+        keep &= np.isfinite(col)
+        cols[k] = col
+    nuis: dict[str, NDArray[np.float64]] = {}
+    for name in parameters:
+        raw = at.get(f"param:{name}:v")
+        col = np.zeros(t.size) if raw is None else _smooth_rate(_smooth_rate(raw, width), width)
+        keep &= np.isfinite(col)
+        nuis[name] = col
+    if keep.sum() < 3:
+        return None
+    ymeas = np.asarray(rec.channels["y"], float)
+    d2 = np.diff(ymeas, 2)
+    sigma_y = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+    sigma_a = max(sigma_y, MIN_POSITION_NOISE) * _filter_norm(width, dt)
+    bore, rod = float(model.get("bore", 0.032)), float(model.get("rod", 0.016))
+    s_sum = 0.25 * math.pi * (2.0 * bore * bore - rod * rod)
+    mass = float(model.get("moving_mass", 17.0))
+    spread = math.sqrt(sigma_a**2 + (PRESSURE_UNCERTAINTY * s_sum / mass) ** 2)
+    weight = np.full(t.size, 1.0 / spread)
+    for k in feats:
+        feats[k].append(cols[k][keep])
+    return acc[keep], weight[keep], keep, {k: v[keep] for k, v in nuis.items()}
 
 
 # ----------------------------------------------------------------- regression
@@ -646,7 +859,9 @@ class Candidate:
         Share of the effect's fitted term (sum of squares) in each phase.
     supported : bool
         inclusion_probability >= :data:`MIN_INCLUSION` and
-        variance_explained >= :data:`MIN_VARIANCE`.
+        variance_explained >= :data:`MIN_VARIANCE` (and, for a signed
+        effect, a coefficient at least :data:`MIN_SIGNED_DEPARTURE` of its
+        half-range away from the neutral value).
     """
 
     effect: str
@@ -694,6 +909,9 @@ class Attribution:
     explained : float
         R^2 of the full sparse model (all effects kept by the full-data fit).
     n_bootstrap : int
+    channels : dict of str to dict
+        Per row channel (``pressure``, ``motion``): ``n_rows``,
+        ``rate_rms``, ``residual_phases``, ``explained``.
     """
 
     candidates: list[Candidate]
@@ -702,6 +920,7 @@ class Attribution:
     residual_phases: dict[str, float]
     explained: float
     n_bootstrap: int
+    channels: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def supported(self) -> list[Candidate]:
         """Supported candidates, best first."""
@@ -714,6 +933,7 @@ class Attribution:
             "residual_phases": self.residual_phases,
             "explained": self.explained,
             "n_bootstrap": self.n_bootstrap,
+            "channels": self.channels,
         }
 
 
@@ -728,16 +948,24 @@ _COEFFICIENT_UNIT = {
     "wall_thermal_mass": "m^2 K/J (1/C_w)",
     "forced_convection": "W/m^2/K/(kg/s)",
     "supply_pressure_drop": "Pa/(kg/s)",
+    "seal_friction": "N/Pa",
+    "friction_asymmetry": "- (a)",
+    "effective_area": "- (k_A - 1)",
 }
 
 
 def _sparse_fit(
-    x: NDArray[np.float64], y: NDArray[np.float64], threshold: float
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    threshold: float,
+    signed: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.float64]:
     """STLSQ (pysindy) on standardised columns with negative coefficients removed.
 
-    Returns coefficients in the standardised units (0 where dropped).
+    Columns marked ``signed`` keep a coefficient of either sign. Returns
+    coefficients in the standardised units (0 where dropped).
     """
+    one_sided = np.ones(x.shape[1], dtype=bool) if signed is None else ~np.asarray(signed)
     import warnings
 
     import pysindy as ps
@@ -755,7 +983,7 @@ def _sparse_fit(
         c = np.asarray(opt.coef_, float).reshape(-1)
         coef[:] = 0.0
         coef[active] = c
-        negative = coef < 0.0
+        negative = (coef < 0.0) & one_sided
         if not negative.any():
             break
         active &= ~negative
@@ -779,12 +1007,21 @@ def attribute(
 ) -> Attribution:
     """Rank the catalog effects by their evidence in the residual rates.
 
+    The rows of each channel (:data:`ROW_CHANNELS`: the chambers' pressure
+    rates, the piston's acceleration) are regressed separately, each on the
+    effects whose regressor is not zero there (the pressure channel on every
+    effect, as without acceleration rows); an effect's evidence is that of
+    its best channel (highest score). A signed effect (a parameter with a
+    neutral value inside its bounds, :attr:`~.catalog.EffectParameter.signed`)
+    may take a coefficient of either sign; every other coefficient must be
+    positive.
+
     Parameters
     ----------
     rows : Rows
         From :func:`build_rows`.
     rng : numpy.random.Generator
-        Draws the bootstrap blocks.
+        Draws the bootstrap blocks (pressure channel first).
     n_bootstrap : int
         Bootstrap sparse fits.
     threshold : float
@@ -797,15 +1034,136 @@ def attribute(
     Returns
     -------
     Attribution
+        Its summary (``n_rows``, ``rate_rms``, ``residual_phases``,
+        ``explained``) is the pressure channel's; ``channels`` has each
+        channel's.
     """
     names = [n for n in (effects or list(EFFECTS)) if n in rows.features]
-    w = rows.weight
-    y = rows.rate * w
-    cols = np.column_stack([rows.features[n] * w for n in names])
+    chan = rows.channels()
+    best: dict[str, Candidate] = {}
+    summaries: dict[str, dict[str, Any]] = {}
+    for channel in ROW_CHANNELS:
+        sel = chan == channel
+        if not sel.any():
+            continue
+        if channel == "pressure":
+            used = names
+        else:
+            used = [n for n in names if np.any(rows.features[n][sel] != 0.0)]
+        if not used:
+            continue
+        cands, summary = _attribute_channel(rows, sel, used, rng, n_bootstrap, threshold)
+        summaries[channel] = summary
+        for c in cands:
+            old = best.get(c.effect)
+            if old is None or _rank_key(c) < _rank_key(old):
+                best[c.effect] = c
+    out = sorted(best.values(), key=_rank_key)
+    head = summaries.get("pressure") or next(iter(summaries.values()))
+    return Attribution(
+        candidates=out,
+        n_rows=head["n_rows"],
+        rate_rms=head["rate_rms"],
+        residual_phases=head["residual_phases"],
+        explained=head["explained"],
+        n_bootstrap=n_bootstrap,
+        channels=summaries,
+    )
+
+
+def _rank_key(c: Candidate) -> tuple[float, float, float, str]:
+    return (-c.score, -c.inclusion_probability, -c.variance_explained, c.effect)
+
+
+#: Base parameters a friction effect's refit may start shifted: the Coulomb
+#: level and the viscous coefficient, which enter the sliding acceleration
+#: linearly; the static level moves with the Coulomb one (the seal friction
+#: adds the same to both, the asymmetry scales both; alone, F_s is poorly
+#: conditioned on sliding rows: a free shift started it at 332 N on the
+#: asymmetry campaign). The Stribeck velocity and the bristle constants enter
+#: nonlinearly: a first-order shift is not trusted.
+LEVEL_PARAMETERS: tuple[str, ...] = ("friction_coulomb", "friction_viscous")
+
+
+def _level_starts(
+    rows: Rows,
+    sel: NDArray[np.bool_],
+    name: str,
+    coefficient: float,
+    w: NDArray[np.float64],
+    y_raw: NDArray[np.float64],
+) -> dict[str, float]:
+    """Refit starts of the friction levels that go with an effect's coefficient.
+
+    A base fit without a friction effect absorbs its mean into the levels
+    (a hidden seal friction c Delta raised F_c and F_s by c mean(Delta):
+    30 -> 39 N on the seal campaign), and a refit that adds the effect on
+    top of them starts with the friction counted twice (the piston sticks;
+    measured: BIC +36000 from there). On the acceleration rows the least
+    squares of (residual - coefficient x effect) on the level parameters'
+    sensitivities gives the shift of each level that the effect replaces
+    (Frisch-Waugh's other half): the start is the base value plus that
+    shift (F_c, b; F_s by F_c's shift), clipped to the physical bounds and
+    F_s >= F_c. Motion rows with
+    the levels among the nuisance parameters only; empty otherwise.
+    """
+    from pneumafit.models.layout import SPECS
+
+    names = [k for k in LEVEL_PARAMETERS if k in rows.nuisance and k in rows.nuisance_values]
+    chan = rows.channels()[sel]
+    if not names or not math.isfinite(coefficient) or not np.all(chan == "motion"):
+        return {}
+    n_mat = np.column_stack([rows.nuisance[k][sel] * w for k in names])
+    if not np.any(n_mat):
+        return {}
+    resid = y_raw - coefficient * rows.features[name][sel] * w
+    shift, *_ = np.linalg.lstsq(n_mat, resid, rcond=None)
+    out = {}
+    for k, dv in zip(names, shift, strict=True):
+        spec = SPECS[k]
+        out[k] = float(np.clip(rows.nuisance_values[k] + dv, spec.lower, spec.upper))
+    if "friction_coulomb" in out and "friction_static" in rows.nuisance_values:
+        shift_c = out["friction_coulomb"] - rows.nuisance_values["friction_coulomb"]
+        f_s = rows.nuisance_values["friction_static"] + shift_c
+        out["friction_static"] = float(max(f_s, out["friction_coulomb"]))
+    return out
+
+
+def _departs(name: str, coefficient: float) -> bool:
+    """A signed effect's coefficient departs from neutral by MIN_SIGNED_DEPARTURE."""
+    eff = get_effect(name)
+    par = eff.parameter(eff.parameter_names()[0])
+    if par.neutral is None or not math.isfinite(coefficient):
+        return par.neutral is None
+    half = par.upper - par.neutral if coefficient >= 0 else par.neutral - par.lower
+    return abs(coefficient) >= MIN_SIGNED_DEPARTURE * half
+
+
+def _signed(name: str) -> bool:
+    eff = get_effect(name)
+    return eff.parameter(eff.parameter_names()[0]).signed
+
+
+def _attribute_channel(
+    rows: Rows,
+    sel: NDArray[np.bool_],
+    names: Sequence[str],
+    rng: np.random.Generator,
+    n_bootstrap: int,
+    threshold: float,
+) -> tuple[list[Candidate], dict[str, Any]]:
+    """Sparse regression and bootstrap on the rows ``sel`` of one channel."""
+    w = rows.weight[sel]
+    y = rows.rate[sel] * w
+    y_raw = y.copy()
+    phase = rows.phase[sel]
+    group = rows.group[sel]
+    cols = np.column_stack([rows.features[n][sel] * w for n in names])
+    signed = np.array([_signed(n) for n in names], dtype=bool)
     if rows.nuisance:
         # Frisch-Waugh: what the base parameters could absorb is projected
         # out of the residual rate and of every regressor
-        nmat = np.column_stack([v * w for v in rows.nuisance.values()])
+        nmat = np.column_stack([v[sel] * w for v in rows.nuisance.values()])
         nscale = np.std(nmat, axis=0)
         nmat = nmat[:, nscale > 0] / nscale[nscale > 0]
         if nmat.size:
@@ -818,32 +1176,35 @@ def attribute(
     scale = np.where(usable, scale, 1.0)
     x = cols / scale
     z = y / ys
-    full = _sparse_fit(x[:, usable], z, threshold)
+    full = _sparse_fit(x[:, usable], z, threshold, signed[usable])
     coef_full = np.zeros(len(names))
     coef_full[usable] = full
     fitted = x @ coef_full
     explained = 1.0 - float(np.sum((z - fitted) ** 2)) / float(np.sum(z * z))
 
-    blocks = np.unique(rows.group)
-    index = [np.flatnonzero(rows.group == b) for b in blocks]
+    blocks = np.unique(group)
+    index = [np.flatnonzero(group == b) for b in blocks]
     boot = np.zeros((n_bootstrap, len(names)))
     for i in range(n_bootstrap):
         pick = rng.integers(0, len(index), len(index))
-        sel = np.concatenate([index[j] for j in pick])
+        rsel = np.concatenate([index[j] for j in pick])
         c = np.zeros(len(names))
-        c[usable] = _sparse_fit(x[sel][:, usable], z[sel], threshold)
+        c[usable] = _sparse_fit(x[rsel][:, usable], z[rsel], threshold, signed[usable])
         boot[i] = c
-    resid_share = _phase_shares(y, rows.phase)
+    resid_share = _phase_shares(y, phase)
     out: list[Candidate] = []
     for j, name in enumerate(names):
         f = x[:, j]
         fy, ff = float(f @ z), float(f @ f)
-        alone = fy / ff if ff > 0 and fy > 0 else 0.0
-        r2 = alone * fy / float(z @ z) if alone > 0 else 0.0
-        share = _phase_shares(alone * f, rows.phase) if alone > 0 else np.zeros(len(PHASES))
+        if signed[j]:
+            alone = fy / ff if ff > 0 else 0.0
+        else:
+            alone = fy / ff if ff > 0 and fy > 0 else 0.0
+        r2 = alone * fy / float(z @ z) if alone != 0 else 0.0
+        share = _phase_shares(alone * f, phase) if alone != 0 else np.zeros(len(PHASES))
         norm = float(np.linalg.norm(share) * np.linalg.norm(resid_share))
         match = float(share @ resid_share) / norm if norm > 0 else 0.0
-        kept = boot[:, j] > 0
+        kept = boot[:, j] != 0 if signed[j] else boot[:, j] > 0
         prob = float(kept.mean())
         phys = boot[kept, j] * ys / scale[j]
         if phys.size:
@@ -861,40 +1222,52 @@ def attribute(
                 coefficient=coef,
                 coefficient_interval=(lo, hi),
                 coefficient_unit=_COEFFICIENT_UNIT.get(name, ""),
-                suggested=suggested_start(name, coef),
+                suggested={
+                    **suggested_start(name, coef),
+                    **_level_starts(rows, sel, name, coef, w, y_raw),
+                },
                 phases=dict(zip(PHASES, (float(s) for s in share), strict=True)),
-                supported=prob >= MIN_INCLUSION and r2 >= MIN_VARIANCE,
+                supported=prob >= MIN_INCLUSION
+                and r2 >= MIN_VARIANCE
+                and (not signed[j] or _departs(name, coef)),
             )
         )
-    out.sort(key=lambda c: (-c.score, -c.inclusion_probability, -c.variance_explained, c.effect))
-    return Attribution(
-        candidates=out,
-        n_rows=rows.n,
-        rate_rms=float(np.sqrt(np.mean(y * y))),
-        residual_phases=dict(zip(PHASES, (float(s) for s in resid_share), strict=True)),
-        explained=explained,
-        n_bootstrap=n_bootstrap,
-    )
+    summary = {
+        "n_rows": int(sel.sum()),
+        "rate_rms": float(np.sqrt(np.mean(y * y))),
+        "residual_phases": dict(zip(PHASES, (float(s) for s in resid_share), strict=True)),
+        "explained": explained,
+    }
+    return out, summary
 
 
 def suggested_start(effect: str, coefficient: float) -> dict[str, float]:
     """Refit start of an effect's parameters from a regression coefficient.
 
     The coefficient is the principal parameter itself (the wall capacity is
-    its inverse); it is used when finite, positive and inside the catalog's
-    fitting bounds, else the catalog's typical value.
+    its inverse; a signed effect's departure from its neutral value, e.g.
+    k_A - 1); it is used when finite, positive (either sign for a signed
+    effect) and inside the catalog's fitting bounds, else the catalog's
+    typical value.
     """
     eff = get_effect(effect)
     start = eff.typical_values()
-    if not (math.isfinite(coefficient) and coefficient > 0.0):
+    signed = eff.parameter(eff.parameter_names()[0]).signed
+    if not (math.isfinite(coefficient) and (coefficient > 0.0 or signed)):
         return start
     principal = eff.parameter_names()[0]
+    par = eff.parameter(principal)
+    if par.neutral is not None:
+        # a signed effect: the coefficient is the departure from the neutral value
+        value = par.neutral + coefficient
+        if math.isfinite(value) and par.lower <= value <= par.upper:
+            start[principal] = float(value)
+        return start
     value = 1.0 / coefficient if effect == "wall_thermal_mass" else coefficient
     if effect == "valve_dynamics":
         # a spool faster than the fitting integrator's step cannot be simulated
         # by it (fixed-step RK3 at up to 4 ms is stable for tau > ~1.6 ms)
         value = max(value, MIN_SPOOL_START)
-    par = eff.parameter(principal)
     if par.lower <= value <= par.upper:
         start[principal] = float(value)
     return start

@@ -8,9 +8,11 @@ a test where a missing effect shows in the residuals (:mod:`.phases`), and
 its *signature*: the regressors that a sparse regression on residual rates
 would need to detect it.
 
-The registry :data:`EFFECTS` holds the six effects of the catalog. The rig's
-``seal_friction`` is deliberately left out: it is the effect outside the
-catalog, for testing discovery against an effect no candidate describes.
+The registry :data:`EFFECTS` holds the nine effects of the catalog: six of
+the chambers, valves and supply, and the three seal and barrel effects
+(``seal_friction``, ``friction_asymmetry``, ``effective_area``) whose
+definitions (law, parameter, unit, bounds, typical size) are shared with the
+friction-test model (:mod:`pneumafit.physics.seal_effects`).
 
 Adding an effect (docs/effects.md): its law needs a configuration slot and
 parameters in ``models/layout.py``, an entry in
@@ -40,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from pneumafit.discovery.phases import PHASES
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import EFFECT_SLOTS, ModelStructure, get_structure
+from pneumafit.physics.seal_effects import SEAL_EFFECTS, SealEffect
 
 __all__ = [
     "EFFECTS",
@@ -165,6 +168,12 @@ class EffectParameter:
         A typical magnitude (start value, or the size the virtual rig uses).
     description : str
         One line.
+    neutral : float, optional
+        Value at which the effect vanishes when it lies strictly inside the
+        bounds (a *signed* parameter: either sign of the departure acts, e.g.
+        a friction asymmetry around 0, an area factor around 1). None (the
+        default): the effect vanishes at the lower bound (at the upper one
+        for the wall's heat capacity), every departure is one-sided.
     """
 
     name: str
@@ -174,9 +183,20 @@ class EffectParameter:
     prior: EffectPrior
     typical: float
     description: str = ""
+    neutral: float | None = None
+
+    @property
+    def signed(self) -> bool:
+        """True when the effect acts on either side of a neutral value inside the bounds."""
+        return self.neutral is not None
 
     def __post_init__(self) -> None:
         where = f"effect parameter {self.name!r}"
+        if self.neutral is not None and not self.lower < self.neutral < self.upper:
+            raise ValueError(
+                f"{where}: neutral: expected a value strictly inside [{self.lower:g}, "
+                f"{self.upper:g}], found {self.neutral:g}"
+            )
         if not self.lower <= self.typical <= self.upper:
             raise ValueError(
                 f"{where}: expected lower <= typical <= upper, found "
@@ -627,4 +647,86 @@ register_effect(
         ),
         phases=("filling", "motion"),
     )
+)
+
+
+# ----------------------------------------------------------------- seal and barrel
+# The definitions are shared with the friction-test model
+# (pneumafit.physics.seal_effects); only what discovery on the cylinder adds
+# (signature terms, phases) is written here.
+
+
+def _seal_parameter(e: SealEffect) -> EffectParameter:
+    if e.prior == "log-uniform":
+        prior = _log_uniform(e.fit_lower, e.fit_upper)
+    else:
+        prior = EffectPrior("uniform", lower=e.fit_lower, upper=e.fit_upper)
+    return EffectParameter(
+        name=e.parameter,
+        unit=e.unit,
+        lower=e.fit_lower,
+        upper=e.fit_upper,
+        prior=prior,
+        typical=e.typical,
+        description=e.description,
+        neutral=e.neutral if e.signed else None,
+    )
+
+
+def _seal_entry(name: str, signature: tuple[SignatureTerm, ...], phases: tuple[str, ...]) -> None:
+    e = SEAL_EFFECTS[name]
+    register_effect(
+        Effect(
+            name=e.name,
+            description=EFFECT_SLOTS[e.name][2],
+            law=e.law,
+            parameters=(_seal_parameter(e),),
+            signature=signature,
+            phases=phases,
+        )
+    )
+
+
+_seal_entry(
+    "seal_friction",
+    (
+        SignatureTerm(
+            regressor="-sign(v) max(P_P + P_N - 2 P_atm, 0) / M",
+            enters="dv/dt",
+            note="coefficient c_p; only while sliding (a stuck piston's friction balances the "
+            "drive); the chambers' rates do not see it at the measured state",
+        ),
+    ),
+    ("motion",),
+)
+_seal_entry(
+    "friction_asymmetry",
+    (
+        SignatureTerm(
+            regressor="-g(v) / M, g the friction level (static, Coulomb, seal)",
+            enters="dv/dt",
+            note="coefficient a (either sign); F_f = sign(v) g (1 + a sign v) + b v, so "
+            "dF_f/da = g in both directions: an offset of the sliding force that a constant "
+            "load cannot mimic while the piston is stuck (break-away at F_s (1 +- a))",
+        ),
+    ),
+    ("motion",),
+)
+_seal_entry(
+    "effective_area",
+    (
+        SignatureTerm(
+            regressor="S_bore (P_P - P_N) / M (the force k_A S_bore (P_P - P_N) + S_rod P_N)",
+            enters="dv/dt",
+            note="coefficient k_A - 1 (either sign): the pressure force on the bore's area",
+        ),
+        SignatureTerm(
+            regressor="d(dP_X/dt)/dk_A: -+gamma P_X S_bore v / V_X and the volume change "
+            "S_bore y (resp. L - y) in 1/V_X",
+            enters="dP_P/dt, dP_N/dt",
+            note="coefficient k_A - 1; the kernel's own derivative at the measured state "
+            "(central difference), blocked tests included (the chamber volume changes)",
+        ),
+    ),
+    ("motion", "filling", "emptying"),
 )

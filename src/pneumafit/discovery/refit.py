@@ -634,13 +634,21 @@ def channel_losses(
 
 def _vanishing(model: Model, effect: str) -> str | None:
     """A message when the effect's principal parameter sits at the bound where
-    the effect vanishes (lower bound; upper for the wall's heat capacity)."""
+    the effect vanishes (lower bound; upper for the wall's heat capacity), or
+    for a signed effect (a neutral value inside the bounds: friction
+    asymmetry 0, area factor 1) within VANISHING of the half-range on its
+    side of the neutral value (asymmetry |a| < 0.05, area |k_A - 1| < 0.02)."""
     eff = get_effect(effect)
     name = eff.parameter_names(model.structure.effects.get(effect))[0]
     par = eff.parameter(name)
     value = model.values.get(name, math.nan)
-    bound = par.upper if effect == "wall_thermal_mass" else par.lower
-    if math.isfinite(value) and value > 0 and abs(math.log(value / bound)) < VANISHING:
+    if par.neutral is not None:
+        half = par.upper - par.neutral if value >= par.neutral else par.neutral - par.lower
+        near = math.isfinite(value) and abs(value - par.neutral) < VANISHING * half
+    else:
+        bound = par.upper if effect == "wall_thermal_mass" else par.lower
+        near = math.isfinite(value) and value > 0 and abs(math.log(value / bound)) < VANISHING
+    if near:
         return (
             f"{name} went to {value:.3g} {par.unit}, the bound where the effect vanishes: the "
             "gain came from the other parameters"
@@ -853,11 +861,13 @@ def _best(passed: Sequence[tuple[Candidate, Model]]) -> tuple[Candidate, Model] 
 
 
 def _rate_parameters(base: BaseFit) -> list[str]:
-    """Free base parameters that change the pressure rates at a given state
-    (valve and heat; friction acts through the motion, which is measured)."""
+    """Free base parameters that change the pressure rates or the piston's
+    acceleration at a given state (valve and heat; friction, which acts on
+    the acceleration rows of the attribution only)."""
     from pneumafit.models.layout import SPECS
 
-    return [n for n in base.free if n in SPECS and SPECS[n].group in ("valve", "heat")]
+    groups = ("valve", "heat", "friction")
+    return [n for n in base.free if n in SPECS and SPECS[n].group in groups]
 
 
 def _catalog_names() -> list[str]:

@@ -30,10 +30,13 @@ crossing of v = 0: the "no pre-sliding" variant.
 Effects for later discovery are parameters of the same kernel, neutral by
 default (fixed): ``seal_friction_coefficient`` c_p (static and Coulomb
 friction grow by c_p times the chamber gauge pressure: the seal is pressed
-harder; the same effect and name as the cylinder models'),
-``friction_asymmetry`` a (direction asymmetry) and
-``area_factor`` (A_eff = area_factor pi bore^2 / 4, an effective piston
-area). Adding one is freeing its parameter; nothing is restructured.
+harder), ``friction_asymmetry`` a (direction asymmetry) and ``area_factor``
+k_A (an effective bore area k_A pi bore^2 / 4; on a double-acting bench the
+annulus is k_A pi bore^2 / 4 - pi rod^2 / 4, the rod unchanged). They are the
+cylinder model's effects ``seal_friction``, ``friction_asymmetry`` and
+``effective_area``: one definition each (law, parameter, unit, bounds,
+typical size) in :mod:`pneumafit.physics.seal_effects`, read by both. Adding
+one is freeing its parameter; nothing is restructured.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.identification.parameters import Parameter, ParameterSet
+from pneumafit.physics.seal_effects import SEAL_EFFECTS, SealEffect
 
 __all__ = [
     "EFFECTS",
@@ -108,18 +112,16 @@ class FrictionEffect:
     description: str
 
 
+def _bench_effect(e: SealEffect) -> FrictionEffect:
+    return FrictionEffect(e.bench_name, e.parameter, e.unit, e.step, e.description)
+
+
 #: The optional effects, neutral and fixed by default: one registry, shared by
-#: ``fit --seal-friction`` (:data:`EFFECTS`) and ``discover`` (signatures).
+#: ``fit --seal-friction`` (:data:`EFFECTS`) and ``discover`` (signatures),
+#: built from the shared definitions (:data:`pneumafit.physics.seal_effects.SEAL_EFFECTS`).
 FRICTION_EFFECTS: dict[str, FrictionEffect] = {
-    e.parameter: e
-    for e in (
-        FrictionEffect("seal-friction", "seal_friction_coefficient", "N/Pa", 1e-6,
-                       "friction growing with the chamber pressure"),
-        FrictionEffect("friction-asymmetry", "friction_asymmetry", "", 1e-2,
-                       "direction asymmetry of the friction levels"),
-        FrictionEffect("effective-area", "area_factor", "", 1e-2, "effective piston area"),
-    )
-}  # fmt: skip
+    e.parameter: _bench_effect(e) for e in SEAL_EFFECTS.values()
+}
 
 #: Optional effects (parameter -> what it adds), from :data:`FRICTION_EFFECTS`.
 EFFECTS: dict[str, str] = {k: e.description for k, e in FRICTION_EFFECTS.items()}
@@ -141,14 +143,15 @@ def default_parameters() -> ParameterSet:
                       group="friction", description="bristle stiffness sigma0 (pre-sliding)"),
             Parameter("friction_damping", 0.0, "N s/m", 0.0, 1e4, group="friction",
                       description="bristle damping sigma1 (pre-sliding)"),
-            Parameter("seal_friction_coefficient", 0.0, "N/Pa", 0.0, 1e-3, fixed=True,
-                      group="effect", description=EFFECTS["seal_friction_coefficient"]),
-            Parameter("friction_asymmetry", 0.0, "", -0.9, 0.9, fixed=True,
-                      group="effect", description=EFFECTS["friction_asymmetry"]),
-            Parameter("area_factor", 1.0, "", 0.5, 1.5, fixed=True,
-                      group="effect", description=EFFECTS["area_factor"]),
+            *(_effect_parameter(e) for e in SEAL_EFFECTS.values()),
         ]
     )  # fmt: skip
+
+
+def _effect_parameter(e: SealEffect) -> Parameter:
+    # neutral (the effect off) and fixed; the physical bounds of the shared definition
+    return Parameter(e.parameter, e.neutral, e.unit, e.lower, e.upper, fixed=True,
+                     group="effect", description=e.description)  # fmt: skip
 
 
 def estimate_velocity(time: ArrayLike, position: ArrayLike) -> NDArray[np.float64]:
@@ -177,6 +180,7 @@ def _kernel(
     v: NDArray[np.float64],
     dp: NDArray[np.float64],
     push: NDArray[np.float64],
+    rod_push: NDArray[np.float64],
     params: NDArray[np.float64],
     out: NDArray[np.float64],
 ) -> None:
@@ -199,7 +203,8 @@ def _kernel(
             else:
                 z = zss + (z - zss) * math.exp(-rate * dt[i])
             zdot = vi - rate * z
-            out[s, i] = af * push[i] - (sig0 * z + sig1 * zdot + b * vi)
+            # k_A scales the bore's area, not the rod's: k_A push + (1 - k_A) rod_push
+            out[s, i] = af * push[i] + (1.0 - af) * rod_push[i] - (sig0 * z + sig1 * zdot + b * vi)
 
 
 @dataclass
@@ -219,6 +224,10 @@ class FrictionTest:
         (p_P - p_atm) A_P - (p_N - p_atm) A_N [N] with the nominal areas.
     force : ndarray
         Measured rod force F [N].
+    rod_push : ndarray, optional
+        (p_N - p_atm) A_rod [N] (double-acting bench; zeros when single-acting
+        or None): with an area factor k_A the annulus is k_A A_P - A_rod, so
+        the predicted push is k_A push + (1 - k_A) rod_push.
     """
 
     file: str
@@ -228,6 +237,7 @@ class FrictionTest:
     gauge_pressure: NDArray[np.float64]
     push: NDArray[np.float64]
     force: NDArray[np.float64]
+    rod_push: NDArray[np.float64] | None = None
 
     @property
     def n(self) -> int:
@@ -238,7 +248,8 @@ class FrictionTest:
         p = np.ascontiguousarray(np.atleast_2d(params), dtype=np.float64)
         out = np.empty((p.shape[0], self.n))
         dt = np.concatenate([[0.0], np.diff(self.time)])
-        _kernel(dt, self.velocity, self.gauge_pressure, self.push, p, out)
+        rod = self.rod_push if self.rod_push is not None else np.zeros(self.n)
+        _kernel(dt, self.velocity, self.gauge_pressure, self.push, rod, p, out)
         return out
 
 
@@ -255,8 +266,11 @@ def prepare(
     for rec in recordings if recordings is not None else campaign.by_kind("friction"):
         dp = np.asarray(rec.channels["p_P"], float) - atm
         push = dp * area_p
+        rod_push = np.zeros(dp.size)
         if "p_N" in rec.channels and rig.acting != "single":
-            push = push - (np.asarray(rec.channels["p_N"], float) - atm) * area_n
+            dp_n = np.asarray(rec.channels["p_N"], float) - atm
+            push = push - dp_n * area_n
+            rod_push = dp_n * (area_p - area_n)
         out.append(
             FrictionTest(
                 file=rec.file,
@@ -266,6 +280,7 @@ def prepare(
                 gauge_pressure=dp,
                 push=push,
                 force=np.asarray(rec.channels["F"], float),
+                rod_push=rod_push,
             )
         )
     return out

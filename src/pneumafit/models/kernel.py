@@ -30,6 +30,14 @@ laws (configuration slot C_FRICTION_LAW, :mod:`pneumafit.physics.friction`):
   LUGRE_RATE_LIMIT / h for the step h in use (slot D_ZRATE of the derived
   constants, set by :func:`integrate`; unlimited elsewhere, e.g. for the
   scipy reference solver), see :func:`pneumafit.physics.friction.lugre_friction`.
+
+Seal and barrel effects (:mod:`pneumafit.physics.seal_effects`, shared with
+the friction-test model): ``seal_friction`` adds c_p max(P_P + P_N - 2 P_atm, 0)
+to F_s and F_c; ``friction_asymmetry`` multiplies both levels by 1 + a s,
+s the sliding direction (LuGre: sign v; a stuck piston: the sign of F_d, so
+it breaks away at F_s (1 + a) forwards and F_s (1 - a) backwards);
+``effective_area`` replaces the bore by D sqrt(k_A) everywhere (piston
+areas in the force and in V, dV/dt, exchange areas), the rod unchanged.
 """
 
 from __future__ import annotations
@@ -41,11 +49,13 @@ from numba import njit, prange
 
 from pneumafit.models.layout import (
     C_AIRPROPS,
+    C_AREA_FACTOR,
     C_BLOCKED,
     C_CHAMBER,
     C_CHAMBER_LEAK,
     C_EXTERNAL_LEAK,
     C_FORCED_CONV,
+    C_FRICTION_ASYM,
     C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
@@ -64,6 +74,7 @@ from pneumafit.models.layout import (
     N_MAP_KNOTS,
     NX,
     P_ANGLE,
+    P_AREA,
     P_BE,
     P_BETA,
     P_BORE,
@@ -72,6 +83,7 @@ from pneumafit.models.layout import (
     P_CLEAK,
     P_CS,
     P_CSTOP,
+    P_FASYM,
     P_FC,
     P_FCG,
     P_FEXT,
@@ -165,7 +177,10 @@ from pneumafit.physics.valve_map import (
 D_SP, D_SN, D_FEXT, D_MU, D_KAIR, D_LAMC, D_GRC, D_RTA = 0, 1, 2, 3, 4, 5, 6, 7
 D_A0P, D_A0N, D_CAP, D_CAN, D_IPS, D_IM = 8, 9, 10, 11, 12, 13
 D_ZRATE = 14  # largest LuGre bristle relaxation rate (1/s): inf, or LUGRE_RATE_LIMIT / h
-D_VC = 15  # valve constants (physics.valve.valve_constants), NVC of them
+# geometry of the effective bore D sqrt(area_factor) (effect effective_area):
+# piston areas S_P, S_N and exchange-area constants A0P, CAP, A0N, CAN
+D_SPK, D_SNK, D_A0PK, D_CAPK, D_A0NK, D_CANK = 15, 16, 17, 18, 19, 20
+D_VC = 21  # valve constants (physics.valve.valve_constants), NVC of them
 D_VM = D_VC + NVC  # valve-map constants (physics.valve_map.map_constants), NVM of them
 ND = D_VM + NVM
 
@@ -231,6 +246,11 @@ def check_parameters(p: np.ndarray) -> bool:
         return False
     if p[P_SIG0] <= 0.0 or p[P_SIG1] < 0.0:
         return False
+    if p[P_SEAL] < 0.0 or not -1.0 < p[P_FASYM] < 1.0:
+        return False
+    # effective area: the bore's area k_A pi D^2 / 4 must exceed the rod's
+    if p[P_AREA] <= 0.0 or p[P_AREA] * p[P_BORE] * p[P_BORE] <= p[P_ROD] * p[P_ROD]:
+        return False
     # valve map (checked whatever the law: the defaults are admissible)
     for i in range(N_MAP_KNOTS):
         for c in (p[P_MAP_CS + i], p[P_MAP_CE + i]):
@@ -267,6 +287,17 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     s_p, s_n = piston_areas(bore, rod)
     d[D_SP] = s_p
     d[D_SN] = s_n
+    # the effective bore of effect effective_area, D' = D sqrt(k_A): same rod,
+    # S_P' = k_A S_P, S_N' = S_P' - pi d^2 / 4; P_atm (S_P - S_N) = P_atm S_rod
+    # in D_FEXT does not depend on it
+    bore_k = bore * math.sqrt(p[P_AREA]) if p[P_AREA] > 0.0 else bore
+    s_pk, s_nk = piston_areas(bore_k, rod)
+    d[D_SPK] = s_pk
+    d[D_SNK] = s_nk
+    d[D_A0PK] = 2.0 * s_pk + math.pi * bore_k * p[P_V0P] / s_pk
+    d[D_CAPK] = math.pi * bore_k
+    d[D_A0NK] = 2.0 * s_nk + math.pi * (bore_k + rod) * p[P_V0N] / s_nk if s_nk > 0.0 else 0.0
+    d[D_CANK] = math.pi * (bore_k + rod)
     d[D_FEXT] = p[P_PE] * (s_p - s_n) + p[P_FEXT] + p[P_MASS] * G0 * math.sin(p[P_ANGLE])
     mu = viscosity(p[P_TW])
     k_air = conductivity(p[P_TW])
@@ -469,9 +500,14 @@ def rhs(
             dx[X_DUP] = wn * wn * (u_p_cmd - u_p) - z2 * x[X_DUP]
             dx[X_DUN] = wn * wn * (u_n_cmd - u_n) - z2 * x[X_DUN]
 
-    # --- geometry
-    s_p = d[D_SP]
-    s_n = d[D_SN]
+    # --- geometry (nominal bore, or the effective one: effect effective_area)
+    area = cfg[C_AREA_FACTOR] == 1
+    if area:
+        s_p = d[D_SPK]
+        s_n = d[D_SNK]
+    else:
+        s_p = d[D_SP]
+        s_n = d[D_SN]
     stroke = p[P_STROKE]
     v_p, v_n = chamber_volumes(y, stroke, s_p, s_n, p[P_V0P], p[P_V0N])
     dv_p = s_p * v
@@ -547,8 +583,12 @@ def rhs(
             lam_p += p[P_FCG] * qs_p
         if qs_n > 0.0:
             lam_n += p[P_FCG] * qs_n
-    a_p = d[D_A0P] + d[D_CAP] * y
-    a_n = d[D_A0N] + d[D_CAN] * (stroke - y)
+    if area:
+        a_p = d[D_A0PK] + d[D_CAPK] * y
+        a_n = d[D_A0NK] + d[D_CANK] * (stroke - y)
+    else:
+        a_p = d[D_A0P] + d[D_CAP] * y
+        a_n = d[D_A0N] + d[D_CAN] * (stroke - y)
     qw_p = lam_p * a_p * (tw_p - t_p)
     qw_n = lam_n * a_n * (tw_n - t_n)
     aux[A_LAMN] = lam_n
@@ -601,6 +641,20 @@ def rhs(
             if extra > 0.0:
                 f_s += extra
                 f_c += extra
+        # direction asymmetry: levels times (1 + a s), s the sliding direction
+        # (LuGre: sign v; stuck: the direction the drive pushes, for the
+        # break-away level)
+        asym = cfg[C_FRICTION_ASYM] == 1
+        if asym:
+            if cfg[C_FRICTION_LAW] == FRICTION_LUGRE:
+                s_dir = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+            elif mode == 0:
+                s_dir = 1.0 if f_drive > 0.0 else (-1.0 if f_drive < 0.0 else 0.0)
+            else:
+                s_dir = float(mode)
+            scale = 1.0 + p[P_FASYM] * s_dir
+            f_s *= scale
+            f_c *= scale
         if cfg[C_FRICTION_LAW] == FRICTION_LUGRE:
             # LuGre: no stuck mode, the bristle state carries the pre-sliding
             dz, f_f = lugre_friction(v, x[X_Z], f_s, f_c, p[P_FV], p[P_VST], p[P_SIG0],
@@ -887,7 +941,8 @@ def initial_deflection(x: np.ndarray, p: np.ndarray, cfg: np.ndarray, f_drive: f
     hold it, z = clip(F_d / sigma0, -g(0) / sigma0, g(0) / sigma0) (the
     pre-sliding force sigma0 z balances the driving force F_d up to the
     static level g(0) = F_s); a moving one on its steady sliding deflection
-    z = sign(v) g(v) / sigma0. Levels with the seal-friction effect if on.
+    z = sign(v) g(v) / sigma0. Levels with the seal-friction and asymmetry
+    effects if on.
     """
     f_s = p[P_FS]
     f_c = p[P_FC]
@@ -897,6 +952,10 @@ def initial_deflection(x: np.ndarray, p: np.ndarray, cfg: np.ndarray, f_drive: f
             f_s += extra
             f_c += extra
     v = x[X_V]
+    if cfg[C_FRICTION_ASYM] == 1 and v != 0.0:
+        scale = 1.0 + p[P_FASYM] * (1.0 if v > 0.0 else -1.0)
+        f_s *= scale
+        f_c *= scale
     r = v / p[P_VST]
     g = max(f_c + (f_s - f_c) * math.exp(-r * r), LUGRE_MIN_LEVEL)
     z_max = g / p[P_SIG0]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pneumafit.physics.seal_effects import SEAL_EFFECTS
 from pneumafit.physics.valve_map import (
     MAP_B_FRACTIONS,
     MAP_BE_NAMES,
@@ -70,7 +71,9 @@ C_STATIC_FLOW = 11  # 1: no ODE, static valve flow at measured p, u (flow tests)
 C_SEAL_FRICTION = 12  # effect pressure-dependent seal friction on/off
 C_VALVE_LAW = 13  # servo-valve law: 0 ISO 6358 (parametric), 1 measured map
 C_FRICTION_LAW = 14  # friction law: 0 switch model (stick-slip modes), 1 LuGre (bristle z)
-NCFG = 15
+C_FRICTION_ASYM = 15  # effect friction_asymmetry on/off
+C_AREA_FACTOR = 16  # effect effective_area on/off
+NCFG = 17
 
 HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
 VALVE_LAWS = {"iso6358": 0, "map": 1}
@@ -122,6 +125,14 @@ class ParameterSpec:
 
 
 _INF = float("inf")
+
+
+def _seal_spec(name: str) -> ParameterSpec:
+    # the seal and barrel effects' parameters, from their shared definitions
+    e = SEAL_EFFECTS[name]
+    return ParameterSpec(e.parameter, e.unit, e.neutral, e.lower, e.upper, "effect",
+                         e.description)  # fmt: skip
+
 
 _BASE_SPECS: tuple[ParameterSpec, ...] = (
     # --- rig (from campaign.toml) ---
@@ -187,8 +198,7 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
                   "increase of lambda per unit inflow during filling"),
     ParameterSpec("supply_line_resistance", "Pa/(kg/s)", 0.0, 0.0, 1e10, "effect",
                   "supply pressure drop per unit supply flow"),
-    ParameterSpec("seal_friction_coefficient", "N/Pa", 0.0, 0.0, 1e-2, "effect",
-                  "growth of Coulomb and static friction with P_P + P_N - 2 P_atm"),
+    _seal_spec("seal_friction"),
     # --- numerics (end stops) ---
     ParameterSpec("stop_stiffness", "N/m", 1.0e6, 1.0, 1e10, "numerics", "end-stop stiffness"),
     ParameterSpec("stop_damping", "N s/m", 6.0e3, 0.0, 1e8, "numerics", "end-stop damping"),
@@ -198,6 +208,10 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
     ParameterSpec("friction_damping", "N s/m", 1.0e3, 0.0, 1e5, "friction",
                   "bristle damping sigma1 (LuGre)"),
 )  # fmt: skip
+
+
+# appended after the LuGre parameters (the indices before them did not move)
+_BASE_SPECS = (*_BASE_SPECS, _seal_spec("friction_asymmetry"), _seal_spec("effective_area"))
 
 
 def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
@@ -286,6 +300,8 @@ P_KSTOP = P["stop_stiffness"]
 P_CSTOP = P["stop_damping"]
 P_SIG0 = P["friction_stiffness"]
 P_SIG1 = P["friction_damping"]
+P_FASYM = P["friction_asymmetry"]
+P_AREA = P["area_factor"]
 # valve map: contiguous blocks (physics.valve_map.map_constants reads slices)
 N_MAP_KNOTS = len(MAP_KNOTS)
 P_MAP_CS = P[MAP_CS_NAMES[0]]

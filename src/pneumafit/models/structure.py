@@ -16,11 +16,13 @@ import numpy as np
 
 from pneumafit.models.layout import (
     C_AIRPROPS,
+    C_AREA_FACTOR,
     C_BLOCKED,
     C_CHAMBER,
     C_CHAMBER_LEAK,
     C_EXTERNAL_LEAK,
     C_FORCED_CONV,
+    C_FRICTION_ASYM,
     C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
@@ -35,6 +37,7 @@ from pneumafit.models.layout import (
     NCFG,
     VALVE_LAWS,
 )
+from pneumafit.physics.seal_effects import SEAL_EFFECTS
 from pneumafit.physics.valve_map import MAP_PARAMETER_NAMES
 
 #: Optional effects: configuration slot, parameters, one-line description.
@@ -71,8 +74,18 @@ EFFECT_SLOTS: dict[str, tuple[int, tuple[str, ...], str]] = {
     ),
     "seal_friction": (
         C_SEAL_FRICTION,
-        ("seal_friction_coefficient",),
-        "friction of the seals grows with the chamber pressures",
+        (SEAL_EFFECTS["seal_friction"].parameter,),
+        SEAL_EFFECTS["seal_friction"].description,
+    ),
+    "friction_asymmetry": (
+        C_FRICTION_ASYM,
+        (SEAL_EFFECTS["friction_asymmetry"].parameter,),
+        SEAL_EFFECTS["friction_asymmetry"].description,
+    ),
+    "effective_area": (
+        C_AREA_FACTOR,
+        (SEAL_EFFECTS["effective_area"].parameter,),
+        SEAL_EFFECTS["effective_area"].description,
     ),
 }
 

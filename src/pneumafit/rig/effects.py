@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.models import EFFECT_SLOTS, PARAMETER_SPECS
+from pneumafit.physics.seal_effects import SEAL_EFFECTS
 
 __all__ = [
     "EFFECT_DEFAULTS",
@@ -40,6 +41,8 @@ PRINCIPAL_PARAMETERS: dict[str, str] = {
     "forced_convection": "forced_convection_gain",
     "supply_pressure_drop": "supply_line_resistance",
     "seal_friction": "seal_friction_coefficient",
+    "friction_asymmetry": "friction_asymmetry",
+    "effective_area": "area_factor",
 }
 
 #: Default magnitude of each effect's principal parameter (SI), used when an
@@ -48,6 +51,10 @@ PRINCIPAL_PARAMETERS: dict[str, str] = {
 #: chamber/external leakage 91 kPa in ``charge_P_1``, valve lag 122 kPa,
 #: wall thermal mass 23 kPa, forced convection 20 kPa, supply-line drop
 #: 34 kPa; seal friction 121 kPa and 20 mm in ``step_1`` (docs/virtual-rig.md).
+#: The seal and barrel effects take their shared typical sizes
+#: (:mod:`pneumafit.physics.seal_effects`): seal friction 1.5e-5 N/Pa, a
+#: friction asymmetry of 0.2 (levels 1.2 and 0.8 times the symmetric ones),
+#: an area factor of 1.05 (a bore 2.5 % larger than nominal).
 #: The wall capacity is deliberately small (a real wall's is thousands of
 #: J/K/m^2) so that the effect shows.
 EFFECT_DEFAULTS: dict[str, float] = {
@@ -57,7 +64,7 @@ EFFECT_DEFAULTS: dict[str, float] = {
     "wall_heat_capacity": 100.0,  # J/K/m^2
     "forced_convection_gain": 2.0e4,  # W/m^2/K per kg/s
     "supply_line_resistance": 6.0e6,  # Pa/(kg/s)
-    "seal_friction_coefficient": 1.5e-5,  # N/Pa
+    **{e.parameter: e.typical for e in SEAL_EFFECTS.values()},  # N/Pa, -, -
 }
 
 #: Second-order spool parameters: naming one selects valve_dynamics order 2.

@@ -120,7 +120,8 @@ SUPPORTED_HEAT = ("polytropic", "constant-lambda", "convection")
 SUPPORTED_AIR = ("constant", "sutherland")
 SUPPORTED_EFFECTS = (
     "chamber_leakage", "external_leakage", "valve_dynamics", "wall_thermal_mass",
-    "forced_convection", "supply_pressure_drop", "seal_friction",
+    "forced_convection", "supply_pressure_drop", "seal_friction", "friction_asymmetry",
+    "effective_area",
 )  # fmt: skip
 
 #: Integration method of the FMU (the simulator's default).

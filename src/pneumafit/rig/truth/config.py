@@ -43,6 +43,8 @@ docstring)::
     model = "orifice"            # orifice | none
     C_P = 1.4e-11                # m^3/s/Pa
     C_N = 2.6e-11
+    [barrel]                     # optional: the real bore where it is not the declared one
+    bore = 0.0328                # m (campaign.toml keeps the nominal bore)
     [parameters]                 # optional: rig geometry/conditions overriding the rig's
 
 :data:`PRESETS` holds named configurations; :func:`get_truth` resolves a
@@ -77,8 +79,32 @@ __all__ = [
     "reference_quantities",
 ]
 
-_SECTIONS = ("name", "description", "valve", "friction", "heat", "end_stops", "probe",
+_SECTIONS = ("name", "description", "valve", "friction", "heat", "end_stops", "probe", "barrel",
              "external_leak", "parameters")  # fmt: skip
+
+
+@dataclass(frozen=True, kw_only=True)
+class Barrel:
+    """The cylinder's real bore, where it is not the declared (nominal) one.
+
+    A barrel honed to a slightly larger diameter, or a catalogue size for a
+    slightly smaller bore: campaign.toml keeps the rig's nominal ``bore``
+    and the truth simulates the real one everywhere the bore enters (piston
+    areas in the force balance and the chamber volumes, exchange areas); the
+    rod is the declared one. What a model with the nominal bore sees is an
+    effective piston area (bore / nominal)^2 times the nominal one.
+
+    Parameters
+    ----------
+    bore : float or None
+        Real bore diameter (m), > 0; None: the declared bore.
+    """
+
+    bore: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.bore is not None and not (math.isfinite(self.bore) and self.bore > 0.0):
+            raise ValueError(f"barrel: bore: expected a diameter > 0 m, found {self.bore!r}")
 
 
 def _init_fields(cls: type) -> dict[str, Any]:
@@ -161,6 +187,9 @@ class TruthConfig:
     external_leak : OrificeLeak or None
         Air escaping from the chambers to the atmosphere
         (:mod:`pneumafit.rig.truth.leak`); None: tight chambers.
+    barrel : Barrel or None
+        The real bore where it differs from the declared one; None: the
+        declared bore.
     parameters : dict of str to float
         Rig geometry/conditions (PARAMETER_SPECS names, SI) overriding the
         virtual rig's true parameters.
@@ -177,6 +206,7 @@ class TruthConfig:
     parameters: Mapping[str, float] = field(default_factory=dict)
     description: str = ""
     external_leak: Any = None
+    barrel: Barrel | None = None
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "truth") -> TruthConfig:
@@ -238,6 +268,9 @@ class TruthConfig:
         if data.get("external_leak") is not None:
             external_leak = _build(EXTERNAL_LEAKS, "model", data["external_leak"],
                                    f"{source}: external_leak")  # fmt: skip
+        barrel = None
+        if data.get("barrel") is not None:
+            barrel = _instantiate(Barrel, data["barrel"], f"{source}: barrel")
         params = data.get("parameters", {})
         if not isinstance(params, Mapping):
             raise PneumafitInputError(f"{source}: parameters: expected a table, found {params!r}")
@@ -253,7 +286,7 @@ class TruthConfig:
             raise PneumafitInputError(f"{source}: description: expected a text")
         return cls(name=name, valve=valve, friction=friction, heat=heat, end_stops=stops,
                    probe=probe, parameters=clean, description=description,
-                   external_leak=external_leak)  # fmt: skip
+                   external_leak=external_leak, barrel=barrel)  # fmt: skip
 
     @classmethod
     def from_file(cls, path: str | os.PathLike[str]) -> TruthConfig:
@@ -303,6 +336,8 @@ class TruthConfig:
             out["probe"] = _part_dict(self.probe, "model")
         if self.external_leak is not None:
             out["external_leak"] = _part_dict(self.external_leak, "model")
+        if self.barrel is not None:
+            out["barrel"] = _part_dict(self.barrel, None)
         if self.parameters:
             out["parameters"] = dict(self.parameters)
         return out

@@ -11,6 +11,11 @@ Delta = max(P_P + P_N - 2 P_atm, 0) (Pa):
 - ``seal = "additive"``: c_p Delta added to F_c and F_s;
 - ``seal = "none"``: constant levels.
 
+The levels may also differ with the direction of sliding (a lip seal is not
+symmetric): ``asymmetry`` a scales every level by (1 + a) while the piston
+extends (v > 0) and by (1 - a) while it retracts (v < 0); at v = 0 (the
+bristle law's pre-sliding) the level is the symmetric one.
+
 Forces in N, velocities in m/s, pressures in Pa.
 """
 
@@ -41,18 +46,32 @@ class _Seal:
         Relative growth of the levels per Pa of Delta (1/Pa), multiplicative mode.
     c_p : float
         Growth of the levels per Pa of Delta (N/Pa), additive mode.
+    asymmetry : float
+        Direction asymmetry a (-), |a| < 1: levels times 1 + a extending,
+        1 - a retracting.
     """
 
     name: ClassVar[str] = ""
     seal: str = "none"
     k_p: float = 0.0
     c_p: float = 0.0
+    asymmetry: float = 0.0
 
     def _check_seal(self) -> None:
         w = f"friction {self.name!r}"
         _need(f"{w}: seal", self.seal in _SEAL_MODES, f"one of {_SEAL_MODES}", self.seal)
         _need(f"{w}: k_p", self.k_p >= 0.0, "a growth >= 0 1/Pa", self.k_p)
         _need(f"{w}: c_p", self.c_p >= 0.0, "a growth >= 0 N/Pa", self.c_p)
+        _need(f"{w}: asymmetry", -1.0 < self.asymmetry < 1.0, "a value in (-1, 1)",
+              self.asymmetry)  # fmt: skip
+
+    def direction(self, v: float) -> float:
+        """Factor (-) of the levels for sliding at velocity v (m/s): 1 + a, 1 - a or 1."""
+        if v > 0.0:
+            return 1.0 + self.asymmetry
+        if v < 0.0:
+            return 1.0 - self.asymmetry
+        return 1.0
 
     def level(self, force: float, delta: float) -> float:
         """A friction level (N) at pressure excess ``delta`` (Pa)."""
@@ -112,7 +131,8 @@ class LuGreFriction(_Seal):
         """g(v) (N) at pressure excess ``delta`` (Pa)."""
         f_c = self.level(self.F_c, delta)
         f_s = self.level(self.F_s, delta)
-        return f_c + (f_s - f_c) * math.exp(-(abs(v / self.v_s) ** self.stribeck_exponent))
+        g = f_c + (f_s - f_c) * math.exp(-(abs(v / self.v_s) ** self.stribeck_exponent))
+        return g * self.direction(v)
 
     def rates(self, v: float, z: float, delta: float) -> tuple[float, float]:
         """(dz/dt (m/s), friction force F (N)) at velocity v and bristle state z."""
@@ -120,12 +140,14 @@ class LuGreFriction(_Seal):
         return dz, self.sigma0 * z + self.sigma1 * dz + self.sigma2 * v
 
     def breakaway(self, delta: float) -> float:
-        """Steady friction as v -> 0+ (N): the static level F_s at ``delta``."""
+        """Steady friction as v -> 0+ (N): the static level F_s at ``delta``
+        (the mean of the two directions with an asymmetry)."""
         return self.stribeck(0.0, delta)
 
     def sliding(self, v: float, delta: float) -> float:
-        """Steady sliding friction at velocity v > 0 minus its viscous part (N)."""
-        return self.stribeck(v, delta)
+        """Steady sliding friction at velocity v > 0 minus its viscous part (N)
+        (the mean of the two directions with an asymmetry)."""
+        return self.stribeck(abs(v), delta) / self.direction(abs(v))
 
     def viscous(self) -> float:
         """Viscous coefficient (N s/m)."""
@@ -175,7 +197,7 @@ class DahlFriction(_Seal):
 
     def rates(self, v: float, z: float, delta: float) -> tuple[float, float]:
         """(dz/dt (m/s), friction force F (N)) at velocity v and bristle state z."""
-        f_c = self.level(self.F_c, delta)
+        f_c = self.level(self.F_c, delta) * self.direction(v)
         r = 1.0 - self.sigma0 * z * (1.0 if v >= 0.0 else -1.0) / f_c
         dz = v * math.copysign(abs(r) ** self.alpha, r)
         return dz, self.sigma0 * z + self.sigma1 * dz + self.sigma2 * v

@@ -114,7 +114,10 @@ class _Plant:
         self.heat = config.heat
         self.stops = config.end_stops
         self.leak = config.external_leak
-        self.bore = float(par["bore"])
+        # the real bore (a barrel part), else the declared one
+        barrel = getattr(config, "barrel", None)
+        real = None if barrel is None else barrel.bore
+        self.bore = float(par["bore"] if real is None else real)
         self.rod = float(par["rod"])
         self.stroke = float(par["stroke"])
         self.v0_p = float(par["dead_volume_P"])

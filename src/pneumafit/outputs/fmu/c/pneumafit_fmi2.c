@@ -71,6 +71,8 @@ static void set_defaults(pf_data *d)
     d->model.forced_conv = PF_EFFECT_FORCED_CONVECTION;
     d->model.supply_drop = PF_EFFECT_SUPPLY_PRESSURE_DROP;
     d->model.seal = PF_EFFECT_SEAL_FRICTION;
+    d->model.asym = PF_EFFECT_FRICTION_ASYMMETRY;
+    d->model.area = PF_EFFECT_EFFECTIVE_AREA;
     for (i = 0; i < PF_NP; i++) d->model.p[i] = PF_PARAMETER_VALUES[i];
     for (i = 0; i < PF_NX; i++) d->x0[i] = NAN;
     pf_start_defaults(d->x0);

@@ -60,6 +60,13 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters */
     if (p[PF_P_wall_heat_capacity] <= 0.0) return 0;
     if (p[PF_P_stop_stiffness] < 0.0 || p[PF_P_stop_damping] < 0.0) return 0;
     if (p[PF_P_friction_stiffness] <= 0.0 || p[PF_P_friction_damping] < 0.0) return 0;
+    if (p[PF_P_seal_friction_coefficient] < 0.0 || !(p[PF_P_friction_asymmetry] > -1.0) ||
+        !(p[PF_P_friction_asymmetry] < 1.0))
+        return 0;
+    /* effective area: the bore's area k_A pi D^2 / 4 must exceed the rod's */
+    if (p[PF_P_area_factor] <= 0.0 ||
+        p[PF_P_area_factor] * p[PF_P_bore] * p[PF_P_bore] <= p[PF_P_rod] * p[PF_P_rod])
+        return 0;
     /* valve map (checked whatever the law: the defaults are admissible) */
     for (i = 0; i < PF_N_MAP_KNOTS; i++) {
         double cs = p[PF_P_valve_map_CS_00 + i], ce = p[PF_P_valve_map_CE_00 + i];
@@ -348,6 +355,19 @@ void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants 
     m->cap = M_PI * bore;
     m->a0n = 2.0 * s_n + M_PI * (bore + rod) * p[PF_P_dead_volume_N] / s_n;
     m->can = M_PI * (bore + rod);
+    { /* the effective bore D sqrt(k_A) of effect effective_area, the rod unchanged */
+        double k_a = p[PF_P_area_factor];
+        double bore_k = k_a > 0.0 ? bore * sqrt(k_a) : bore;
+        double s_pk = 0.25 * M_PI * bore_k * bore_k;
+        double s_nk = 0.25 * M_PI * (bore_k * bore_k - rod * rod);
+        m->s_pk = s_pk;
+        m->s_nk = s_nk;
+        m->a0pk = 2.0 * s_pk + M_PI * bore_k * p[PF_P_dead_volume_P] / s_pk;
+        m->capk = M_PI * bore_k;
+        m->a0nk = s_nk > 0.0 ? 2.0 * s_nk + M_PI * (bore_k + rod) * p[PF_P_dead_volume_N] / s_nk
+                             : 0.0;
+        m->cank = M_PI * (bore_k + rod);
+    }
     m->inv_ps = 1.0 / p[PF_P_supply_pressure];
     m->inv_m = 1.0 / p[PF_P_moving_mass];
     m->z_rate = INFINITY;
@@ -469,7 +489,8 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
     double t_n = x[PF_X_T_N], t_p = x[PF_X_T_P];
     double t_amb = p[PF_P_ambient_temperature], p_e = p[PF_P_exhaust_pressure];
     double u_p, u_n, tau, wn, z2;
-    double s_p = m->s_p, s_n = m->s_n, stroke = p[PF_P_stroke];
+    double s_p = m->area ? m->s_pk : m->s_p, s_n = m->area ? m->s_nk : m->s_n;
+    double stroke = p[PF_P_stroke];
     double v_p, v_n, dv_p, dv_n, inv_pp, inv_pn, rt_p, rt_n, p_s, inv_ps;
     double q_p, h_p, qs_p, q_n, h_n, qs_n, qe_total, q_draw, q_l, t_l, q_l2, t_l2;
     double tw_p, tw_n, lam_p, lam_n, a_p, a_n, qw_p, qw_n, c_w, h_o, t_0, k_poly;
@@ -571,8 +592,13 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         if (qs_p > 0.0) lam_p += p[PF_P_forced_convection_gain] * qs_p;
         if (qs_n > 0.0) lam_n += p[PF_P_forced_convection_gain] * qs_n;
     }
-    a_p = m->a0p + m->cap * y;
-    a_n = m->a0n + m->can * (stroke - y);
+    if (m->area) {
+        a_p = m->a0pk + m->capk * y;
+        a_n = m->a0nk + m->cank * (stroke - y);
+    } else {
+        a_p = m->a0p + m->cap * y;
+        a_n = m->a0n + m->can * (stroke - y);
+    }
     qw_p = lam_p * a_p * (tw_p - t_p);
     qw_n = lam_n * a_n * (tw_n - t_n);
     aux[PF_A_LAMN] = lam_n;
@@ -607,6 +633,18 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
             f_s += extra;
             f_c += extra;
         }
+    }
+    if (m->asym) { /* levels times (1 + a s), s the sliding direction */
+        double s_dir, scale;
+        if (m->lugre)
+            s_dir = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+        else if (mode == 0)
+            s_dir = f_drive > 0.0 ? 1.0 : (f_drive < 0.0 ? -1.0 : 0.0);
+        else
+            s_dir = (double)mode;
+        scale = 1.0 + p[PF_P_friction_asymmetry] * s_dir;
+        f_s *= scale;
+        f_c *= scale;
     }
     if (m->lugre) {
         lugre_friction(v, x[PF_X_z_f], f_s, f_c, p[PF_P_friction_viscous],
@@ -726,6 +764,11 @@ static double initial_deflection(const pf_model *m, const double *x, double f_dr
             f_s += extra;
             f_c += extra;
         }
+    }
+    if (m->asym && v != 0.0) {
+        double scale = 1.0 + p[PF_P_friction_asymmetry] * (v > 0.0 ? 1.0 : -1.0);
+        f_s *= scale;
+        f_c *= scale;
     }
     r = v / p[PF_P_stribeck_velocity];
     g = f_c + (f_s - f_c) * exp(-r * r);

@@ -29,10 +29,12 @@ typedef struct {
     int valve_map;  /* valve law: 0 ISO 6358, 1 measured map */
     /* optional effects (pneumafit.models.structure.EFFECT_SLOTS) */
     int chamber_leak, external_leak, valve_order, wall_mass, forced_conv, supply_drop, seal;
+    int asym, area; /* friction_asymmetry, effective_area (physics.seal_effects) */
     /* parameters (SI, layout of pneumafit.models.layout) */
     double p[PF_NP];
     /* derived constants (kernel.derive) */
     double s_p, s_n, f_ext, mu, k_air, lam_c, gr_c, a0p, cap, a0n, can, inv_ps, inv_m, z_rate;
+    double s_pk, s_nk, a0pk, capk, a0nk, cank; /* the effective bore (effect effective_area) */
     /* valve constants (physics.valve.valve_constants) */
     double v_cs, v_ce, v_bs, v_be, v_ibs, v_ibe, v_m, v_xlam, v_as, v_qs, v_ae, v_qe;
     double v_over, v_irange, v_leak2, v_iw, v_pe, v_ipe, v_ta, v_rta, v_ns, v_ne;

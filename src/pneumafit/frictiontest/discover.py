@@ -391,14 +391,14 @@ def discover_friction(
 
     # final: Laplace intervals at the common power of the final residuals
     _, final_power = _common_power(like, est.z)
-    problem.tempering = np.full(len(tests), final_power)
+    problem.tempering = np.full(len(problem.observations), final_power)
     effect_parameters: dict[str, Any] = {}
     try:
         cov = laplace_covariance(like, est.z)
         summary = laplace_summary(est.parameters, est.z, cov)
     except (ValueError, np.linalg.LinAlgError):
         summary = est.parameters
-    problem.tempering = np.ones(len(tests))
+    problem.tempering = np.ones(len(problem.observations))
     for name in kept:
         p = summary[name]
         effect_parameters[name] = {

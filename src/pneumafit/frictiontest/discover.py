@@ -302,7 +302,7 @@ def discover_friction(
     val_now = force_rmse(all_tests, base_est_values)["role"].get("validate")
     say(
         f"base {law}: force RMSE fit {rmse0['role'].get('fit', math.nan):.3g} N, validate "
-        f"{rmse0['role'].get('validate', math.nan):.3g} N; BIC {bic0:.1f} (every block "
+        f"{rmse0['role'].get('validate', math.nan):.3g} N; BIC {bic0:.1f} (every sample "
         f"counted at 1 / {1.0 / power0:.0f})"
     )
     kept = list(already)

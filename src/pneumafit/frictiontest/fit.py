@@ -19,7 +19,7 @@ Stages:
    ``lugre`` (+ pre-sliding: bristle stiffness and damping); the law with
    the lowest BIC in effective samples is kept ("pre-sliding where the data
    ask"). The tempering power is set once, at the stage-1 estimate on all
-   samples, one power for every block (:func:`_common_power`), and shared
+   samples, one power for all samples (:func:`_common_power`), and shared
    by every candidate, so their likelihoods compare.
 3. ``effects`` (``effects="auto"``): the optional terms of :data:`.model.EFFECTS`
    added one at a time, greedily, each kept when it lowers BIC (forward
@@ -208,7 +208,7 @@ def _fresh_start(sliding: Mapping[str, float], law: str) -> dict[str, float]:
 
 
 def _common_power(like: LogLikelihood, z: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-    """One tempering power for every block, 1 / (median correlation time) at ``z``.
+    """One tempering power for every sample, 1 / (median correlation time) at ``z``.
 
     Per-block powers (as :meth:`LogLikelihood.temper` sets) would reweigh the
     recordings against each other by how badly the current model fits each
@@ -377,7 +377,7 @@ def identify_friction(
     taus, power = _common_power(like0, est1.z)
     say("tempering: correlation time " + ", ".join(
         f"{t.file} {tau:.0f}" for t, tau in zip(tests, taus, strict=True))
-        + f"; every block counted at 1 / {1.0 / power:.0f}")  # fmt: skip
+        + f"; every sample counted at 1 / {1.0 / power:.0f}")  # fmt: skip
 
     # stage 2: the law
     t0 = time.perf_counter()
@@ -412,7 +412,7 @@ def identify_friction(
             effect_path.append({"added": best, "bic": trials[best][2], "bic_before": bic,
                                 "power": step_power, "kept": trials[best][2] < bic})  # fmt: skip
             say(
-                f"effect {best}: BIC {trials[best][2]:.1f} (was {bic:.1f}; every block "
+                f"effect {best}: BIC {trials[best][2]:.1f} (was {bic:.1f}; every sample "
                 f"counted at 1 / {1.0 / step_power:.0f})"
             )
             if trials[best][2] >= bic:
@@ -436,7 +436,7 @@ def identify_friction(
         # the laws apart; with the effects the correlation time is ~100x shorter
         t0 = time.perf_counter()
         _, power = _common_power(like, est.z)
-        say(f"law again with {', '.join(kept)}: every block counted at 1 / {1.0 / power:.0f}")
+        say(f"law again with {', '.join(kept)}: every sample counted at 1 / {1.0 / power:.0f}")
         results = _compare_laws(problem, est.parameters, tuple(LAWS), kept, power, seed, say)
         chosen = min(results, key=lambda k: results[k][2])
         like, est, bic = results[chosen]
@@ -450,7 +450,7 @@ def identify_friction(
     cov = laplace_covariance(like, est.z)
     est.covariance = cov
     est.parameters = laplace_summary(est.parameters, est.z, cov)
-    say(f"joint: every block counted at 1 / {1.0 / final_power:.0f} (median "
+    say(f"joint: every sample counted at 1 / {1.0 / final_power:.0f} (median "
         "correlation time of the residuals at the estimate)")  # fmt: skip
     joint = StageResult(name="joint", recordings=[t.file for t in tests],
                         free=est.parameters.free_names, estimate=est)  # fmt: skip

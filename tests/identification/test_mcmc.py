@@ -217,3 +217,26 @@ def test_checks_continue_while_the_chain_is_extended() -> None:
     shorter = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=run.n_steps - 50,
                        seed=6)  # fmt: skip
     assert shorter.tau_multiple < 50 or max(shorter.rhat.values()) > 1.01
+
+
+def test_walkers_at_a_bound_start_spread_inside_it() -> None:
+    """An estimate on its lower bound (a half-normal posterior against 0): the walkers
+    start inside the interval with distinct coordinates, none on the bound itself.
+
+    Clipping put every draw below the bound onto it (about half the walkers at
+    exactly 0), a degenerate ensemble that moves along walker differences leave
+    slowly. The reflected draws are |N(0, 1)|: their spread must be that of the
+    Laplace width (0.3-2 of it for 64 walkers, a loose bound on a sample std).
+    """
+    from pneumafit.identification.sampling import _initial_walkers
+
+    rng = np.random.default_rng(3)
+    lower, upper = np.array([0.0, -50.0]), np.array([50.0, 50.0])
+    walkers = _initial_walkers(
+        lambda z: np.zeros(np.atleast_2d(z).shape[0]), np.array([0.0, 1.0]), np.eye(2), 64, rng,
+        lower, upper,
+    )  # fmt: skip
+    assert np.all(walkers[:, 0] > 0.0) and np.all(walkers[:, 0] <= 50.0)
+    assert np.unique(walkers[:, 0]).size == 64
+    spread = np.sqrt(np.mean(walkers[:, 0] ** 2))  # |N(0, 1)| has RMS 1
+    assert 0.3 < spread < 2.0

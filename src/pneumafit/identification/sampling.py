@@ -163,7 +163,15 @@ def _initial_walkers(
     lower: NDArray[np.float64],
     upper: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """Walkers drawn around z0 from the Laplace covariance, all with finite log_prob."""
+    """Walkers drawn around z0 from the Laplace covariance, all with finite log_prob.
+
+    A draw beyond a bound is reflected back inside it, not clipped onto it:
+    with the estimate at a bound (a viscous friction at 0, beta at its lower
+    bound) clipping put about half the walkers on the bound itself, all with
+    the same coordinate, so the ensemble started in a lower-dimensional
+    subspace that the differential-evolution and stretch moves, which move
+    walkers along differences of walkers, leave only slowly.
+    """
     n = z0.size
     if covariance is None or not np.all(np.isfinite(covariance)):
         width = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
@@ -177,7 +185,9 @@ def _initial_walkers(
     for _ in range(50):
         need = n_walkers - filled
         cand = z0 + shrink * (rng.standard_normal((need, n)) * scale) @ v.T
-        cand = np.clip(cand, lower, upper)
+        cand = np.where(cand < lower, 2.0 * lower - cand, cand)
+        cand = np.where(cand > upper, 2.0 * upper - cand, cand)
+        cand = np.clip(cand, lower, upper)  # a draw wider than the whole interval
         good = np.isfinite(log_prob(cand))
         take = cand[good]
         walkers[filled : filled + take.shape[0]] = take

@@ -239,3 +239,31 @@ def test_untrustworthy_fit_is_said_first_and_strict_exits_3(
     assert text.index("chains too short") < text.index("estimates (90 % intervals)")
     assert "NOT TRUSTWORTHY" in text
     assert (tmp_path / "strict2" / "fit.json").exists()
+
+
+def test_discovery_defaults_to_the_fits_seed_and_options(
+    fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """pneumafit discover without --seed uses the seed the base fit was made
+    with (provenance.seed), and its channels, offsets and step (options)."""
+    from pneumafit.discovery import command as discovery_command
+
+    out, doc = fitted
+    folder, _, _ = small
+    seen: list[tuple[int, object]] = []
+
+    def stop(campaign: object, base: object, *, seed: int, **kw: object) -> None:
+        seen.append((seed, base))
+        raise KeyboardInterrupt  # nothing written: enough to see what discovery was given
+
+    monkeypatch.setattr(discovery_command, "discover", stop)
+    run = discovery_command.discover_command
+    assert run(folder, out, tmp_path / "d1", console=console) == 130
+    assert run(folder, out / "fit.json", tmp_path / "d2", seed=3, console=console) == 130
+    assert [s for s, _ in seen] == [doc["provenance"]["seed"], 3] == [7, 3]
+    base = seen[0][1]
+    options = doc["provenance"]["options"]
+    assert base.channels == tuple(options["channels"])  # type: ignore[attr-defined]
+    assert base.max_step == options["max_step"]  # type: ignore[attr-defined]
+    assert base.free == tuple(doc["stages"]["joint"]["free"])  # type: ignore[attr-defined]

@@ -102,7 +102,7 @@ def test_a_friction_test_fit_has_no_actuator_structure(tmp_path: Path) -> None:
         ({"parameters": None}, "parameters: expected an object .*found None"),
         (
             {"parameters": {"xi": {"value": "0.4"}}},
-            r"parameters\.xi\.value: expected a number, "
+            r"parameters\.xi\.value: expected a finite number, "
             "found '0.4'",
         ),
         (

@@ -336,10 +336,10 @@ def _section(doc: Mapping[str, Any], key: str, where: str, default: Any) -> Any:
 
 
 def _number(entry: Any, key: str, where: str) -> float:
-    """The ``value`` of a parameter entry (an object with ``value``, or a bare number)."""
+    """The finite ``value`` of a parameter entry (an object with ``value``, or a number)."""
     value = entry.get("value") if isinstance(entry, Mapping) else entry
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _problem(where, f"{key}.value", "a number", repr(value))
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise _problem(where, f"{key}.value", "a finite number", repr(value))
     return float(value)
 
 

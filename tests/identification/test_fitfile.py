@@ -143,3 +143,23 @@ def test_save_needs_the_campaign_and_seed_identify_records() -> None:
     result.campaign, result.seed = dict(CAMPAIGN), None
     with pytest.raises(ValueError, match="expected a seed"):
         result.save("never.json")
+
+
+def test_a_fit_json_is_a_parameter_file(tmp_path: Path) -> None:
+    """ParameterSet.load and the parameter-file readers read a fit.json through
+    its reader: the fitted structure (with the v1 fallbacks) and the values."""
+    from pneumafit.parameters_io import read_parameter_file, read_structure, read_valve_law
+
+    structure = ModelStructure("convection", air_properties="sutherland", valve="map")
+    path = _result(structure).save(tmp_path / "fit.json")
+    ps = ParameterSet.load(path)
+    assert ps["xi"].value == load_fit(path).values["xi"]
+    model, values = read_parameter_file(path)
+    assert model == "convection" and values["xi"] == ps["xi"].value
+    assert read_structure(path)[0] == structure and read_valve_law(path) == "map"
+    doc = json.loads(path.read_text())
+    del doc["structure"]["air_properties"]  # the v1 writer's Sutherland air
+    assert read_structure(_write(path, doc))[0].air_properties == "sutherland"
+    _write(path, {**doc, "model": "friction"})  # a friction-test fit is not a plant
+    with pytest.raises(PneumafitInputError, match=r"model: expected one of .*found 'friction'"):
+        read_parameter_file(path)

@@ -96,7 +96,7 @@ def test_a_friction_test_fit_has_no_actuator_structure(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"format": "other"}, "format: expected 'pneumafit-fit' .*found 'other'"),
+        ({"format": "other"}, "format: expected 'pneumafit-fit', found 'other'"),
         ({"version": 2}, "version: expected an integer up to 1, found 2"),
         ({"model": 3}, "model: expected one of convection, .*found 3"),
         ({"parameters": None}, "parameters: expected an object .*found None"),

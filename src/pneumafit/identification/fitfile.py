@@ -492,8 +492,7 @@ class SavedFit:
             raise _problem(name, "format", f"a JSON object of format {FIT_FORMAT!r}",
                            f"a {type(document).__name__}")  # fmt: skip
         if document.get("format") != FIT_FORMAT:
-            raise _problem(name, "format", f"{FIT_FORMAT!r} (a fit.json written by pneumafit fit)",
-                           repr(document.get("format")))  # fmt: skip
+            raise _problem(name, "format", repr(FIT_FORMAT), repr(document.get("format")))
         version = document.get("version", 1)
         if isinstance(version, bool) or not isinstance(version, int) or version > FIT_VERSION:
             raise _problem(name, "version", f"an integer up to {FIT_VERSION}", repr(version))

@@ -463,7 +463,12 @@ class SavedFit:
         if isinstance(joint, Mapping) and joint.get("names"):
             names = tuple(str(n) for n in joint["names"])
             if set(names) <= {p.name for p in plist}:
-                correlation = (names, np.asarray(joint["matrix"], dtype=float))
+                try:
+                    correlation = (names, np.asarray(joint.get("matrix"), dtype=float))
+                except (TypeError, ValueError):
+                    raise _problem(self.source, "correlation.joint.matrix",
+                                   "a matrix of numbers", repr(joint.get("matrix"))[:80],
+                                   ) from None  # fmt: skip
         try:
             return ParameterSet(plist, correlation)
         except ValueError as exc:

@@ -398,9 +398,17 @@ def report(
     Exit status: 0 written, 2 bad input (no run folder, an --out that cannot be
     written, or inputs that are missing or disagree, unless --allow-partial).
     """
-    from pneumafit.outputs.report import write_report
+    from pneumafit.frictiontest.report import is_friction_run, write_friction_report_of_folder
+    from pneumafit.outputs.report import FIT_MODELS, write_report
 
-    write_report(run_dir, out or Path(run_dir) / "report.html", campaign=campaign, console=console,
+    target = out or Path(run_dir) / "report.html"
+    chamber = any((Path(run_dir) / "fits" / m / "fit.json").is_file() for m in FIT_MODELS)
+    if is_friction_run(run_dir) and not chamber:
+        check_output(target, "file")
+        written = write_friction_report_of_folder(Path(run_dir), target, campaign)
+        console.print(f"wrote {written} (friction-test report)")
+        raise typer.Exit(0)
+    write_report(run_dir, target, campaign=campaign, console=console,
                  allow_partial=allow_partial)  # fmt: skip
     raise typer.Exit(0)
 

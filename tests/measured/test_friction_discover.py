@@ -14,6 +14,8 @@ from __future__ import annotations
 import io
 import json
 import math
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -143,6 +145,11 @@ def test_discover_command_writes_the_report(tmp_path: Path) -> None:
     assert (tmp_path / "disc" / "discovery.md").read_text().count("NAP310_7bar.csv") >= 1
 
 
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args],
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+
+
 @pytest.mark.slow
 def test_run_on_a_shipped_seal(tmp_path: Path) -> None:
     from pneumafit.pipeline import run
@@ -160,3 +167,22 @@ def test_run_on_a_shipped_seal(tmp_path: Path) -> None:
     console2 = Console(file=io.StringIO(), width=140)
     assert run(ROOT / "data" / "measured" / "NAP310", tmp_path / "run", console2, mcmc=False) == 0
     assert "reused" in console2.file.getvalue()
+    # pneumafit report on the folder writes the friction-test report, not an empty chamber one
+    result = _cli("report", str(tmp_path / "run"), "--out", str(tmp_path / "again.html"))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "friction-test report" in result.stdout
+    assert "before and after discovery" in (tmp_path / "again.html").read_text()
+
+
+def test_report_of_a_friction_run_without_its_campaign(tmp_path: Path) -> None:
+    """A friction run folder whose fit names a campaign that is gone: exit 2, the path named."""
+    fit = tmp_path / "run" / "fits" / "friction" / "fit.json"
+    fit.parent.mkdir(parents=True)
+    fit.write_text(json.dumps({"format": "pneumafit-fit", "version": 1, "model": "friction",
+                               "campaign": {"path": str(tmp_path / "gone")}}))  # fmt: skip
+    result = _cli("report", str(tmp_path / "run"))
+    out = result.stdout + result.stderr
+    assert result.returncode == 2, out
+    assert str(tmp_path / "gone") in out and "--campaign" in out
+    assert "Traceback" not in out
+    assert not (tmp_path / "run" / "report.html").exists()

@@ -305,7 +305,7 @@ def discover_friction(
     val_now = force_rmse(all_tests, base_est_values)["role"].get("validate")
     say(
         f"base {law}: force RMSE fit {rmse0['role'].get('fit', math.nan):.3g} N, validate "
-        f"{rmse0['role'].get('validate', math.nan):.3g} N; BIC {bic0:.1f} (every block "
+        f"{rmse0['role'].get('validate', math.nan):.3g} N; BIC {bic0:.1f} (every sample "
         f"counted at 1 / {1.0 / power0:.0f})"
     )
     kept = list(already)
@@ -394,14 +394,14 @@ def discover_friction(
 
     # final: Laplace intervals at the common power of the final residuals
     _, final_power = _common_power(like, est.z)
-    problem.tempering = np.full(len(tests), final_power)
+    problem.tempering = np.full(len(problem.observations), final_power)
     effect_parameters: dict[str, Any] = {}
     try:
         cov = laplace_covariance(like, est.z)
         summary = laplace_summary(est.parameters, est.z, cov)
     except (ValueError, np.linalg.LinAlgError):
         summary = est.parameters
-    problem.tempering = np.ones(len(tests))
+    problem.tempering = np.ones(len(problem.observations))
     for name in kept:
         p = summary[name]
         effect_parameters[name] = {

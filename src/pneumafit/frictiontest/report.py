@@ -42,7 +42,7 @@ from pneumafit.outputs.report_html import (
     table,
 )
 
-__all__ = ["write_friction_report"]
+__all__ = ["is_friction_run", "write_friction_report", "write_friction_report_of_folder"]
 
 
 def _read(path: Path) -> tuple[Any, str | None]:
@@ -268,3 +268,54 @@ def write_friction_report(run_dir: Path, campaign: Campaign, out_html: Path) -> 
     )
     write_text_atomic(Path(out_html), html)
     return Path(out_html)
+
+
+def is_friction_run(run_dir: Path) -> bool:
+    """Whether ``run_dir`` is a friction-test run folder (``fits/friction/fit.json``)."""
+    return (Path(run_dir) / "fits" / "friction" / "fit.json").is_file()
+
+
+def write_friction_report_of_folder(
+    run_dir: Path, out_html: Path, campaign: Path | None = None
+) -> Path:
+    """The report of a friction-test run folder, its campaign found as ``pneumafit report`` does.
+
+    Parameters
+    ----------
+    run_dir : path
+        Folder written by ``pneumafit run`` on friction tests.
+    out_html : path
+        The HTML file (written atomically).
+    campaign : path, optional
+        Campaign folder; default the one the fit recorded (``campaign.path``).
+
+    Raises
+    ------
+    PneumafitInputError
+        The fit cannot be read, or the campaign is neither given nor recorded,
+        or cannot be read.
+    """
+    from pneumafit.campaign import read_campaign
+    from pneumafit.campaign.errors import PneumafitInputError
+
+    fit_file = Path(run_dir) / "fits" / "friction" / "fit.json"
+    fit, error = _read(fit_file)
+    if error is not None or not isinstance(fit, dict):
+        raise PneumafitInputError(
+            f"report: {fit_file}: expected a fit.json, " + (error or "found no JSON object")
+        )
+    path = campaign
+    if path is None:
+        recorded = (fit.get("campaign") or {}).get("path")
+        if not recorded:
+            raise PneumafitInputError(
+                f"report: {fit_file}: key campaign.path: expected the campaign folder the fit "
+                "was made from, found none; give it with --campaign"
+            )
+        path = Path(recorded)
+    if not Path(path).exists():
+        raise PneumafitInputError(
+            f"report: campaign {path}: expected a campaign folder, found nothing at that path"
+            + ("" if campaign is not None else f" (recorded in {fit_file}; give --campaign)")
+        )
+    return write_friction_report(Path(run_dir), read_campaign(path), Path(out_html))

@@ -99,7 +99,7 @@ def test_a_friction_test_fit_has_no_actuator_structure(tmp_path: Path) -> None:
         ({"format": "other"}, "format: expected 'pneumafit-fit', found 'other'"),
         ({"version": 2}, "version: expected an integer up to 1, found 2"),
         ({"model": 3}, "model: expected one of convection, .*found 3"),
-        ({"parameters": None}, "parameters: expected an object .*found None"),
+        ({"parameters": []}, r"parameters: expected an object .*found \[\]"),
         (
             {"parameters": {"xi": {"value": "0.4"}}},
             r"parameters\.xi\.value: expected a finite number, "

@@ -299,7 +299,7 @@ def write_friction_report_of_folder(
     from pneumafit.campaign.errors import PneumafitInputError
 
     fit_file = Path(run_dir) / "fits" / "friction" / "fit.json"
-    fit, error = _read(fit_file)
+    fit, error = _read_fit(fit_file)
     if error is not None or not isinstance(fit, dict):
         raise PneumafitInputError(
             f"report: {fit_file}: expected a fit.json, " + (error or "found no JSON object")

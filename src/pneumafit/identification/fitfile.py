@@ -60,7 +60,9 @@ except ``friction``, which came with the LuGre law):
   air since the first fit.json, git e932d63), ``valve`` ``"iso6358"``,
   ``friction`` ``"switch"``, ``effects`` none, ``name`` the heat law (with
   the effects, as :meth:`ModelStructure.with_effects` names them);
-- ``nuisance``, ``metrics``, ``stages``, ``provenance``, ``campaign``:
+- ``parameters`` (present in every fit written; a reader that needs
+  values, such as a parameter-file reader, refuses a file without them),
+  ``nuisance``, ``metrics``, ``stages``, ``provenance``, ``campaign``:
   empty; ``mcmc``, ``quality``: null; ``warnings``: none.
 """
 
@@ -504,7 +506,7 @@ class SavedFit:
         model = document.get("model")
         if not isinstance(model, str):
             raise _problem(name, "model", f"one of {', '.join(MODELS)}, friction", repr(model))
-        parameters = document.get("parameters")
+        parameters = document.get("parameters", {})
         if not isinstance(parameters, Mapping):
             raise _problem(name, "parameters", "an object of name: {value, unit, ...}",
                            repr(parameters))  # fmt: skip

@@ -198,7 +198,11 @@ class _Run:
             if not path.is_file():
                 continue
             try:  # the one reader of fit.json: format, parameters, structure, ...
-                self.fits[model] = (dict(load_fit(path).document), path)
+                doc = dict(load_fit(path).document)
+                if not isinstance(doc.get("parameters"), dict):
+                    self.fit_errors[model] = f"{path}: parameters: expected an object"
+                else:
+                    self.fits[model] = (doc, path)
             except PneumafitInputError as exc:
                 detail = str(exc).removeprefix(f"{path}: ")
                 if detail.startswith(("line ", "cannot be read")):

@@ -342,7 +342,10 @@ def discover(
     campaign: Annotated[Path, typer.Argument(help="Campaign folder (with campaign.toml).")],
     fit: Annotated[Path, typer.Option("--fit", help="Base fit: fit.json or its folder.")],
     out: Annotated[Path, typer.Option("--out", help="Folder for discovery.json and the report.")],
-    seed: Annotated[int, typer.Option(help="Seed of the bootstrap and the refits.")] = 0,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the bootstrap and the refits (default: the base fit's)."),
+    ] = None,
     rounds: Annotated[
         int | None,
         typer.Option(

@@ -16,9 +16,12 @@ except in documents with a ``format`` key (fit.json, truth.json).
 A value is a bare number in the parameter's SI unit (see
 :data:`pneumafit.models.PARAMETER_SPECS`) or a string with a unit, converted
 by pint. A fit result (``fit.json``, ``{"format": "pneumafit-fit", ...}``)
-whose parameters are ``{NAME: {"value": ..., "unit": ...}}`` is read too;
-its friction law is ``structure.friction`` (absent in fits written before
-the LuGre law: ``"switch"``).
+whose parameters are ``{NAME: {"value": ..., "unit": ...}}`` is read too,
+through the one reader of fit.json
+(:meth:`pneumafit.identification.fitfile.SavedFit.from_document`): its
+structure (valve and friction laws, effects, air properties) is the fitted
+one, with that reader's documented fallbacks for missing keys (no
+``structure.friction``: ``"switch"``).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from typing import Any
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import UnitError, parse_quantity
+from pneumafit.identification.fitfile import SavedFit, is_fit_document
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
 from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
 
@@ -166,20 +170,7 @@ def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, fl
     PneumafitInputError
         Missing file, invalid JSON (with line), or a bad entry.
     """
-    file = Path(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise PneumafitInputError(f"{file}: expected a parameter file, found none") from None
-    except OSError as exc:
-        raise PneumafitInputError(f"{file}: cannot be read: {exc.strerror}") from None
-    try:
-        document = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise PneumafitInputError(
-            f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"
-        ) from None
-    return parse_parameters(document, str(file))
+    return parse_parameters(_read_document(path), os.fspath(path))
 
 
 def read_valve_law(path: str | os.PathLike[str]) -> str:
@@ -189,9 +180,11 @@ def read_valve_law(path: str | os.PathLike[str]) -> str:
     parameter file, or a fit written before the map existed).
     """
     try:
-        document = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        document = _read_document(path)
+    except PneumafitInputError:
         return "iso6358"
+    if is_fit_document(document):
+        return _fitted(document, os.fspath(path)).valve
     structure = document.get("structure") if isinstance(document, dict) else None
     valve = structure.get("valve") if isinstance(structure, dict) else None
     return str(valve) if valve in ("iso6358", "map") else "iso6358"
@@ -283,7 +276,10 @@ def parse_structure(
     ``structure.air_properties``: a convection fit is made with Sutherland
     air, and a plant simulated with the registered constant properties
     differs from the fitted model by ~1.5 kPa on a step test). What the
-    document does not say stays the registered structure's.
+    document does not say stays the registered structure's; for a fit.json,
+    what :meth:`~pneumafit.identification.fitfile.SavedFit.from_document`
+    reads (the fitted structure, or its laws, air and effects on ``model``
+    when that is another model).
 
     Raises
     ------
@@ -295,6 +291,16 @@ def parse_structure(
         raise PneumafitInputError(
             f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
+    if is_fit_document(document):  # the structure fitted, read as every reader reads it
+        fitted = _fitted(document, where)
+        if model == document.get("model"):
+            return fitted
+        # another model (simulate --model): the fit's laws, air and effects on it
+        structure = dataclasses.replace(
+            MODELS[model], valve=fitted.valve, friction=fitted.friction,
+            air_properties=fitted.air_properties,
+        )  # fmt: skip
+        return structure.with_effects(**fitted.effects) if fitted.effects else structure
     structure = MODELS[model]
     spec = document.get("structure") if isinstance(document, dict) else None
     spec = spec if isinstance(spec, dict) else {}
@@ -339,10 +345,24 @@ def read_structure(
     return parse_structure(document, model or file_model, os.fspath(path)), values
 
 
+def _fitted(document: dict[str, Any], where: str) -> ModelStructure:
+    """The structure of a fit.json document, read by the one reader of the
+    format (:meth:`SavedFit.from_document`, with its documented fallbacks);
+    a friction-test fit is not a parameter file."""
+    structure = SavedFit.from_document(document, where).structure
+    if structure is None:
+        raise PneumafitInputError(
+            f"{where}: model: expected one of {', '.join(MODELS)}, found {document.get('model')!r}"
+        )
+    return structure
+
+
 def _read_document(path: str | os.PathLike[str]) -> Any:
+    """The parsed JSON of a parameter file, fit.json or truth.json; a fit.json
+    is checked by its reader (:meth:`SavedFit.from_document`)."""
     file = Path(path)
     try:
-        return json.loads(file.read_text(encoding="utf-8"))
+        document = json.loads(file.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise PneumafitInputError(f"{file}: expected a parameter file, found none") from None
     except OSError as exc:
@@ -351,6 +371,9 @@ def _read_document(path: str | os.PathLike[str]) -> Any:
         raise PneumafitInputError(
             f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"
         ) from None
+    if is_fit_document(document):
+        _fitted(document, os.fspath(file))
+    return document
 
 
 def read_friction_law(path: str | os.PathLike[str]) -> str:
@@ -361,7 +384,10 @@ def read_friction_law(path: str | os.PathLike[str]) -> str:
     PneumafitInputError
         Missing file, invalid JSON or a wrong friction law.
     """
-    return parse_friction_law(_read_document(path), os.fspath(path))
+    document = _read_document(path)
+    if is_fit_document(document):
+        return _fitted(document, os.fspath(path)).friction
+    return parse_friction_law(document, os.fspath(path))
 
 
 def read_effects(path: str | os.PathLike[str]) -> dict[str, int]:
@@ -372,7 +398,10 @@ def read_effects(path: str | os.PathLike[str]) -> dict[str, int]:
     PneumafitInputError
         Missing file, invalid JSON or a wrong effect entry.
     """
-    return parse_effects(_read_document(path), os.fspath(path))
+    document = _read_document(path)
+    if is_fit_document(document):
+        return dict(_fitted(document, os.fspath(path)).effects)
+    return parse_effects(document, os.fspath(path))
 
 
 def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str, dict]]:
@@ -381,8 +410,8 @@ def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str,
 
     Values of a fit.json are SI by its contract; unit strings are honoured.
     """
-    model, values = read_parameter_file(path)
-    document = json.loads(Path(path).read_text(encoding="utf-8"))
+    document = _read_document(path)
+    model, values = parse_parameters(document, os.fspath(path))
     entries = document.get("parameters", {})
     details: dict[str, dict] = {}
     for name, value in values.items():

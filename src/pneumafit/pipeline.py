@@ -105,17 +105,16 @@ def _sha256(path: Path) -> str:
 
 def fit_is_reusable(folder: Path, campaign: Campaign, model: str) -> bool:
     """True when ``folder/fit.json`` is a finished fit of ``model`` on this campaign."""
-    path = folder / "fit.json"
+    from pneumafit.identification.staged import FitResult
+
     try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError):
+        fit = FitResult.load(folder / "fit.json")
+    except PneumafitInputError:  # absent, unreadable or not a fit: fit again
         return False
     return (
-        isinstance(doc, dict)
-        and doc.get("format") == "pneumafit-fit"
-        and doc.get("model") == model
-        and isinstance(doc.get("campaign"), dict)
-        and doc["campaign"].get("sha256") == campaign.sha256
+        fit.model == model
+        and isinstance(fit.document.get("campaign"), dict)
+        and fit.campaign_sha256 == campaign.sha256
     )
 
 
@@ -265,11 +264,13 @@ def _friction_job(
 
 def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
     """Print each fit's quality verdict; True when every fit is trustworthy."""
+    from pneumafit.identification.staged import FitResult
+
     trusted = True
     for model, file in fit_files.items():
         try:
-            quality = json.loads(file.read_text()).get("quality") or {}
-        except (OSError, ValueError):
+            quality = dict(FitResult.load(file).quality or {})
+        except PneumafitInputError:
             quality = {}
         ok = bool(quality.get("trustworthy", False))
         trusted = trusted and ok
@@ -540,7 +541,9 @@ def _summary(
         },
     }
     if conv_fit is not None and conv_fit.exists():
-        fit = json.loads(conv_fit.read_text())
+        from pneumafit.identification.staged import FitResult
+
+        fit = FitResult.load(conv_fit).document
         doc["convection"] = {
             name: {k: p.get(k) for k in ("value", "unit", "interval_90")}
             for name, p in fit.get("parameters", {}).items()

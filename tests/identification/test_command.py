@@ -106,6 +106,50 @@ def test_fit_json_keeps_the_contract(fitted: tuple[Path, dict], small: tuple) ->
     assert abs(values["friction_static"] - truth["friction_static"]) < 1.0
 
 
+def test_fit_json_round_trip(fitted: tuple[Path, dict], small: tuple, tmp_path: Path) -> None:
+    """FitResult.load reads what FitResult.save wrote; saving it again writes
+    the same document, key for key; the typed view agrees with the keys."""
+    from pneumafit.identification import FitResult
+    from pneumafit.identification.fitfile import FIT_VERSION
+
+    out, doc = fitted
+    _, campaign, _ = small
+    fit = FitResult.load(out)  # the folder, or the file
+    assert FitResult.load(out / "fit.json").document == doc
+    fit.save(tmp_path / "again.json")
+    again = json.loads((tmp_path / "again.json").read_text())
+
+    def walk(a: object, b: object, key: str) -> None:
+        assert type(a) is type(b), key
+        if isinstance(a, dict):
+            assert list(a) == list(b), key  # same keys, same order
+            for k in a:
+                walk(a[k], b[k], f"{key}.{k}")  # type: ignore[index]
+        elif isinstance(a, list):
+            assert len(a) == len(b), key  # type: ignore[arg-type]
+            for i, (x, y) in enumerate(zip(a, b, strict=True)):  # type: ignore[call-overload]
+                walk(x, y, f"{key}[{i}]")
+        else:
+            assert a == b, key
+
+    walk(doc, again, "fit.json")
+    assert (tmp_path / "again.json").read_text() == (out / "fit.json").read_text()
+    assert fit.model == "convection" and fit.version == FIT_VERSION
+    assert fit.structure is not None and fit.structure.air_properties == "sutherland"
+    assert fit.structure.friction == doc["structure"]["friction"] == fit.friction
+    assert fit.seed == 7 and fit.options is not None and fit.options["walkers"] == WALKERS
+    assert fit.campaign_sha256 == campaign.sha256
+    assert fit.values["xi"] == doc["parameters"]["xi"]["value"]
+    assert set(fit.nuisance) == {k for k in doc["nuisance"] if k != "initial_states"}
+    assert len(fit.initial_states) == len(doc["nuisance"]["initial_states"]) > 0
+    assert fit.metrics == doc["metrics"] and fit.mcmc == doc["mcmc"]
+    assert fit.quality == doc["quality"] and list(fit.warnings) == doc["warnings"]
+    ps = fit.parameters
+    assert ps["xi"].value == doc["parameters"]["xi"]["value"]
+    assert ps["xi"].interval_90 == tuple(doc["parameters"]["xi"]["interval_90"])
+    assert ps["bore"].fixed and not ps["xi"].fixed
+
+
 def _numbers(doc: dict) -> dict:
     """fit.json without what legitimately changes between runs (times)."""
     doc = json.loads(json.dumps(doc))
@@ -195,3 +239,31 @@ def test_untrustworthy_fit_is_said_first_and_strict_exits_3(
     assert text.index("chains too short") < text.index("estimates (90 % intervals)")
     assert "NOT TRUSTWORTHY" in text
     assert (tmp_path / "strict2" / "fit.json").exists()
+
+
+def test_discovery_defaults_to_the_fits_seed_and_options(
+    fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """pneumafit discover without --seed uses the seed the base fit was made
+    with (provenance.seed), and its channels, offsets and step (options)."""
+    from pneumafit.discovery import command as discovery_command
+
+    out, doc = fitted
+    folder, _, _ = small
+    seen: list[tuple[int, object]] = []
+
+    def stop(campaign: object, base: object, *, seed: int, **kw: object) -> None:
+        seen.append((seed, base))
+        raise KeyboardInterrupt  # nothing written: enough to see what discovery was given
+
+    monkeypatch.setattr(discovery_command, "discover", stop)
+    run = discovery_command.discover_command
+    assert run(folder, out, tmp_path / "d1", console=console) == 130
+    assert run(folder, out / "fit.json", tmp_path / "d2", seed=3, console=console) == 130
+    assert [s for s, _ in seen] == [doc["provenance"]["seed"], 3] == [7, 3]
+    base = seen[0][1]
+    options = doc["provenance"]["options"]
+    assert base.channels == tuple(options["channels"])  # type: ignore[attr-defined]
+    assert base.max_step == options["max_step"]  # type: ignore[attr-defined]
+    assert base.free == tuple(doc["stages"]["joint"]["free"])  # type: ignore[attr-defined]

@@ -43,6 +43,7 @@ from pneumafit.identification.command import (
     MAX_SAMPLED,
     fit_command,
 )
+from pneumafit.identification.staged import FitResult
 from pneumafit.models.structure import MODELS
 
 __all__ = ["COMPARED_MODELS", "COMPARISON_FILE", "compare_command", "read_fit"]
@@ -83,15 +84,7 @@ def read_fit(path: Path, option: str = "--fits") -> tuple[Path, dict[str, Any]]:
             f"option {option} {os.fspath(path)!r}: expected a fit folder holding {FIT_FILE} "
             f"(written by pneumafit fit), found a folder without {FIT_FILE}"
         )
-    try:
-        document = json.loads(file.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise PneumafitInputError(f"{file}: cannot be read: {exc.strerror}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PneumafitInputError(f"{file}: expected valid JSON, found an error: {exc}") from None
-    if not isinstance(document, dict):
-        found = type(document).__name__
-        raise PneumafitInputError(f"{file}: expected a JSON object, found a {found}")
+    document = dict(FitResult.load(file).document)  # the one reader of fit.json
     fit_values(document, os.fspath(file))  # format, model and parameters
     return file, document
 

@@ -27,7 +27,6 @@ size of that error is the point of the comparison (paper, section 2).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -38,6 +37,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
+from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.problem import (
     COMPARABLE_CHANNELS,
     INITIAL_PREFIX,
@@ -47,7 +47,6 @@ from pneumafit.identification.problem import (
     first_order_lag,
     fit_sensor_lag,
 )
-from pneumafit.identification.staged import fit_structure
 from pneumafit.models.structure import MODELS, ModelStructure
 from pneumafit.parameters_io import parse_parameters
 from pneumafit.simulation import Simulator
@@ -240,45 +239,17 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
     PneumafitInputError
         Not a fit document, or an unknown model.
     """
-    if document.get("format") != "pneumafit-fit":
-        raise PneumafitInputError(
-            f"{where}: format: expected 'pneumafit-fit' (a fit.json written by pneumafit fit), "
-            f"found {document.get('format')!r}"
-        )
-    model, values = parse_parameters(dict(document), where)
-    if model not in MODELS:
+    # format, structure (valve and friction laws, effects, air properties, with
+    # the documented fallbacks) and initial states: the one reader of fit.json
+    fit = SavedFit.from_document(document, where)
+    model, values = parse_parameters(dict(document), where)  # unit-checked SI values
+    if model not in MODELS or fit.structure is None:
         raise PneumafitInputError(
             f"{where}: model: expected one of {', '.join(MODELS)}, found {model!r}"
         )
-    for key in ("structure", "nuisance"):
-        if not isinstance(document.get(key) or {}, Mapping):
-            raise PneumafitInputError(
-                f"{where}: {key}: expected an object, found {type(document.get(key)).__name__}"
-            )
-    described = document.get("structure") or {}
-    air = described.get("air_properties") or "sutherland"
-    try:
-        structure = fit_structure(model, air, str(described.get("valve") or "iso6358"))
-        effects = described.get("effects") or {}
-        if effects:  # a fit with optional effects is replayed with them
-            structure = dataclasses.replace(
-                structure, effects={k: int(v) for k, v in effects.items()}
-            )
-        friction = str(described.get("friction") or "switch")
-        if friction != structure.friction:  # a fit with the LuGre law is replayed with it
-            structure = dataclasses.replace(structure, friction=friction)
-    except (ValueError, TypeError, AttributeError) as exc:
-        raise PneumafitInputError(f"{where}: structure: {exc}") from None
-    initial = (document.get("nuisance") or {}).get("initial_states") or {}
-    if not isinstance(initial, Mapping):
-        raise PneumafitInputError(
-            f"{where}: nuisance.initial_states: expected an object, found {type(initial).__name__}"
-        )
-    for key, entry in initial.items():
-        value = entry.get("value") if isinstance(entry, Mapping) else entry
-        if isinstance(value, int | float) and math.isfinite(value):
-            values[f"{INITIAL_PREFIX}{key}"] = float(value)
-    return model, structure, values
+    for key, value in fit.initial_states.items():
+        values[f"{INITIAL_PREFIX}{key}"] = value
+    return model, fit.structure, values
 
 
 def evaluate_fit(

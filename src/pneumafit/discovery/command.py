@@ -58,7 +58,8 @@ from pneumafit.discovery.attribution import simulate_recording
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, discover
 from pneumafit.fileio import atomic_path, write_text_atomic
-from pneumafit.identification.fitfile import json_safe
+from pneumafit.identification.fitfile import SavedFit, json_safe
+from pneumafit.identification.staged import FitResult
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
 from pneumafit.progress import Reporter
@@ -78,8 +79,21 @@ FIT_FILE = "fit.json"
 
 
 # ----------------------------------------------------------------- input
-def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, dict[str, Any], Path]:
+def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, SavedFit, Path]:
     """Read and check ``fit`` (a fit.json or the folder holding one).
+
+    The file is read by :meth:`FitResult.load
+    <pneumafit.identification.staged.FitResult.load>`; the base fit is
+    :meth:`BaseFit.from_document` of what it read (with the channels,
+    offsets, step and solver correction the fit was made with).
+
+    Returns
+    -------
+    base : BaseFit
+    fit : SavedFit
+        The fit.json read (its seed: ``fit.seed``).
+    path : Path
+        The fit.json file.
 
     Raises
     ------
@@ -96,16 +110,17 @@ def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, dict[str, Any
             f"folder holding one, found no file {os.fspath(path)!r}"
         )
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PneumafitInputError(f"{path}: expected a JSON fit document, found: {exc}") from None
-    if not isinstance(doc, dict) or doc.get("format") != "pneumafit-fit":
-        found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
-        raise PneumafitInputError(
-            f"{path}: key 'format': expected 'pneumafit-fit', found {found!r}"
-        )
-    model = doc.get("model")
-    if not isinstance(model, str) or model not in MODELS:
+        saved = FitResult.load(path)
+    except PneumafitInputError as exc:
+        detail = str(exc).removeprefix(f"{path}: ")
+        if detail.startswith(("line ", "cannot be read")):  # not JSON at all
+            raise PneumafitInputError(
+                f"{path}: expected a JSON fit document, found: {detail}"
+            ) from None
+        raise
+    doc = saved.document
+    model = saved.model
+    if model not in MODELS:
         raise PneumafitInputError(
             f"{path}: key 'model': expected one of {', '.join(MODELS)}, found {model!r}"
         )
@@ -114,28 +129,23 @@ def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, dict[str, Any
             raise PneumafitInputError(
                 f"{path}: key {key!r}: expected an object, found {type(doc.get(key)).__name__}"
             )
-    recorded = doc["campaign"].get("sha256") or {}
+    recorded = saved.campaign_sha256
     actual = dict(campaign.sha256)
-    if not isinstance(recorded, dict):
-        raise PneumafitInputError(
-            f"{path}: key 'campaign.sha256': expected an object of file: SHA-256, "
-            f"found {type(recorded).__name__}"
-        )
     if recorded != actual:
         differ = sorted(k for k in set(recorded) | set(actual) if recorded.get(k) != actual.get(k))
         shown = ", ".join(differ[:4]) + (" ..." if len(differ) > 4 else "")
         raise PneumafitInputError(
             f"{path}: key 'campaign.sha256': expected the SHA-256 of campaign "
             f"{campaign.name!r}'s files, found a fit of another campaign "
-            f"({(doc.get('campaign') or {}).get('name')!r}; files differing: {shown})"
+            f"({saved.campaign.get('name')!r}; files differing: {shown})"
         )
     try:
-        base = BaseFit.from_document(doc)
+        base = BaseFit.from_document(saved)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise PneumafitInputError(
             f"{path}: expected a complete pneumafit-fit document, found a problem: {exc}"
         ) from None
-    return base, doc, path
+    return base, saved, path
 
 
 # ----------------------------------------------------------------- document
@@ -454,7 +464,7 @@ def discover_command(
     fit: Path,
     out: Path,
     *,
-    seed: int = 0,
+    seed: int | None = None,
     rounds: int | None = 2,
     per_round: int = 3,
     console: Console,
@@ -469,8 +479,10 @@ def discover_command(
         fit.json of the base fit, or its folder.
     out : Path
         Report folder (created; its files are replaced).
-    seed : int
-        Seeds the bootstrap and the refits (saved in discovery.json).
+    seed : int or None
+        Seeds the bootstrap and the refits (saved in discovery.json); None:
+        the seed the base fit was made with (fit.json ``provenance.seed``),
+        0 for a fit that does not record one.
     rounds, per_round : int
         Largest number of rounds (None: 2; on a friction fit 3), and of refits per round.
     console : rich.console.Console
@@ -500,12 +512,15 @@ def discover_command(
         return EXIT_BAD_INPUT
     try:
         camp = read_campaign(campaign)
-        base, fit_doc, fit_path = load_base_fit(Path(fit), camp)
+        base, saved, fit_path = load_base_fit(Path(fit), camp)
     except (PneumafitInputError, ValueError) as exc:
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
+    fit_doc = saved.document
+    if seed is None:  # the base fit's own
+        seed = saved.seed if saved.seed is not None else 0
     console.print(
-        f"discovery on {camp.name}: base model {fit_doc['model']} from {fit_path} "
+        f"discovery on {camp.name}: base model {saved.model} from {fit_path} "
         f"({len(camp.by_role('fit'))} fit, {len(camp.by_role('validate'))} validate recordings)"
     )
 

@@ -61,6 +61,7 @@ from pneumafit.discovery.attribution import (
     build_rows,
 )
 from pneumafit.discovery.catalog import get_effect
+from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares
 from pneumafit.identification.parameters import ParameterSet
@@ -173,24 +174,16 @@ class BaseFit:
     temperature_sensor_lag: float | None = None
 
     @classmethod
-    def from_document(cls, doc: Mapping[str, Any]) -> BaseFit:
-        """Read a fit.json document (format ``pneumafit-fit``)."""
-        st = doc["structure"]
-        structure = ModelStructure(
-            st["heat"], air_properties=st.get("air_properties", "wall"),
-            effects=dict(st.get("effects") or {}), valve=st.get("valve", "iso6358"),
-            friction=st.get("friction", "switch"),
-        )  # fmt: skip
-        values = {n: float(p["value"]) for n, p in doc["parameters"].items()}
-        nuisance = doc.get("nuisance") or {}
-        for name, entry in nuisance.items():
-            if name != "initial_states" and isinstance(entry, Mapping) and "value" in entry:
-                values[name] = float(entry["value"])
-        for key, entry in (nuisance.get("initial_states") or {}).items():
-            values[f"initial:{key}"] = float(entry["value"])
-        joint = (doc.get("stages") or {}).get("joint") or {}
+    def from_document(cls, doc: Mapping[str, Any] | SavedFit) -> BaseFit:
+        """Read a fit.json (:meth:`FitResult.load`, or its parsed document)."""
+        fit = doc if isinstance(doc, SavedFit) else SavedFit.from_document(doc)
+        if fit.structure is None:
+            raise ValueError(f"model: expected an actuator model, found {fit.model!r}")
+        structure = fit.structure
+        values = fit.all_values  # model, nuisance, initial:<file>:<state>
+        joint = fit.stages.get("joint") or {}
         free = tuple(joint.get("free") or ())
-        opts = (doc.get("provenance") or {}).get("options") or {}
+        opts = fit.options or {}
         return cls(
             structure=structure,
             values=values,
@@ -199,7 +192,7 @@ class BaseFit:
             offsets=tuple(opts.get("offsets") or ("pressure",)),
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
-            temperature_sensor_lag=(doc.get("metrics") or {}).get("temperature_sensor_lag"),
+            temperature_sensor_lag=fit.metrics.get("temperature_sensor_lag"),
         )
 
 

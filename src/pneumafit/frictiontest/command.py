@@ -33,8 +33,6 @@ from pneumafit.commandline import (
     run_guarded,
 )
 from pneumafit.frictiontest.fit import identify_friction
-from pneumafit.frictiontest.model import EFFECTS
-from pneumafit.identification.fitfile import fit_document, write_fit_json
 
 __all__ = ["friction_fit_command"]
 
@@ -112,24 +110,14 @@ def friction_fit_command(
     )  # fmt: skip
     if status is not None:
         return status
-    document = fit_document(
-        result, camp, seed=seed, command=command, options=None,
-        chains=CHAINS_FILE if mcmc else None,
-    )  # fmt: skip
-    # the effect parameters are model parameters here, not nuisance
-    for name in EFFECTS:
-        if name in document["nuisance"]:
-            document["parameters"][name] = document["nuisance"].pop(name)
-    document["provenance"]["options"] = {
-        "law": _LAW[friction], "effects": _EFFECTS[seal], "mcmc": mcmc, "walkers": walkers,
-        "steps": steps,
-    }  # fmt: skip
+    # fit.json through the common writer: the effect parameters are model
+    # parameters here (not nuisance), the options the law and effects fitted
     try:
         if mcmc:
             os.replace(partial, out / CHAINS_FILE)
         else:
             (out / CHAINS_FILE).unlink(missing_ok=True)
-        write_fit_json(out / FIT_FILE, document)
+        result.save(out / FIT_FILE, command=command, chains=CHAINS_FILE if mcmc else None)
     except OSError as exc:
         console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
         return EXIT_FAILED

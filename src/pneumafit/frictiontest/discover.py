@@ -69,6 +69,7 @@ from pneumafit.frictiontest.model import (
     default_parameters,
     prepare,
 )
+from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.optimise import laplace_covariance, laplace_summary
 from pneumafit.identification.quality import estimate_noise
 
@@ -223,24 +224,26 @@ class FrictionDiscovery:
         return f"Selected {names}."
 
 
-def base_values(fit_doc: Mapping[str, Any]) -> tuple[str, dict[str, float]]:
-    """The law and the kernel parameter values of a friction fit.json."""
-    law = (fit_doc.get("structure") or {}).get("friction")
+def base_values(fit_doc: Mapping[str, Any] | SavedFit) -> tuple[str, dict[str, float]]:
+    """The law and the kernel parameter values of a friction fit.json
+    (:meth:`FitResult.load <pneumafit.identification.staged.FitResult.load>`,
+    or its parsed document)."""
+    fit = fit_doc if isinstance(fit_doc, SavedFit) else SavedFit.from_document(fit_doc)
+    law = (fit.document.get("structure") or {}).get("friction")  # no fallback: a bench law
     if law not in LAWS:
         raise PneumafitInputError(
             f"fit.json key 'structure.friction': expected one of {', '.join(LAWS)}, found {law!r}"
         )
     values = default_parameters().values()
-    for section in ("parameters", "nuisance"):
-        for name, entry in (fit_doc.get(section) or {}).items():
-            if name in values and isinstance(entry, dict) and "value" in entry:
-                values[name] = float(entry["value"])
+    for name, value in {**fit.values, **fit.nuisance}.items():
+        if name in values:
+            values[name] = value
     return law, values
 
 
 def discover_friction(
     campaign: Campaign,
-    fit_doc: Mapping[str, Any],
+    fit_doc: Mapping[str, Any] | SavedFit,
     *,
     seed: int = 0,
     rounds: int = 3,
@@ -254,9 +257,10 @@ def discover_friction(
     ----------
     campaign : Campaign
         Friction tests; ``fit`` ones are refitted, ``validate`` ones held out.
-    fit_doc : mapping
-        The base fit.json (model ``friction``). Effects it already holds are
-        kept as they are (not candidates).
+    fit_doc : SavedFit or mapping
+        The base fit.json (model ``friction``), as read by
+        :meth:`FitResult.load <pneumafit.identification.staged.FitResult.load>`.
+        Effects it already holds are kept as they are (not candidates).
     seed : int
         Seed of the refits' multi-start.
     rounds, per_round : int
@@ -272,10 +276,9 @@ def discover_friction(
     """
     say = log or (lambda _line: None)
     started = time.perf_counter()
-    law, values = base_values(fit_doc)
-    already = [
-        k for k in (fit_doc.get("structure") or {}).get("effects", {}) if k in FRICTION_EFFECTS
-    ]
+    fit = fit_doc if isinstance(fit_doc, SavedFit) else SavedFit.from_document(fit_doc)
+    law, values = base_values(fit)
+    already = [k for k in fit.effects if k in FRICTION_EFFECTS]
     recs = [r for r in campaign.by_kind("friction") if r.role == "fit"]
     if not recs:
         raise PneumafitInputError(

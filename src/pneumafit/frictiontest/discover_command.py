@@ -43,42 +43,28 @@ from pneumafit.frictiontest.discover import (
     FrictionDiscovery,
     discover_friction,
 )
-from pneumafit.identification.fitfile import json_safe
+from pneumafit.identification.fitfile import SavedFit, json_safe
+from pneumafit.identification.staged import FitResult
 
 __all__ = ["friction_discover_command", "friction_discovery_document", "is_friction_fit"]
-
-FIT_FILE = "fit.json"
 
 
 def is_friction_fit(fit: Path) -> bool:
     """True when ``fit`` (a fit.json or its folder) is a fit of model ``friction``."""
-    path = Path(fit)
-    if path.is_dir():
-        path = path / FIT_FILE
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
-        return False
-    return isinstance(doc, dict) and doc.get("model") == "friction"
+        return FitResult.load(fit).model == "friction"
+    except PneumafitInputError:
+        return False  # not a readable fit: the actuator discovery says why
 
 
-def _load(fit: Path, campaign: Campaign) -> tuple[dict[str, Any], Path]:
-    path = Path(fit)
-    if path.is_dir():
-        path = path / FIT_FILE
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise PneumafitInputError(f"{path}: expected a JSON fit document, found: {exc}") from None
-    if not isinstance(doc, dict) or doc.get("format") != "pneumafit-fit":
-        raise PneumafitInputError(f"{path}: key 'format': expected 'pneumafit-fit'")
-    recorded = (doc.get("campaign") or {}).get("sha256")
-    if recorded != dict(campaign.sha256):
+def _load(fit: Path, campaign: Campaign) -> tuple[SavedFit, Path]:
+    saved = FitResult.load(fit)  # names the file, key, expected and found
+    if saved.campaign_sha256 != dict(campaign.sha256):
         raise PneumafitInputError(
-            f"{path}: key 'campaign.sha256': expected the SHA-256 of campaign "
+            f"{saved.source}: key 'campaign.sha256': expected the SHA-256 of campaign "
             f"{campaign.name!r}'s files, found a fit of another campaign"
         )
-    return doc, path
+    return saved, saved.path
 
 
 def friction_discovery_document(
@@ -296,12 +282,15 @@ def friction_discover_command(
     fit: Path,
     out: Path,
     *,
-    seed: int = 0,
+    seed: int | None = None,
     rounds: int = 3,
     per_round: int = 3,
     console: Console,
 ) -> int:
-    """Discovery on a friction-test campaign; see the module docstring."""
+    """Discovery on a friction-test campaign; see the module docstring.
+
+    ``seed`` None: the seed the base fit was made with (0 if it records none).
+    """
     from pneumafit.campaign import read_campaign
 
     out = Path(out)
@@ -315,21 +304,24 @@ def friction_discover_command(
         return EXIT_BAD_INPUT
     try:
         camp = read_campaign(campaign)
-        fit_doc, fit_path = _load(Path(fit), camp)
+        saved, fit_path = _load(Path(fit), camp)
     except (PneumafitInputError, ValueError) as exc:
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
+    fit_doc = saved.document
+    if seed is None:  # the base fit's own
+        seed = saved.seed if saved.seed is not None else 0
     recs = camp.by_kind("friction")
     console.print(
         f"discovery on {camp.name}: base model friction "
-        f"({(fit_doc.get('structure') or {}).get('friction')}) from {fit_path} "
+        f"({saved.friction}) from {fit_path} "
         f"({sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role == 'validate' for r in recs)} validate friction tests)"
     )
     result, status = run_guarded(
         console,
         lambda: discover_friction(
-            camp, fit_doc, seed=seed, rounds=rounds, per_round=per_round,
+            camp, saved, seed=seed, rounds=rounds, per_round=per_round,
             log=lambda line: console.print(Text(line)),
         ),
         campaign=campaign, failed="discovery failed", interrupted="interrupted: nothing written",

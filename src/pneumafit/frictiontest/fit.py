@@ -77,7 +77,7 @@ from pneumafit.identification.quality import (
     interval_problems,
 )
 from pneumafit.identification.sampling import run_mcmc
-from pneumafit.identification.staged import FitResult, StageResult
+from pneumafit.identification.staged import FitResult, StageResult, campaign_identity
 
 __all__ = ["LAWS", "FrictionStructure", "FrictionTestProblem", "identify_friction"]
 
@@ -539,4 +539,7 @@ def identify_friction(
         evaluations=problem.n_evaluations + problem1.n_evaluations,
         blocks=blocks,
         quality=quality,
+        seed=seed,
+        options={"law": law, "effects": effects, "mcmc": mcmc, "walkers": walkers, "steps": steps},
+        campaign=campaign_identity(campaign),
     )

@@ -110,9 +110,9 @@ def run_friction(
         console.print("[yellow]interrupted: the finished stages are kept and reused next "
                       "time[/yellow]")  # fmt: skip
         return 130
-    import json
+    from pneumafit.identification.staged import FitResult
 
-    quality = json.loads(fit_file.read_text()).get("quality") or {}
+    quality = FitResult.load(fit_file).quality or {}
     ok = bool(quality.get("trustworthy", False))
     console.rule("done")
     console.print(Text(f"fit friction: {quality.get('verdict', '-')}",

@@ -26,9 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
 from pneumafit.fileio import write_text_atomic
 from pneumafit.frictiontest.model import KERNEL_ORDER, default_parameters, prepare
+from pneumafit.identification.staged import FitResult
 from pneumafit.outputs.report_html import (
     Section,
     embed_figure,
@@ -50,6 +52,16 @@ def _read(path: Path) -> tuple[Any, str | None]:
         return json.loads(path.read_text(encoding="utf-8")), None
     except (OSError, ValueError) as exc:
         return None, f"{path}: cannot be read: {exc}"
+
+
+def _read_fit(path: Path) -> tuple[dict[str, Any] | None, str | None]:
+    """The base fit through the one reader of fit.json (:meth:`FitResult.load`)."""
+    if not path.exists():
+        return None, None
+    try:
+        return dict(FitResult.load(path).document), None
+    except PneumafitInputError as exc:
+        return None, str(exc)
 
 
 def _values(doc: Mapping[str, Any]) -> dict[str, float]:
@@ -239,7 +251,7 @@ def write_friction_report(run_dir: Path, campaign: Campaign, out_html: Path) -> 
 
     matplotlib.use("Agg")
     run_dir = Path(run_dir)
-    fit, fit_error = _read(run_dir / "fits" / "friction" / "fit.json")
+    fit, fit_error = _read_fit(run_dir / "fits" / "friction" / "fit.json")
     disc, disc_error = _read(run_dir / "discovery" / "discovery.json")
     sections = [
         _campaign_section(campaign, fit),
@@ -287,7 +299,7 @@ def write_friction_report_of_folder(
     from pneumafit.campaign.errors import PneumafitInputError
 
     fit_file = Path(run_dir) / "fits" / "friction" / "fit.json"
-    fit, error = _read(fit_file)
+    fit, error = _read_fit(fit_file)
     if error is not None or not isinstance(fit, dict):
         raise PneumafitInputError(
             f"report: {fit_file}: expected a fit.json, " + (error or "found no JSON object")

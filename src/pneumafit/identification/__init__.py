@@ -12,7 +12,9 @@ Layers (docs/identification.md):
 - :func:`fit_least_squares` (multi-start, Laplace covariance),
   :func:`run_mcmc` (emcee, seeded, HDF5, resumable, diagnosed).
 - :func:`identify`: the staged fit (valve, heat, friction, joint, MCMC);
-  :func:`fit_document` / :func:`write_fit_json`: fit.json;
+  :meth:`FitResult.save` / :meth:`FitResult.load` (:class:`SavedFit`): fit.json,
+  the only code that writes or reads it (:func:`fit_document`,
+  :func:`write_fit_json`, :func:`load_fit`);
   :func:`fit_command`: the body of ``pneumafit fit``.
 """
 
@@ -20,7 +22,9 @@ from pneumafit.identification.command import fit_command
 from pneumafit.identification.fitfile import (
     FIT_FORMAT,
     FIT_VERSION,
+    SavedFit,
     fit_document,
+    load_fit,
     write_fit_json,
 )
 from pneumafit.identification.likelihood import Evaluation, LogLikelihood, LogPosterior
@@ -93,6 +97,7 @@ __all__ = [
     "Prior",
     "Problem",
     "Quantized",
+    "SavedFit",
     "StageResult",
     "StudentT",
     "Uniform",
@@ -104,6 +109,7 @@ __all__ = [
     "fit_least_squares",
     "fit_structure",
     "identify",
+    "load_fit",
     "noise_model",
     "run_mcmc",
     "write_fit_json",

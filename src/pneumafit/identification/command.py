@@ -44,7 +44,7 @@ from pneumafit.commandline import (
     report_problems,
     run_guarded,
 )
-from pneumafit.identification.fitfile import _version, fit_document, write_fit_json
+from pneumafit.identification.fitfile import _version
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
@@ -262,16 +262,12 @@ def fit_command(
     )  # fmt: skip
     if status is not None:
         return status
-    document = fit_document(
-        result, camp, seed=seed, command=command, options=options,
-        chains=CHAINS_FILE if mcmc else None,
-    )  # fmt: skip
     try:
         if mcmc:
             os.replace(partial, out / CHAINS_FILE)
         else:
             (out / CHAINS_FILE).unlink(missing_ok=True)  # no stale chains beside a new fit
-        write_fit_json(out / FIT_FILE, document)
+        result.save(out / FIT_FILE, command=command, chains=CHAINS_FILE if mcmc else None)
     except OSError as exc:
         console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
         return EXIT_FAILED

@@ -721,6 +721,11 @@ class ParameterSet:
     def load(cls, path: str | os.PathLike[str]) -> ParameterSet:
         """Read a set written by :meth:`save` (or the parameters of a fit.json).
 
+        A fit.json is read by its one reader
+        (:meth:`~pneumafit.identification.fitfile.SavedFit.from_document`):
+        the model parameters (``parameters``) with the joint Laplace
+        correlation.
+
         Raises
         ------
         PneumafitInputError
@@ -735,6 +740,10 @@ class ParameterSet:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise PneumafitInputError(f"{where}expected JSON, found an error: {exc}") from None
+        if isinstance(data, Mapping) and data.get("format") == "pneumafit-fit":
+            from pneumafit.identification.fitfile import SavedFit  # above this module
+
+            return SavedFit.from_document(data, os.fspath(path)).parameters
         return cls.from_dict(data, where)
 
     # ---------------------------------------------------------- construction

@@ -27,12 +27,13 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -87,6 +88,9 @@ from pneumafit.physics.valve_map import (
 )
 from pneumafit.progress import Progress, Reporter
 
+if TYPE_CHECKING:
+    from pneumafit.identification.fitfile import SavedFit
+
 __all__ = [
     "DEFAULT_CHANNELS",
     "FRICTION_PARAMETERS",
@@ -134,7 +138,6 @@ MCMC_CHECKS = 10
 #: and centred elsewhere), which the 5-minute budget does not allow; its
 #: uncertainty comes from the joint Laplace approximation.
 DEFAULT_SAMPLE = ("heat", "friction")
-
 
 #: Centre-leakage parameters, fitted with the heat law in stage (b).
 LEAK_PARAMETERS: tuple[str, ...] = ("valve_C_leak",)
@@ -504,6 +507,15 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+def campaign_identity(campaign: Campaign) -> dict[str, Any]:
+    """``name``, ``path`` and ``sha256`` of a campaign, as fit.json records them."""
+    return {
+        "name": campaign.name,
+        "path": os.fspath(campaign.path) if campaign.path is not None else None,
+        "sha256": dict(campaign.sha256),
+    }
+
+
 @dataclass
 class FitResult:
     """Result of :func:`identify`.
@@ -536,6 +548,20 @@ class FitResult:
     quality : FitQuality or None
         Residual over sensor noise per recording, channel and phase, and
         every other reason not to trust the result (:mod:`.quality`).
+    seed : int or None
+        The seed the fit was made with (``provenance.seed`` of fit.json).
+    options : FitOptions or mapping or None
+        The settings it was made with (``provenance.options``); a mapping
+        for a friction-test fit (law, effects, mcmc, walkers, steps).
+    campaign : dict or None
+        The campaign fitted as fit.json records it: ``name``, ``path``,
+        ``sha256`` (file -> SHA-256).
+
+    :func:`identify` fills every field. :meth:`save` writes fit.json;
+    :meth:`load` reads one back as a
+    :class:`~pneumafit.identification.fitfile.SavedFit`, the file's typed
+    view: stages, Laplace set and chains are not in the file, so a read
+    fit is not a ``FitResult``.
     """
 
     model: str
@@ -549,6 +575,46 @@ class FitResult:
     evaluations: int = 0
     blocks: list[dict[str, Any]] = field(default_factory=list)
     quality: FitQuality | None = None
+    seed: int | None = None
+    options: FitOptions | Mapping[str, Any] | None = None
+    campaign: dict[str, Any] | None = None
+
+    def save(
+        self, path: str | os.PathLike[str], *, command: str = "", chains: str | None = None
+    ) -> Path:
+        """Write fit.json (:func:`~pneumafit.identification.fitfile.fit_document`), atomically.
+
+        Parameters
+        ----------
+        path : str or path
+            The file (``OUT/fit.json``).
+        command : str
+            The command line, for ``provenance.command``.
+        chains : str, optional
+            File name of the MCMC chains beside it (``mcmc.chains.file``).
+
+        Raises
+        ------
+        ValueError
+            A result without :attr:`campaign` or :attr:`seed` (not made by
+            :func:`identify`): use ``fit_document(result, campaign, seed=...)``.
+        """
+        from pneumafit.identification.fitfile import fit_document, write_fit_json
+
+        return write_fit_json(path, fit_document(self, command=command, chains=chains))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> SavedFit:
+        """Read a fit.json (or its folder): see :func:`~pneumafit.identification.fitfile.load_fit`.
+
+        Raises
+        ------
+        PneumafitInputError
+            No file, not JSON, or a bad document (naming the file and key).
+        """
+        from pneumafit.identification.fitfile import load_fit
+
+        return load_fit(path)
 
     def __repr__(self) -> str:
         verdict = self.quality.verdict() if self.quality is not None else "not assessed"
@@ -1252,6 +1318,7 @@ def identify(
         model=name, structure=structure, parameters=final, laplace=laplace, stages=stages,
         metrics=metrics, warnings=warns, seconds=time.perf_counter() - t_start,
         evaluations=evaluations, blocks=joint_problem.describe(), quality=quality,
+        seed=seed, options=opts, campaign=campaign_identity(campaign),
     )  # fmt: skip
 
 

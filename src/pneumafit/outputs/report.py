@@ -187,25 +187,28 @@ class _Run:
     """What was found in a run folder (each input read once)."""
 
     def __init__(self, run_dir: Path, campaign: Path | None) -> None:
+        from pneumafit.identification.fitfile import load_fit
+
         self.dir = run_dir
         self.summary, self.summary_error = _read_json(run_dir / "summary.json")
         self.fits: dict[str, tuple[dict[str, Any], Path]] = {}
         self.fit_errors: dict[str, str] = {}
         for model in FIT_MODELS:
             path = run_dir / "fits" / model / "fit.json"
-            doc, error = _read_json(path)
-            if error:
-                self.fit_errors[model] = error
-            elif doc is not None:
-                if not isinstance(doc, dict) or doc.get("format") != "pneumafit-fit":
-                    found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
-                    self.fit_errors[model] = (
-                        f"{path}: format: expected 'pneumafit-fit', found {found!r}"
-                    )
-                elif not isinstance(doc.get("parameters"), dict):
+            if not path.is_file():
+                continue
+            try:  # the one reader of fit.json: format, parameters, structure, ...
+                doc = dict(load_fit(path).document)
+                if not isinstance(doc.get("parameters"), dict):
                     self.fit_errors[model] = f"{path}: parameters: expected an object"
                 else:
                     self.fits[model] = (doc, path)
+            except PneumafitInputError as exc:
+                detail = str(exc).removeprefix(f"{path}: ")
+                if detail.startswith(("line ", "cannot be read")):
+                    self.fit_errors[model] = f"{path}: not readable as JSON ({detail})"
+                else:
+                    self.fit_errors[model] = str(exc)
         self.campaign_path, self.campaign_origin = self._campaign_path(campaign)
         self.campaign: Any = None
         self.campaign_error: str | None = None

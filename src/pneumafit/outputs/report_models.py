@@ -133,32 +133,23 @@ def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str
     PneumafitInputError, ValueError
         A fit.json whose parameters or structure cannot be used.
     """
+    from pneumafit.identification.fitfile import SavedFit
     from pneumafit.models import parameter_vector
-    from pneumafit.models.structure import MODELS, ModelStructure
+    from pneumafit.models.structure import MODELS
     from pneumafit.parameters_io import read_parameter_file
     from pneumafit.simulation import Experiment, Simulator
     from pneumafit.simulation.simulator import STATUS_MESSAGES, AirConsumption
 
     name, values = read_parameter_file(fit_path)
-    spec = fit.get("structure")
-    if isinstance(spec, Mapping) and spec.get("heat"):
-        structure = ModelStructure(
-            heat=str(spec["heat"]),
-            air_properties=str(spec.get("air_properties") or "constant"),
-            effects=dict(spec.get("effects") or {}),
-            name=str(spec.get("name") or ""),
-            valve=str(spec.get("valve") or "iso6358"),
-            friction=str(spec.get("friction") or "switch"),
-        )
-    elif name in MODELS:
-        structure = MODELS[name]
-    else:
+    saved = SavedFit.from_document(fit, str(fit_path))  # with the documented fallbacks
+    structure = saved.structure
+    if structure is None:
         raise ValueError(
             f"{fit_path}: structure: expected a structure or a model among {sorted(MODELS)}, "
             f"found {name!r}"
         )
     params = parameter_vector(values)
-    lag = (fit.get("metrics") or {}).get("temperature_sensor_lag")
+    lag = saved.metrics.get("temperature_sensor_lag")
     lag = float(lag) if isinstance(lag, int | float) and math.isfinite(lag) and lag > 0 else 0.0
     sim = Simulator(structure, channels=list(SIMULATED))
     recordings = list(campaign.recordings)

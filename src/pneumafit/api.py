@@ -1,0 +1,163 @@
+"""The workbench from Python: read a campaign, fit, save, load, discover.
+
+The command line's main steps as functions that take and return objects::
+
+    import pneumafit as pf
+
+    campaign = pf.read_campaign("data/measured/NAP310")
+    fit = pf.fit(campaign, "friction", mcmc=False)
+    fit.save("out/NAP310/fit.json")
+    found = pf.discover(campaign, fit)  # or pf.discover(campaign, "out/NAP310")
+    print(found.statement)
+
+:func:`fit` returns a :class:`~pneumafit.identification.staged.FitResult`
+(with ``summary()``, ``save()``); :func:`load_fit` reads a saved fit.json
+back as a :class:`~pneumafit.identification.fitfile.SavedFit`; :func:`discover`
+takes either, or the path of a fit.json (or its folder), and uses the fit's
+own seed and options unless told otherwise. This module is the top layer
+beside the command line: it only calls the domain packages below it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from pneumafit.campaign import read_campaign
+from pneumafit.identification.fitfile import SavedFit, fit_document, load_fit
+from pneumafit.identification.staged import FitOptions, FitResult
+
+if TYPE_CHECKING:
+    from pneumafit.campaign.model import Campaign
+    from pneumafit.discovery.refit import Discovery
+    from pneumafit.frictiontest.discover import FrictionDiscovery
+
+__all__ = ["FitResult", "SavedFit", "discover", "fit", "load_fit", "read_campaign"]
+
+#: The models :func:`fit` knows: the three chamber models and the friction-test law.
+MODELS = ("convection", "constant-lambda", "polytropic", "friction")
+
+
+def fit(
+    campaign: Campaign,
+    model: str = "convection",
+    *,
+    mcmc: bool = True,
+    seed: int = 0,
+    options: FitOptions | None = None,
+    chains: str | os.PathLike[str] | None = None,
+    log: Callable[[str], None] | None = None,
+    **friction: Any,
+) -> FitResult:
+    """Fit one model to a campaign, as ``pneumafit fit CAMPAIGN --model MODEL``.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        From :func:`read_campaign`.
+    model : str
+        ``convection``, ``constant-lambda``, ``polytropic`` (the staged fit,
+        :func:`~pneumafit.identification.staged.identify`) or ``friction``
+        (imposed-motion friction tests,
+        :func:`~pneumafit.frictiontest.fit.identify_friction`).
+    mcmc : bool
+        Sample the posterior (emcee) after the joint estimate; False gives
+        Laplace intervals only. Overrides ``options.mcmc``.
+    seed : int
+        Seeds every random choice; same seed, same numbers.
+    options : FitOptions, optional
+        The staged fit's options (chamber models only).
+    chains : path, optional
+        HDF5 file of the MCMC chains; an interrupted run resumes from it.
+    log : callable, optional
+        Receives one line per step of progress.
+    **friction
+        For ``model="friction"``: ``law`` (``auto``, ``coulomb-viscous``,
+        ``stribeck``, ``lugre``), ``effects`` (``off``, ``auto``, ``on``),
+        ``walkers``, ``steps``.
+
+    Returns
+    -------
+    FitResult
+        With its seed, options and campaign, so :meth:`FitResult.save` and
+        :func:`discover` need nothing else.
+
+    Raises
+    ------
+    PneumafitInputError
+        An unknown model, options that do not apply to it, or a campaign the
+        model cannot be fitted to.
+    """
+    from dataclasses import replace
+
+    from pneumafit.campaign.errors import PneumafitInputError
+
+    if model not in MODELS:
+        raise PneumafitInputError(f"model: expected one of {', '.join(MODELS)}, found {model!r}")
+    if model == "friction":
+        if options is not None:
+            raise PneumafitInputError(
+                "options: the friction-test fit takes law=, effects=, walkers=, steps=, "
+                "found a FitOptions"
+            )
+        from pneumafit.frictiontest.fit import identify_friction
+
+        return identify_friction(campaign, mcmc=mcmc, seed=seed, chains=chains, log=log, **friction)
+    if friction:
+        raise PneumafitInputError(
+            f"{', '.join(sorted(friction))}: expected no such option for model {model!r} "
+            "(give the staged fit's options as options=FitOptions(...))"
+        )
+    from pneumafit.identification.staged import identify
+
+    opts = replace(options or FitOptions(), mcmc=mcmc)
+    return identify(campaign, model, options=opts, seed=seed, chains=chains, log=log)
+
+
+def discover(
+    campaign: Campaign,
+    fit: FitResult | SavedFit | str | os.PathLike[str],
+    *,
+    seed: int | None = None,
+    rounds: int | None = None,
+    log: Callable[[str], None] | None = None,
+) -> Discovery | FrictionDiscovery:
+    """Find the effect the fit's residual asks for, refit with it, as ``pneumafit discover``.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign the fit was made on.
+    fit : FitResult or SavedFit or path
+        The base fit: in memory (from :func:`fit`), loaded (:func:`load_fit`)
+        or the path of its fit.json or folder.
+    seed : int, optional
+        Default the fit's own seed (0 when it has none).
+    rounds : int, optional
+        Largest number of effects added (default: the command line's).
+    log : callable, optional
+        Receives one line per step.
+
+    Returns
+    -------
+    Discovery or FrictionDiscovery
+        The chamber models' :class:`~pneumafit.discovery.refit.Discovery`, or
+        the friction tests' result; both have ``selected`` and ``statement``.
+    """
+    if isinstance(fit, FitResult):
+        saved = SavedFit.from_document(fit_document(fit, campaign), "the fit in memory")
+    elif isinstance(fit, SavedFit):
+        saved = fit
+    else:
+        saved = load_fit(fit)
+    use_seed = seed if seed is not None else (saved.seed if saved.seed is not None else 0)
+    extra: dict[str, Any] = {} if rounds is None else {"rounds": rounds}
+    if saved.model == "friction":
+        from pneumafit.frictiontest.discover import discover_friction
+
+        return discover_friction(campaign, saved, seed=use_seed, log=log, **extra)
+    from pneumafit.discovery.refit import BaseFit
+    from pneumafit.discovery.refit import discover as discover_effects
+
+    return discover_effects(campaign, BaseFit.from_document(saved), seed=use_seed, log=log, **extra)

@@ -1,0 +1,44 @@
+"""The workbench from Python (pneumafit.api): fit, save, load, discover in a few lines.
+
+Recovery-kind data, not an inverse crime: the synthetic bench of
+test_friction_fit (a tanh friction law growing with pressure, which the fitted
+laws only approximate, on a finer grid, with sensor noise); here only the
+plumbing is judged: that the objects pass from one step to the next and that
+a fit in memory, a loaded one and a path give the same discovery.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from test_friction_fit import synthetic_campaign
+
+import pneumafit as pf
+from pneumafit.campaign.errors import PneumafitInputError
+
+
+def test_fit_save_load_discover(tmp_path: Path) -> None:
+    campaign = synthetic_campaign()
+    fit = pf.fit(campaign, "friction", mcmc=False, seed=4)
+    assert isinstance(fit, pf.FitResult) and fit.seed == 4
+    fit.save(tmp_path / "fit.json")
+    saved = pf.load_fit(tmp_path)
+    assert isinstance(saved, pf.SavedFit) and saved.seed == 4
+    assert saved.values["friction_coulomb"] == pytest.approx(
+        fit.parameters["friction_coulomb"].value, rel=1e-12
+    )
+    in_memory = pf.discover(campaign, fit)
+    from_file = pf.discover(campaign, tmp_path / "fit.json")
+    # the synthetic friction grows with pressure (1.5e-5 N/Pa): discovery must say so
+    assert "seal_friction_coefficient" in in_memory.effect_parameters
+    assert in_memory.selected == from_file.selected
+    assert in_memory.rmse_after == from_file.rmse_after
+
+
+def test_bad_model_and_options_are_named() -> None:
+    campaign = synthetic_campaign()
+    with pytest.raises(PneumafitInputError, match="model: expected one of"):
+        pf.fit(campaign, "isothermal")
+    with pytest.raises(PneumafitInputError, match="law: expected no such option"):
+        pf.fit(campaign, "convection", law="lugre")

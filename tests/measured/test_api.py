@@ -42,3 +42,13 @@ def test_bad_model_and_options_are_named() -> None:
         pf.fit(campaign, "isothermal")
     with pytest.raises(PneumafitInputError, match="law: expected no such option"):
         pf.fit(campaign, "convection", law="lugre")
+
+
+def test_friction_mcmc_shows_progress() -> None:
+    """A friction-test MCMC says where it is (it was silent for minutes on the seals)."""
+    from pneumafit.progress import Reporter
+
+    lines: list[str] = []
+    pf.fit(synthetic_campaign(), "friction", mcmc=True, steps=60, walkers=16,
+           progress=Reporter(lines.append, interval=0.0))  # fmt: skip
+    assert any(line.startswith("mcmc friction") for line in lines), lines

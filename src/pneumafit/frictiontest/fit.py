@@ -78,6 +78,7 @@ from pneumafit.identification.quality import (
 )
 from pneumafit.identification.sampling import run_mcmc
 from pneumafit.identification.staged import FitResult, StageResult, campaign_identity
+from pneumafit.progress import Reporter
 
 __all__ = ["LAWS", "FrictionStructure", "FrictionTestProblem", "identify_friction"]
 
@@ -300,6 +301,7 @@ def identify_friction(
     seed: int = 0,
     chains: str | Path | None = None,
     log: Callable[[str], None] | None = None,
+    progress: Reporter | None = None,
 ) -> FitResult:
     """Fit the friction law to the force balance of a campaign's friction tests.
 
@@ -322,6 +324,9 @@ def identify_friction(
         emcee HDF5 backend (group ``friction``).
     log : callable, optional
         Receives one line per stage.
+    progress : Reporter, optional
+        Progress of the MCMC (steps, acceptance, tau); default lines to
+        ``log`` at most every :data:`pneumafit.progress.LOG_INTERVAL` s.
 
     Returns
     -------
@@ -462,11 +467,12 @@ def identify_friction(
         n_free = parameters.n_free
         n_walkers = walkers or max(16, 4 * n_free)
         post = LogPosterior(like)
-        run = run_mcmc(
-            post, parameters, est.z, est.covariance, n_walkers=n_walkers,
-            n_steps=steps or 3000, seed=seed,
-            backend=chains, name="friction",
-        )  # fmt: skip
+        with (progress or Reporter(say)).task("mcmc friction") as task:
+            run = run_mcmc(
+                post, parameters, est.z, est.covariance, n_walkers=n_walkers,
+                n_steps=steps or 3000, seed=seed,
+                backend=chains, name="friction", log=say, report=task,
+            )  # fmt: skip
         joint.mcmc = run
         joint.propagated = run.parameters
         runs.append(run)

@@ -478,11 +478,18 @@ def identify_friction(
         runs.append(run)
         say(f"mcmc: {run.n_steps} steps x {run.n_walkers} walkers, acceptance "
             f"{run.acceptance:.2f}, {time.perf_counter() - t0:.0f} s")  # fmt: skip
+        # the reported estimate and its interval come from the same posterior:
+        # the chain's median (the joint optimum stays in stages' joint estimate),
+        # as the chamber fits report it; an optimum on a bound (F_c at 0) is
+        # otherwise outside its own interval, which cannot hold the bound
         parameters = run.parameters
+        for p in run.parameters.free:
+            if p.median is not None:
+                parameters = parameters.replace(p.name, value=p.median)
         warnings += run.warnings
 
-    # replay every friction test (fit and validate) at the estimate
-    values = {p.name: p.value for p in est.parameters}
+    # replay every friction test (fit and validate) at the reported estimate
+    values = {p.name: p.value for p in parameters}
     all_tests = prepare(campaign)
     residuals = []
     by_rec: dict[str, float] = {}

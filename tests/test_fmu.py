@@ -114,6 +114,7 @@ PLANTS = {
         "parameters": {
             "chamber_leak_conductance": 2e-10,
             "external_leak_conductance": 1e-10,
+            "external_leak_split": -0.35,
             "valve_time_constant": "5 ms",
             "wall_heat_capacity": 2000.0,
             "forced_convection_gain": 2000.0,

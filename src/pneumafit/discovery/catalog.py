@@ -465,7 +465,8 @@ register_effect(
         name="external_leakage",
         description=EFFECT_SLOTS["external_leakage"][2],
         law=(
-            "q_X = G_el (P_X - P_atm) for X = P, N  [kg/s, out of chamber X to atmosphere];\n"
+            "q_P = G_el (1 + s) (P_P - P_atm), q_N = G_el (1 - s) (P_N - P_atm)  [kg/s, out of\n"
+            "each chamber to atmosphere; s = 0: the same conductance, s = -1: only N leaks];\n"
             "an outflow carries T_X, an inflow (P_X < P_atm) T_atm; both count as exhausted air."
         ),
         parameters=(
@@ -476,12 +477,22 @@ register_effect(
                 upper=1e-9,
                 prior=_log_uniform(1e-13, 1e-9),
                 typical=5e-11,
-                description="laminar conductance G_el of each chamber to atmosphere",
+                description="laminar conductance G_el of each chamber to atmosphere (mean)",
+            ),
+            EffectParameter(
+                name="external_leak_split",
+                unit="",
+                lower=-1.0,
+                upper=1.0,
+                prior=EffectPrior("uniform", lower=-1.0, upper=1.0),
+                typical=0.0,
+                description="how the chambers share it: G_P = G_el (1 + s), G_N = G_el (1 - s)",
+                neutral=0.0,
             ),
         ),
         signature=(
-            SignatureTerm("P_P - P_atm", "dP_P/dt", "coefficient -gamma r T_P G_el / V_P"),
-            SignatureTerm("P_N - P_atm", "dP_N/dt", "coefficient -gamma r T_N G_el / V_N"),
+            SignatureTerm("P_P - P_atm", "dP_P/dt", "coefficient -gamma r T_P G_el (1 + s) / V_P"),
+            SignatureTerm("P_N - P_atm", "dP_N/dt", "coefficient -gamma r T_N G_el (1 - s) / V_N"),
         ),
         phases=("relaxation", "rest"),
     )

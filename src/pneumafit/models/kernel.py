@@ -91,6 +91,7 @@ from pneumafit.models.layout import (
     P_FV,
     P_GCL,
     P_GEL,
+    P_GES,
     P_K,
     P_KSTOP,
     P_LAMBDA,
@@ -247,6 +248,8 @@ def check_parameters(p: np.ndarray) -> bool:
     if p[P_SIG0] <= 0.0 or p[P_SIG1] < 0.0:
         return False
     if p[P_SEAL] < 0.0 or not -1.0 < p[P_FASYM] < 1.0:
+        return False
+    if not -1.0 <= p[P_GES] <= 1.0:
         return False
     # effective area: the bore's area k_A pi D^2 / 4 must exceed the rod's
     if p[P_AREA] <= 0.0 or p[P_AREA] * p[P_BORE] * p[P_BORE] <= p[P_ROD] * p[P_ROD]:
@@ -557,11 +560,12 @@ def rhs(
         q_n += q_l
         h_n += q_l * t_l
     if cfg[C_EXTERNAL_LEAK] == 1:
-        q_l = p[P_GEL] * (p_p - p_e)
+        # one conductance shared by the chambers as 1 + s : 1 - s (s = 0: equal)
+        q_l = p[P_GEL] * (1.0 + p[P_GES]) * (p_p - p_e)
         t_l = t_p if q_l > 0.0 else t_amb
         q_p -= q_l
         h_p -= q_l * t_l
-        q_l2 = p[P_GEL] * (p_n - p_e)
+        q_l2 = p[P_GEL] * (1.0 - p[P_GES]) * (p_n - p_e)
         t_l2 = t_n if q_l2 > 0.0 else t_amb
         q_n -= q_l2
         h_n -= q_l2 * t_l2

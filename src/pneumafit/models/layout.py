@@ -213,6 +213,13 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
 # appended after the LuGre parameters (the indices before them did not move)
 _BASE_SPECS = (*_BASE_SPECS, _seal_spec("friction_asymmetry"), _seal_spec("effective_area"))
 
+# appended after the seal effects: how the external leak is shared by the chambers
+_BASE_SPECS = (
+    *_BASE_SPECS,
+    ParameterSpec("external_leak_split", "", 0.0, -1.0, 1.0, "effect",
+                  "share of the external leak by chamber: G_P = G (1 + s), G_N = G (1 - s)"),
+)  # fmt: skip
+
 
 def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
     # measured valve map (physics.valve_map): knot values of the default ISO valve
@@ -288,6 +295,7 @@ P_FV = P["friction_viscous"]
 P_VST = P["stribeck_velocity"]
 P_GCL = P["chamber_leak_conductance"]
 P_GEL = P["external_leak_conductance"]
+P_GES = P["external_leak_split"]
 P_VTAU = P["valve_time_constant"]
 P_VWN = P["valve_natural_frequency"]
 P_VZETA = P["valve_damping_ratio"]

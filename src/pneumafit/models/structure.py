@@ -49,8 +49,8 @@ EFFECT_SLOTS: dict[str, tuple[int, tuple[str, ...], str]] = {
     ),
     "external_leakage": (
         C_EXTERNAL_LEAK,
-        ("external_leak_conductance",),
-        "laminar leakage of each chamber to atmosphere",
+        ("external_leak_conductance", "external_leak_split"),
+        "laminar leakage of each chamber to atmosphere, shared 1 + s : 1 - s",
     ),
     "valve_dynamics": (
         C_VALVE_ORDER,

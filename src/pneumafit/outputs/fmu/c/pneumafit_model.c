@@ -57,6 +57,7 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters */
     if (p[PF_P_characteristic_length] <= 0.0 || p[PF_P_chamber_leak_conductance] < 0.0 ||
         p[PF_P_external_leak_conductance] < 0.0 || p[PF_P_valve_time_constant] < 0.0)
         return 0;
+    if (!(p[PF_P_external_leak_split] >= -1.0) || !(p[PF_P_external_leak_split] <= 1.0)) return 0;
     if (p[PF_P_wall_heat_capacity] <= 0.0) return 0;
     if (p[PF_P_stop_stiffness] < 0.0 || p[PF_P_stop_damping] < 0.0) return 0;
     if (p[PF_P_friction_stiffness] <= 0.0 || p[PF_P_friction_damping] < 0.0) return 0;
@@ -567,11 +568,11 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         h_n += q_l * t_l;
     }
     if (m->external_leak) {
-        q_l = p[PF_P_external_leak_conductance] * (p_p - p_e);
+        q_l = p[PF_P_external_leak_conductance] * (1.0 + p[PF_P_external_leak_split]) * (p_p - p_e);
         t_l = q_l > 0.0 ? t_p : t_amb;
         q_p -= q_l;
         h_p -= q_l * t_l;
-        q_l2 = p[PF_P_external_leak_conductance] * (p_n - p_e);
+        q_l2 = p[PF_P_external_leak_conductance] * (1.0 - p[PF_P_external_leak_split]) * (p_n - p_e);
         t_l2 = q_l2 > 0.0 ? t_n : t_amb;
         q_n -= q_l2;
         h_n -= q_l2 * t_l2;

@@ -34,6 +34,16 @@ def test_fit_save_load_discover(tmp_path: Path) -> None:
     assert "seal_friction_coefficient" in in_memory.effect_parameters
     assert in_memory.selected == from_file.selected
     assert in_memory.rmse_after == from_file.rmse_after
+    # results read in a notebook: short reprs, summaries, tables
+    for obj in (fit, saved, in_memory):
+        assert len(repr(obj)) < 300, repr(obj)
+        assert repr(obj).split("(")[0] in obj.summary()
+    assert in_memory.statement in in_memory.summary()
+    frame = fit.to_dataframe()
+    assert frame.loc["friction_coulomb", "value"] == fit.parameters["friction_coulomb"].value
+    assert {"unit", "interval_lower", "interval_upper", "fixed"} <= set(frame.columns)
+    assert saved.to_dataframe().loc["friction_coulomb", "unit"] == "N"
+    assert "<table" in fit._repr_html_() and "<table" in saved._repr_html_()
 
 
 def test_bad_model_and_options_are_named() -> None:

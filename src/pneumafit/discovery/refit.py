@@ -329,6 +329,21 @@ class Discovery:
     seconds: float = 0.0
     rounds_history: list[Model] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        before, after = self.base.pressure_rmse("validate"), self.final.pressure_rmse("validate")
+        return (
+            f"Discovery(selected {', '.join(self.selected) or 'none'}; held-out pressure RMSE "
+            f"{before:.0f} -> {after:.0f} Pa; {len(self.steps)} refits, {self.seconds:.0f} s)"
+        )
+
+    def summary(self) -> str:
+        """What was kept and why, one line per refit, and the statement."""
+        lines = [repr(self)]
+        for step in self.steps:
+            verdict = "kept" if step.accepted else "rejected"
+            lines.append(f"  round {step.round}: {step.effect}: {verdict} ({step.reason})")
+        return "\n".join([*lines, self.statement])
+
 
 # ----------------------------------------------------------------- problems
 def _problem(

@@ -223,6 +223,20 @@ class FrictionDiscovery:
             )
         return f"Selected {names}."
 
+    def __repr__(self) -> str:
+        return (
+            f"FrictionDiscovery({self.base_law} -> {self.final_law}; selected "
+            f"{', '.join(self.selected) or 'none'}; {len(self.refits)} refits, "
+            f"{self.seconds:.0f} s)"
+        )
+
+    def summary(self) -> str:
+        """One line per refit (effect, BIC change, held-out RMSE, decision), then the statement."""
+        lines = [repr(self)]
+        for r in self.refits:
+            lines.append(f"  round {r.get('round')}: {r.get('effect')}: {r.get('reason', '')}")
+        return "\n".join([*lines, self.statement])
+
 
 def base_values(fit_doc: Mapping[str, Any] | SavedFit) -> tuple[str, dict[str, float]]:
     """The law and the kernel parameter values of a friction fit.json

@@ -413,6 +413,20 @@ class SavedFit:
     def __repr__(self) -> str:
         return f"SavedFit({self.model}, {len(self.values)} parameters, from {self.source})"
 
+    def summary(self) -> str:
+        """The saved verdict, then the free parameters' table."""
+        verdict = (self.quality or {}).get("verdict") or "no verdict saved"
+        return f"{self!r}: {verdict}\n{self.parameters.summary()}"
+
+    def to_dataframe(self) -> Any:
+        """Every saved parameter as a :class:`pandas.DataFrame` (SI units)."""
+        return self.parameters.to_dataframe()
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<p><b>{html.escape(repr(self))}</b></p>" + self.parameters._repr_html_()
+
     # ------------------------------------------------------------ typed views
     @property
     def path(self) -> Path:

@@ -491,6 +491,33 @@ class ParameterSet:
             "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows
         )
 
+    def to_dataframe(self, *, free_only: bool = False) -> Any:
+        """The parameters as a :class:`pandas.DataFrame`, one row per parameter.
+
+        Columns: ``value``, ``unit``, ``std``, ``interval_lower``,
+        ``interval_upper`` (90 %), ``median``, ``uncertainty``, ``lower``,
+        ``upper`` (bounds), ``fixed``, ``group``; index ``parameter``. Units
+        as in :attr:`Parameter.unit` (SI).
+        """
+        import pandas as pd
+
+        rows = []
+        for p in self.free if free_only else self.parameters:
+            lo, hi = p.interval_90 if p.interval_90 is not None else (math.nan, math.nan)
+            rows.append({
+                "parameter": p.name, "value": p.value, "unit": p.unit,
+                "std": math.nan if p.std is None else p.std,
+                "interval_lower": lo, "interval_upper": hi,
+                "median": math.nan if p.median is None else p.median,
+                "uncertainty": p.uncertainty or "", "lower": p.lower, "upper": p.upper,
+                "fixed": p.fixed, "group": p.group,
+            })  # fmt: skip
+        return pd.DataFrame(rows).set_index("parameter")
+
+    def _repr_html_(self) -> str:
+        cols = ["value", "unit", "interval_lower", "interval_upper", "uncertainty"]
+        return str(self.to_dataframe(free_only=True)[cols].to_html())
+
     # ---------------------------------------------------------- mapping view
     def __iter__(self) -> Iterator[Parameter]:
         return iter(self.parameters)

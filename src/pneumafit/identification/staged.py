@@ -631,6 +631,21 @@ class FitResult:
             lines += [f"  - {p}" for p in self.quality.problems()]
         return "\n".join([*lines, self.parameters.summary()])
 
+    def to_dataframe(self) -> Any:
+        """Every parameter as a :class:`pandas.DataFrame` (:meth:`ParameterSet.to_dataframe`)."""
+        return self.parameters.to_dataframe()
+
+    def _repr_html_(self) -> str:
+        import html
+
+        problems = self.quality.problems() if self.quality is not None else []
+        items = "".join(f"<li>{html.escape(p)}</li>" for p in problems)
+        return (
+            f"<p><b>{html.escape(repr(self))}</b></p>"
+            + (f"<ul>{items}</ul>" if items else "")
+            + self.parameters._repr_html_()
+        )
+
     def stage(self, name: str) -> StageResult:
         for s in self.stages:
             if s.name == name:

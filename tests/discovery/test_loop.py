@@ -113,7 +113,7 @@ def test_effect_recorded_by_the_independent_truth_is_proposed(
 _CHANNEL_RULE = (
     "measured 2026-11-25: the refit is a large gain (asymmetry BIC -2812, held-out "
     "4174 -> 752 Pa; area BIC -18702, held-out 7115 -> 769 Pa) but the channel rule "
-    "(refit.py, owned elsewhere) rejects it: the flow tests' qm_P gets 11 % (asymmetry) "
+    "(discovery/refit.py) rejects it: the flow tests' qm_P gets 11 % (asymmetry) "
     "and 69 % (area) worse as the refit moves the valve back towards the truth's (the "
     "base fit's bent centre leak fitted the flows better than the true one; docs/effects.md)"
 )

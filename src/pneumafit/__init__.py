@@ -21,7 +21,7 @@ try:
 except _metadata.PackageNotFoundError:  # running from a source tree without install
     __version__ = "unknown"
 
-_API = ("FitResult", "SavedFit", "discover", "fit", "load_fit", "read_campaign")
+_API = ("FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign")
 
 __all__ = ["__version__", *_API]
 

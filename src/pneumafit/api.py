@@ -10,6 +10,8 @@ The command line's main steps as functions that take and return objects::
     found = pf.discover(campaign, fit)  # or pf.discover(campaign, "out/NAP310")
     print(found.statement)
 
+    # the chamber models: pf.compare(campaign, [fit_a, fit_b, "out/fits/polytropic"])
+
 :func:`fit` returns a :class:`~pneumafit.identification.staged.FitResult`
 (with ``summary()``, ``save()``); :func:`load_fit` reads a saved fit.json
 back as a :class:`~pneumafit.identification.fitfile.SavedFit`; :func:`discover`
@@ -21,7 +23,7 @@ beside the command line: it only calls the domain packages below it.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from pneumafit.campaign import read_campaign
@@ -30,10 +32,11 @@ from pneumafit.identification.staged import FitOptions, FitResult
 
 if TYPE_CHECKING:
     from pneumafit.campaign.model import Campaign
+    from pneumafit.comparison.result import Comparison
     from pneumafit.discovery.refit import Discovery
     from pneumafit.frictiontest.discover import FrictionDiscovery
 
-__all__ = ["FitResult", "SavedFit", "discover", "fit", "load_fit", "read_campaign"]
+__all__ = ["FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign"]
 
 #: The models :func:`fit` knows: the three chamber models and the friction-test law.
 MODELS = ("convection", "constant-lambda", "polytropic", "friction")
@@ -145,12 +148,7 @@ def discover(
         The chamber models' :class:`~pneumafit.discovery.refit.Discovery`, or
         the friction tests' result; both have ``selected`` and ``statement``.
     """
-    if isinstance(fit, FitResult):
-        saved = SavedFit.from_document(fit_document(fit, campaign), "the fit in memory")
-    elif isinstance(fit, SavedFit):
-        saved = fit
-    else:
-        saved = load_fit(fit)
+    saved = _saved(campaign, fit)
     use_seed = seed if seed is not None else (saved.seed if saved.seed is not None else 0)
     extra: dict[str, Any] = {} if rounds is None else {"rounds": rounds}
     if saved.model == "friction":
@@ -161,3 +159,70 @@ def discover(
     from pneumafit.discovery.refit import discover as discover_effects
 
     return discover_effects(campaign, BaseFit.from_document(saved), seed=use_seed, log=log, **extra)
+
+
+def _saved(campaign: Campaign, fit: FitResult | SavedFit | str | os.PathLike[str]) -> SavedFit:
+    """A fit in memory, loaded or by path, as the loaded view."""
+    if isinstance(fit, FitResult):
+        return SavedFit.from_document(fit_document(fit, campaign), "the fit in memory")
+    if isinstance(fit, SavedFit):
+        return fit
+    return load_fit(fit)
+
+
+def compare(
+    campaign: Campaign,
+    fits: Sequence[FitResult | SavedFit | str | os.PathLike[str]],
+    *,
+    draws: int | None = None,
+    seed: int = 0,
+    log: Callable[[str], None] | None = None,
+) -> Comparison:
+    """Replay chamber-model fits on every recording and score them, as ``pneumafit compare``.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign the fits were made on (its held-out recordings are scored
+        apart).
+    fits : sequence of FitResult or SavedFit or path
+        One fit per model (in memory, loaded, or the path of a fit.json or its
+        folder); WAIC and PSIS-LOO where a loaded fit has its chains beside it.
+    draws : int, optional
+        Posterior draws per model for WAIC/LOO (default the command line's).
+    seed : int
+        Seeds the draws.
+    log : callable, optional
+        One line per model replayed.
+
+    Returns
+    -------
+    Comparison
+        ``summary()`` (the table), ``to_dataframe()`` (model x recording x
+        channel), ``save(path)`` (comparison.json), ``document``.
+
+    Raises
+    ------
+    PneumafitInputError
+        Two fits of one model, or a friction-test fit (nothing to replay).
+    """
+    from pneumafit.campaign.errors import PneumafitInputError
+    from pneumafit.comparison.information import DEFAULT_DRAWS
+    from pneumafit.comparison.result import compare_fits
+
+    loaded: dict[str, SavedFit] = {}
+    for fit in fits:
+        saved = _saved(campaign, fit)
+        if saved.model == "friction" or saved.model in loaded:
+            raise PneumafitInputError(
+                f"{saved.source}: model: expected one chamber-model fit per model, found "
+                + (
+                    "a friction-test fit"
+                    if saved.model == "friction"
+                    else f"a second {saved.model}"
+                )
+            )
+        loaded[saved.model] = saved
+    return compare_fits(
+        campaign, loaded, draws=DEFAULT_DRAWS if draws is None else draws, seed=seed, log=log
+    )

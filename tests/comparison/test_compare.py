@@ -13,6 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from pneumafit.campaign import Campaign
+from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli import app
 from pneumafit.comparison import (
     COMPARISON_FORMAT,
@@ -206,3 +207,27 @@ def test_compare_command_returns_2_for_bad_options(
     code = compare_command(folder, tmp_path / "o", [], walkers=3, console=console)
     assert code == 2
     assert "--walkers" in console.file.getvalue()
+
+
+def test_compare_from_python_matches_the_command(
+    blocked_campaign: tuple[Path, Campaign], blocked_fits: dict[str, Path]
+) -> None:
+    """pf.compare on fits by path, loaded and in memory: the same numbers as the
+    command's replay (the blocked campaign's fits; plumbing, not recovery)."""
+    import pneumafit as pf
+
+    _folder, campaign = blocked_campaign
+    loaded = pf.load_fit(blocked_fits["polytropic"])
+    comparison = pf.compare(
+        campaign, [blocked_fits["convection"], loaded, blocked_fits["constant-lambda"]]
+    )
+    assert comparison.models == ["convection", "polytropic", "constant-lambda"]
+    doc = comparison.document
+    assert doc["best"]["validate"]["pressure"] == "convection"
+    frame = comparison.to_dataframe()
+    assert set(frame["model"]) == set(MODELS) and len(frame) == len(doc["table"])
+    assert "all pressure" in comparison.summary() and len(repr(comparison)) < 300
+    again = pf.compare(campaign, [loaded])
+    assert again.document["polytropic"]["rmse"] == doc["polytropic"]["rmse"]
+    with pytest.raises(PneumafitInputError, match="a second polytropic"):
+        pf.compare(campaign, [loaded, blocked_fits["polytropic"]])

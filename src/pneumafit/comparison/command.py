@@ -18,7 +18,6 @@ Every file appears atomically; comparison.json is written last.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Sequence
@@ -30,19 +29,19 @@ from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.commandline import folder_problem, int_problem, report_problems
-from pneumafit.comparison.evaluate import ModelEvaluation, evaluate_fit, fit_values
+from pneumafit.comparison.evaluate import fit_values
 from pneumafit.comparison.figures import plot_recording
-from pneumafit.comparison.information import DEFAULT_DRAWS, differences, posterior_criteria
-from pneumafit.comparison.report import comparison_document, print_table
-from pneumafit.fileio import write_text_atomic
+from pneumafit.comparison.information import DEFAULT_DRAWS
+from pneumafit.comparison.report import print_table
+from pneumafit.comparison.result import compare_fits
 from pneumafit.identification.command import (
-    CHAINS_FILE,
     EXIT_BAD_INPUT,
     EXIT_OK,
     FIT_FILE,
     MAX_SAMPLED,
     fit_command,
 )
+from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.staged import FitResult
 from pneumafit.models.structure import MODELS
 
@@ -220,26 +219,11 @@ def compare_command(
                           "seconds": time.perf_counter() - t0}  # fmt: skip
 
     # ------------------------------------------------------------- evaluate
-    evaluations: list[ModelEvaluation] = []
-    posteriors: dict[str, dict[str, Any]] = {}
-    for model in COMPARED_MODELS:
-        file, document = chosen[model]
-        t0 = time.perf_counter()
-        ev = evaluate_fit(camp, document, where=os.fspath(file))
-        evaluations.append(ev)
-        console.print(f"{model}: simulated {len(ev.traces)} recordings "
-                      f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
-        t0 = time.perf_counter()
-        chains_name = ((document.get("mcmc") or {}).get("chains") or {}).get("file") or CHAINS_FILE
-        chains = file.parent / chains_name if document.get("mcmc") else None
-        posteriors[model] = posterior_criteria(
-            camp, document, chains, n_draws=draws, seed=seed, where=os.fspath(file)
-        )
-        if posteriors[model].get("available"):
-            console.print(f"{model}: WAIC/LOO from {posteriors[model]['n_draws']} posterior "
-                          f"draws ({time.perf_counter() - t0:.1f} s)")  # fmt: skip
-
-    differences(posteriors)
+    comparison = compare_fits(
+        camp, {m: SavedFit.from_document(d, os.fspath(f)) for m, (f, d) in chosen.items()},
+        draws=draws, seed=seed, sources=sources, log=console.print,
+    )  # fmt: skip
+    evaluations = comparison.evaluations
 
     # -------------------------------------------------------------- figures
     written: list[str] = []
@@ -265,12 +249,10 @@ def compare_command(
         + f" --seed {seed}"
         + ("" if mcmc else " --no-mcmc")
     )
-    document = comparison_document(
-        camp, evaluations, {m: d for m, (_f, d) in chosen.items()}, posteriors,
-        sources=sources, figures=written, command=command,
-        seconds=time.perf_counter() - t_start,
-    )  # fmt: skip
-    write_text_atomic(out / COMPARISON_FILE, json.dumps(document, indent=2, allow_nan=False) + "\n")
+    document = comparison.document
+    document["figures"] = written
+    document["provenance"].update(command=command, seconds=time.perf_counter() - t_start)
+    comparison.save(out / COMPARISON_FILE)
     print_table(document, console)
     console.print(f"wrote {out / COMPARISON_FILE}")
     return EXIT_OK

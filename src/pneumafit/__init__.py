@@ -16,6 +16,8 @@ command line's start) stays light.
 from importlib import metadata as _metadata
 from typing import Any
 
+from pneumafit.errors import PneumafitComputationError, PneumafitError, PneumafitInputError
+
 try:
     __version__: str = _metadata.version("pneumafit")
 except _metadata.PackageNotFoundError:  # running from a source tree without install
@@ -23,7 +25,13 @@ except _metadata.PackageNotFoundError:  # running from a source tree without ins
 
 _API = ("FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign")
 
-__all__ = ["__version__", *_API]
+__all__ = [
+    "PneumafitComputationError",
+    "PneumafitError",
+    "PneumafitInputError",
+    "__version__",
+    *_API,
+]
 
 
 def __getattr__(name: str) -> Any:

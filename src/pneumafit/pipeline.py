@@ -62,6 +62,7 @@ from pneumafit.commandline import (
     folder_problem,
     report_problems,
 )
+from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.simulation import counter
 
@@ -86,7 +87,7 @@ SIL_FILE = "sil.json"
 STAGES_FILE = "stages.json"
 
 
-class StageFailed(RuntimeError):
+class StageFailed(PneumafitComputationError):
     """A stage ended with a non-zero status; the run stops there."""
 
     def __init__(self, stage: str, status: int) -> None:

@@ -10,13 +10,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Literal
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = ["CampaignError", "PneumafitInputError", "Problem", "Severity"]
 
 Severity = Literal["error", "warning"]
 
 
-class PneumafitInputError(ValueError):
-    """Input given to pneumafit (a file, a value, an array) is not acceptable."""
+# the one input error of every layer (pneumafit.errors), named here too as before
 
 
 @dataclass(frozen=True)

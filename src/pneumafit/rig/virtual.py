@@ -41,6 +41,7 @@ from pneumafit.campaign import (
     Rig,
     write_campaign,
 )
+from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import temporary_folder
 from pneumafit.models import (
     PARAMETER_SPECS,
@@ -136,7 +137,7 @@ _UNITS = {s.name: s.unit for s in PARAMETER_SPECS}
 _RIG_FIELDS = tuple(f.name for f in fields(Rig))
 
 
-class RigError(RuntimeError):
+class RigError(PneumafitComputationError):
     """The virtual rig could not make a campaign (a simulation failed)."""
 
 

@@ -99,7 +99,9 @@ def test_structure_field_layout_and_parameters() -> None:
     assert P["friction_damping"] == P["friction_stiffness"] + 1 == P["stop_damping"] + 2
     # then the seal effects' two parameters (appended, physics.seal_effects)
     assert P["area_factor"] == P["friction_asymmetry"] + 1 == P["friction_damping"] + 2
-    assert P["valve_map_CS_00"] == P["area_factor"] + 1
+    # then the external leak's split (appended with it), then the map block
+    assert P["external_leak_split"] == P["area_factor"] + 1
+    assert P["valve_map_CS_00"] == P["external_leak_split"] + 1
 
 
 def test_parameter_sets_carry_the_law_parameters() -> None:

@@ -100,6 +100,19 @@ def test_fit_json_keeps_the_contract(fitted: tuple[Path, dict], small: tuple) ->
         assert set(f) == {"heat", "friction"}
         assert f["heat"]["chain"].shape[:2] == (STEPS, WALKERS)
     assert not (out / "chains.partial.h5").exists()
+    # ArviZ netCDF beside it: the kept chain (after the burn-in fit.json records)
+    # in SI, walkers as chains. fit.json's intervals also carry the other groups'
+    # joint uncertainty (propagated), so the stage's own median need only lie
+    # inside them, not equal fit.json's median
+    import arviz as az
+
+    for stage in ("heat", "friction"):
+        idata = az.from_netcdf(out / f"chains.{stage}.nc")
+        kept = STEPS - mcmc["stages"][stage]["discard"]
+        assert (idata.posterior.sizes["chain"], idata.posterior.sizes["draw"]) == (WALKERS, kept)
+        assert idata.posterior.attrs["stage"] == stage and "lp" in idata.sample_stats
+    xi_draws = az.from_netcdf(out / "chains.heat.nc").posterior["xi"].values
+    assert xi["interval_90"][0] < float(np.median(xi_draws)) < xi["interval_90"][1]
     # other tools read fit.json as a parameter file
     model, values = read_parameter_file(out / "fit.json")
     assert model == "convection" and values["xi"] == pytest.approx(xi["value"])

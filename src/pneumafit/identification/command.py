@@ -12,6 +12,7 @@ Output folder ``OUT``::
     OUT/fit.json            the result (format pneumafit-fit, see fitfile.py)
     OUT/chains.h5           emcee HDF5 backend, one group per sampled stage
     OUT/chains.partial.h5   chains of a run in progress (renamed when done)
+    OUT/chains.<stage>.nc   each sampled stage's kept chain as ArviZ InferenceData
 
 Both final files appear atomically (renamed into place). A partial chains
 file is resumed only when it was made with the same campaign (SHA-256 of
@@ -271,14 +272,40 @@ def fit_command(
     except OSError as exc:
         console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
         return EXIT_FAILED
+    netcdf = write_inference_data(result, out) if mcmc else []
     _summary(result, console)
-    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else ""))
+    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
+    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else "") + arviz)
     quality = result.quality
     if quality is not None and not quality.trustworthy:
         console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))
         if strict:
             return EXIT_UNTRUSTWORTHY
     return EXIT_OK
+
+
+def write_inference_data(result: FitResult, out: Path) -> list[Path]:
+    """Each sampled stage's chain as ArviZ netCDF, ``OUT/chains.<stage>.nc`` (atomic).
+
+    The emcee HDF5 file stays the resumable record; these are for ArviZ and
+    xarray (:meth:`~pneumafit.identification.sampling.MCMCResult.to_inference_data`).
+    A stage whose file cannot be written is skipped (the fit is complete
+    without it).
+    """
+    from pneumafit.fileio import atomic_path
+
+    written = []
+    for stage in result.stages:
+        if stage.mcmc is None:
+            continue
+        target = out / f"chains.{stage.name}.nc"
+        try:
+            with atomic_path(target) as tmp:
+                stage.mcmc.to_inference_data().to_netcdf(str(tmp), engine="h5netcdf")
+        except (OSError, ValueError, ImportError):
+            continue
+        written.append(target)
+    return written
 
 
 def _fmt(x: float | None, digits: int = 4) -> str:

@@ -122,6 +122,32 @@ class MCMCResult:
     resumed_from: int = 0
     seed: int = 0
 
+    def to_inference_data(self) -> Any:
+        """The kept chain as an ArviZ ``InferenceData`` (walkers as chains, SI values).
+
+        ``posterior``: one variable per sampled parameter, in its unit
+        (dimensions ``chain`` = walker, ``draw`` = step after the discarded
+        burn-in); ``sample_stats``: ``lp``, the log posterior. Attributes:
+        the stage name, units, seed, discard. For ``az.summary``, ``az.plot_trace``
+        and the like; the walkers of one ensemble are not independent chains.
+        """
+        import arviz as az
+
+        kept = self.chain[self.discard :]
+        posterior = {
+            p.name: np.asarray(p.to_value(kept[:, :, j]), dtype=float).T
+            for j, p in enumerate(self.parameters.free)
+        }
+        lp = np.asarray(self.log_prob[self.discard :], dtype=float).T
+        idata = az.from_dict(posterior=posterior, sample_stats={"lp": lp})
+        attrs = {
+            "stage": self.name, "seed": self.seed, "discard": self.discard,
+            "units": "; ".join(f"{p.name} [{p.unit or '-'}]" for p in self.parameters.free),
+            "creation_library": "pneumafit (emcee ensemble: walkers as chains)",
+        }  # fmt: skip
+        idata.posterior.attrs.update(attrs)
+        return idata
+
     def as_dict(self) -> dict[str, Any]:
         """The summary written to fit.json (no chains)."""
         return {

@@ -121,8 +121,9 @@ def friction_fit_command(
     except OSError as exc:
         console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
         return EXIT_FAILED
-    from pneumafit.identification.command import _summary
+    from pneumafit.identification.command import _summary, write_inference_data
 
+    netcdf = write_inference_data(result, out) if mcmc else []
     _summary(result, console)
     m = result.metrics
     console.print(
@@ -130,7 +131,8 @@ def friction_fit_command(
         "force RMSE by recording: "
         + ", ".join(f"{f} {v:.3g} N" for f, v in m["rmse_by_recording"].items())
     )
-    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else ""))
+    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
+    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else "") + arviz)
     quality = result.quality
     if quality is not None and not quality.trustworthy:
         console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))

@@ -654,6 +654,23 @@ def build_rows(
     nuis: dict[str, list[NDArray[np.float64]]] = {}
     sources: list[str] = []
     next_group = 0
+
+    def tag(
+        keep: NDArray[np.bool_],
+        t: NDArray[np.float64],
+        labels: NDArray[np.str_],
+        source: str,
+        kind: str,
+    ) -> None:
+        """Phase, bootstrap block, source and kind of the rows ``keep`` just added."""
+        nonlocal next_group
+        phases.append(labels[keep])
+        blk = np.floor((t[keep] - t[0]) / block).astype(np.int64)
+        groups.append(blk + next_group)
+        next_group += int(blk.max(initial=0)) + 1
+        sources.append(source)
+        channels.append(np.full(int(keep.sum()), kind))
+
     model = model_values(values)
     recordings = campaign.recordings if role is None else campaign.by_role(role)
     for rec in recordings:
@@ -705,12 +722,7 @@ def build_rows(
                 nuis.setdefault(name, []).append(col[keep])
             for k in feats:
                 feats[k].append(smoothed[k][keep])
-            phases.append(labels[keep])
-            blk = np.floor((t[keep] - t[0]) / block).astype(np.int64)
-            groups.append(blk + next_group)
-            next_group += int(blk.max(initial=0)) + 1
-            sources.append(f"{rec.file}:{ch}")
-            channels.append(np.full(int(keep.sum()), "pressure"))
+            tag(keep, t, labels, f"{rec.file}:{ch}", "pressure")
         if exp_moving(rec) and "y" in rec.channels:
             got = _motion_rows(rec, at, model, t, width, dt, parameters, feats, decimate)
             if got is not None:
@@ -719,12 +731,7 @@ def build_rows(
                 weights.append(weight_m)
                 for name in parameters:
                     nuis.setdefault(name, []).append(nuis_m[name])
-                phases.append(labels[keep])
-                blk = np.floor((t[keep] - t[0]) / block).astype(np.int64)
-                groups.append(blk + next_group)
-                next_group += int(blk.max(initial=0)) + 1
-                sources.append(f"{rec.file}:v")
-                channels.append(np.full(int(keep.sum()), "motion"))
+                tag(keep, t, labels, f"{rec.file}:v", "motion")
     if not rates:
         raise ValueError(
             f"campaign {campaign.name!r}: attribution: expected {role or 'any'} charge, discharge "

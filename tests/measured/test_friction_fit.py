@@ -119,10 +119,13 @@ def test_fit_of_a_shipped_seal(tmp_path: Path) -> None:
     assert doc["quality"]["recordings"][0]["channel"] == "F"
     rmse = doc["metrics"]["rmse_by_recording"]
     # a pressure-independent law on 1-5 bar whose friction grows from ~2 N
-    # to ~8 N: one level in between (measured 1.0, 2.7, 4.8 N at 1, 3, 5
-    # bar) and worse still on the held-out 7 bar (measured 7.3 N)
-    assert rmse["NAP310_1bar.csv"] < 1.5
-    assert rmse["NAP310_5bar.csv"] < 6.0
+    # to ~8 N: one level in between, which with one sigma for all tests sits
+    # where the summed squares are least (measured 2.40, 2.25, 3.66 N at 1, 3,
+    # 5 bar; with a sigma per test it sat near the 1-bar level: 1.0, 2.7, 4.8),
+    # and worse still on the held-out 7 bar (measured 5.90 N). The bounds are
+    # the level's reach, half-way to the friction's spread, not the figures
+    assert max(rmse[f"NAP310_{p}bar.csv"] for p in (1, 3, 5)) < 5.0
+    assert rmse["NAP310_3bar.csv"] < rmse["NAP310_5bar.csv"]
     assert rmse["NAP310_7bar.csv"] > rmse["NAP310_5bar.csv"]
     # the load-cell noise estimated from the data: ~0.03 N
     assert 0.01 < doc["metrics"]["noise_F"]["NAP310_7bar.csv"] < 0.1

@@ -29,9 +29,6 @@ from pneumafit.identification.fitfile import SavedFit
 
 __all__ = ["Comparison", "compare_fits"]
 
-#: The chains file a fit.json names when its mcmc block names none.
-_CHAINS_FILE = "chains.h5"
-
 
 @dataclass
 class Comparison:
@@ -124,12 +121,8 @@ def compare_fits(
         evaluations.append(ev)
         say(f"{model}: simulated {len(ev.traces)} recordings ({time.perf_counter() - t0:.1f} s)")
         t0 = time.perf_counter()
-        chains = None
-        if fit.mcmc and Path(where).is_file():
-            name = (fit.mcmc.get("chains") or {}).get("file") or _CHAINS_FILE
-            chains = Path(where).parent / name
         posteriors[model] = posterior_criteria(
-            campaign, fit.document, chains, n_draws=draws, seed=seed, where=where
+            campaign, fit.document, fit.chains_path, n_draws=draws, seed=seed, where=where
         )
         if posteriors[model].get("available"):
             say(f"{model}: WAIC/LOO from {posteriors[model]['n_draws']} posterior draws "

@@ -33,11 +33,10 @@ from pneumafit.commandline import (
     run_guarded,
 )
 from pneumafit.frictiontest.fit import identify_friction
+from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE
 
 __all__ = ["friction_fit_command"]
 
-FIT_FILE = "fit.json"
-CHAINS_FILE = "chains.h5"
 PARTIAL_FILE = "chains.partial.h5"
 #: --friction value -> law of the friction-test fit
 _LAW = {"auto": "auto", "switch": "stribeck", "lugre": "lugre"}

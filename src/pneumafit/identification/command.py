@@ -45,7 +45,7 @@ from pneumafit.commandline import (
     report_problems,
     run_guarded,
 )
-from pneumafit.identification.fitfile import _version
+from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
@@ -59,8 +59,6 @@ from pneumafit.progress import Reporter
 __all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
 
 
-FIT_FILE = "fit.json"
-CHAINS_FILE = "chains.h5"
 PARTIAL_FILE = "chains.partial.h5"
 #: The largest stage sampled by default has this many parameters (friction).
 MAX_SAMPLED = len(FRICTION_PARAMETERS)

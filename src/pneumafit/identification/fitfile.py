@@ -95,6 +95,7 @@ from pneumafit.models.layout import FRICTION_LAWS, SPECS, VALVE_LAWS
 from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
 
 __all__ = [
+    "CHAINS_FILE",
     "FIT_FILE",
     "FIT_FORMAT",
     "FIT_VERSION",
@@ -109,6 +110,8 @@ FIT_FORMAT = "pneumafit-fit"
 FIT_VERSION = 1
 #: Name of the file in a fit folder (``pneumafit fit --out FOLDER``).
 FIT_FILE = "fit.json"
+#: The emcee chains beside fit.json, when ``mcmc.chains.file`` names none.
+CHAINS_FILE = "chains.h5"
 
 
 def _version() -> str:
@@ -444,6 +447,15 @@ class SavedFit:
         """``provenance.options``: the settings the fit was made with (JSON form)."""
         options = self.provenance.get("options")
         return dict(options) if isinstance(options, Mapping) else None
+
+    @property
+    def chains_path(self) -> Path | None:
+        """The emcee chains beside the fit.json read (``mcmc.chains.file``,
+        default :data:`CHAINS_FILE`); None without MCMC or for a fit not read
+        from a file."""
+        if not self.mcmc or not self.path.is_file():
+            return None
+        return self.path.parent / ((self.mcmc.get("chains") or {}).get("file") or CHAINS_FILE)
 
     @property
     def campaign_sha256(self) -> dict[str, str]:

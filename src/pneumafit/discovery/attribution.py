@@ -804,18 +804,15 @@ def _motion_rows(
     keep = np.isfinite(acc) & (sliding > MIN_SLIDING_SPEED)
     keep &= minimum_filter1d(inside.astype(np.int64), size=2 * width + 1, mode="nearest") > 0
     keep &= np.arange(t.size) % max(int(decimate), 1) == 0
-    cols: dict[str, NDArray[np.float64]] = {}
-    for k in feats:
-        raw = at.get(f"effect:{k}:v")
-        col = np.zeros(t.size) if raw is None else _smooth_rate(_smooth_rate(raw, width), width)
+
+    def column(key: str) -> NDArray[np.float64]:
+        raw = at.get(key)
+        return np.zeros(t.size) if raw is None else _smooth_rate(_smooth_rate(raw, width), width)
+
+    cols = {k: column(f"effect:{k}:v") for k in feats}
+    nuis = {name: column(f"param:{name}:v") for name in parameters}
+    for col in (*cols.values(), *nuis.values()):
         keep &= np.isfinite(col)
-        cols[k] = col
-    nuis: dict[str, NDArray[np.float64]] = {}
-    for name in parameters:
-        raw = at.get(f"param:{name}:v")
-        col = np.zeros(t.size) if raw is None else _smooth_rate(_smooth_rate(raw, width), width)
-        keep &= np.isfinite(col)
-        nuis[name] = col
     if keep.sum() < 3:
         return None
     ymeas = np.asarray(rec.channels["y"], float)

@@ -283,6 +283,17 @@ def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def _exchange_constants(
+    bore: float, rod: float, s_p: float, s_n: float, v0_p: float, v0_n: float
+) -> tuple[float, float, float, float]:
+    """Exchange areas A_P = A0P + CAP y, A_N = A0N + CAN (L - y) (physics.geometry):
+    (A0P, CAP, A0N, CAN) in m^2, m^2, m; the dead volumes' walls as cylinders of
+    the piston's section."""
+    a0_n = 2.0 * s_n + math.pi * (bore + rod) * v0_n / s_n if s_n > 0.0 else 0.0
+    return 2.0 * s_p + math.pi * bore * v0_p / s_p, math.pi * bore, a0_n, math.pi * (bore + rod)
+
+
+@njit(cache=True)
 def derive(p: np.ndarray, d: np.ndarray) -> None:
     """Fill the per-simulation constants d (areas, forces, scales) from p."""
     bore = p[P_BORE]
@@ -294,13 +305,10 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     # S_P' = k_A S_P, S_N' = S_P' - pi d^2 / 4; P_atm (S_P - S_N) = P_atm S_rod
     # in D_FEXT does not depend on it
     bore_k = bore * math.sqrt(p[P_AREA]) if p[P_AREA] > 0.0 else bore
-    s_pk, s_nk = piston_areas(bore_k, rod)
-    d[D_SPK] = s_pk
-    d[D_SNK] = s_nk
-    d[D_A0PK] = 2.0 * s_pk + math.pi * bore_k * p[P_V0P] / s_pk
-    d[D_CAPK] = math.pi * bore_k
-    d[D_A0NK] = 2.0 * s_nk + math.pi * (bore_k + rod) * p[P_V0N] / s_nk if s_nk > 0.0 else 0.0
-    d[D_CANK] = math.pi * (bore_k + rod)
+    d[D_SPK], d[D_SNK] = piston_areas(bore_k, rod)
+    d[D_A0PK], d[D_CAPK], d[D_A0NK], d[D_CANK] = _exchange_constants(
+        bore_k, rod, d[D_SPK], d[D_SNK], p[P_V0P], p[P_V0N]
+    )
     d[D_FEXT] = p[P_PE] * (s_p - s_n) + p[P_FEXT] + p[P_MASS] * G0 * math.sin(p[P_ANGLE])
     mu = viscosity(p[P_TW])
     k_air = conductivity(p[P_TW])
@@ -310,11 +318,9 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     d[D_LAMC] = p[P_XI] * k_air / length
     d[D_GRC] = G0 * length**3 / (R_AIR * mu) ** 2
     d[D_RTA] = math.sqrt(T_REF / p[P_TAMB])
-    # exchange areas A_P = A0P + CAP y, A_N = A0N + CAN (L - y) (physics.geometry)
-    d[D_A0P] = 2.0 * s_p + math.pi * bore * p[P_V0P] / s_p
-    d[D_CAP] = math.pi * bore
-    d[D_A0N] = 2.0 * s_n + math.pi * (bore + rod) * p[P_V0N] / s_n
-    d[D_CAN] = math.pi * (bore + rod)
+    d[D_A0P], d[D_CAP], d[D_A0N], d[D_CAN] = _exchange_constants(
+        bore, rod, s_p, s_n, p[P_V0P], p[P_V0N]
+    )
     d[D_IPS] = 1.0 / p[P_PS]
     d[D_IM] = 1.0 / p[P_MASS]
     d[D_ZRATE] = math.inf  # exact LuGre law unless integrate() limits it to its step

@@ -164,3 +164,26 @@ def test_cli_unreachable_scheduler_exits_2_without_traceback(
     assert "127.0.0.1:1" in res.stdout and "cannot reach a Dask scheduler" in res.stdout
     assert "Traceback" not in res.stdout + res.stderr
     assert not (tmp_path / "fits").exists()
+
+
+def test_without_dask_the_error_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Plumbing: Dask is an optional extra; its absence is bad input, not a traceback."""
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails as if not installed
+    with pytest.raises(PneumafitInputError, match=r"pip install 'pneumafit\[distributed\]'"):
+        with dask_client(None, 1):
+            pass
+
+
+def test_workers_run_one_numba_thread(client: object) -> None:
+    """Each worker's numba uses one thread (else workers x cores threads run at once)."""
+
+    def threads() -> tuple[str | None, int]:
+        import numba
+
+        from pneumafit.distributed import _single_threaded
+
+        _single_threaded()
+        return os.environ.get("NUMBA_NUM_THREADS"), numba.get_num_threads()
+
+    env, n = client.submit(threads, pure=False).result()  # type: ignore[attr-defined]
+    assert (env, n) == ("1", 1)

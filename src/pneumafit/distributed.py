@@ -62,6 +62,48 @@ __all__ = [
 ]
 
 
+#: What a user installs to run on Dask (pyproject's optional extra).
+DASK_EXTRA = "pip install 'pneumafit[distributed]'"
+
+
+def _require_dask() -> tuple[Any, Any]:
+    """``distributed.Client`` and ``LocalCluster``, or a clear error naming the extra.
+
+    Raises
+    ------
+    PneumafitInputError
+        Dask distributed is not installed (it is an optional extra).
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise PneumafitInputError(
+            f"running on Dask needs the optional extra: {DASK_EXTRA} "
+            f"(expected the package 'distributed', found none: {exc})"
+        ) from None
+    return Client, LocalCluster
+
+
+def _single_threaded() -> None:
+    """One numba thread in this worker process, whatever its environment says.
+
+    A remote worker was not started by :func:`dask_client` and may not have
+    ``NUMBA_NUM_THREADS=1``: without this, each task's parallel kernels use
+    every core of the worker's machine, once per worker. Outside a worker
+    (``fit-many`` without a cluster) nothing changes.
+    """
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):  # not on a Dask worker
+        return
+    import numba
+
+    if numba.get_num_threads() > 1:
+        numba.set_num_threads(1)
+
+
 @contextmanager
 def dask_client(
     scheduler: str | None = None, n_workers: int | None = None, *, timeout: float | None = None
@@ -94,7 +136,7 @@ def dask_client(
         The scheduler cannot be reached (the message names the address), or
         ``n_workers`` is not a positive integer.
     """
-    from distributed import Client, LocalCluster
+    Client, LocalCluster = _require_dask()
 
     if n_workers is not None and (isinstance(n_workers, bool) or n_workers < 1):
         raise PneumafitInputError(
@@ -116,9 +158,12 @@ def dask_client(
         finally:
             client.close()
         return
+    # one numba thread per worker process (else each worker's parallel kernels
+    # start one thread per core: workers x cores threads on the machine)
     cluster = LocalCluster(
-        n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None
-    )
+        n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
+        env={"NUMBA_NUM_THREADS": "1"},
+    )  # fmt: skip
     try:
         client = Client(cluster)
         try:
@@ -195,6 +240,7 @@ def _fit_one(
     mcmc: bool,
 ) -> dict[str, Any]:
     """One campaign's fit, as run on a worker: plain, picklable inputs and result."""
+    _single_threaded()
     from pneumafit.identification.command import fit_command
 
     text = io.StringIO()
@@ -392,6 +438,7 @@ class DaskPool:
 
 
 def _evaluate(log_prob: Callable[[NDArray[np.float64]], ArrayLike], z: NDArray[np.float64]) -> Any:
+    _single_threaded()
     return np.asarray(log_prob(z), dtype=float)
 
 

@@ -18,11 +18,11 @@ from pneumafit.rig import (
     RigRun,
     SensorModel,
     VirtualRig,
-    first_order_lag,
     quick_protocol,
     run_rig,
 )
 from pneumafit.simulation import DEFAULT_STEP, Simulator
+from pneumafit.simulation.sensor import first_order_lag
 
 #: The effect the shared campaign (conftest.quick_folder) hides from campaign.toml.
 HIDDEN_EFFECT = "chamber_leakage"
@@ -128,7 +128,9 @@ def test_temperature_sensor_lags_the_gas(quick_run: RigRun) -> None:
     assert rec.time[np.argmax(measured)] > rec.time[np.argmax(true)] + 0.1
     assert measured.max() < true.max() - 5.0
     # and it is the declared first-order lag plus white noise
-    residual = measured - first_order_lag(true, dt, sensors.temperature_time_constant)
+    residual = measured - first_order_lag(
+        true, dt * np.arange(true.size), sensors.temperature_time_constant
+    )
     assert abs(np.std(residual) - sensors.temperature_noise) < 0.2 * sensors.temperature_noise
 
 

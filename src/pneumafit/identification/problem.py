@@ -49,7 +49,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.campaign.model import Recording
@@ -66,6 +65,7 @@ from pneumafit.models.layout import X_PN, X_PP, X_TN, X_TP, X_Y, P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step
+from pneumafit.simulation.sensor import first_order_lag
 
 __all__ = [
     "COMPARABLE_CHANNELS",
@@ -129,57 +129,10 @@ OFFSET_TOLERANCE: dict[str, float] = {"pressure": 2.5e3, "temperature": 1.0}
 UNMEASURED_TEMPERATURE_STD = 5.0
 
 
-@njit(cache=True)
-def _lag_kernel(x: np.ndarray, t: np.ndarray, tau: np.ndarray, y: np.ndarray) -> None:
-    n_sets, n = x.shape
-    for i in range(n_sets):
-        y[i, 0] = x[i, 0]
-        ti = tau[i]
-        for k in range(1, n):
-            dt = t[k] - t[k - 1]
-            if ti <= 0.0:
-                y[i, k] = x[i, k]
-                continue
-            a = math.exp(-dt / ti)
-            slope = (x[i, k] - x[i, k - 1]) / dt
-            # exact for an input linear over the interval
-            y[i, k] = a * y[i, k - 1] + x[i, k] - a * x[i, k - 1] - ti * slope * (1.0 - a)
-
-
 #: State slots of the initial states that can be parameters.
 _STATE_SLOT = {"y": X_Y, "p_P": X_PP, "p_N": X_PN, "T_P": X_TP, "T_N": X_TN}
 #: Prefix of initial-state parameter names: "initial:<file>:<state>".
 INITIAL_PREFIX = "initial:"
-
-
-def first_order_lag(
-    signal: ArrayLike, time: ArrayLike, time_constant: ArrayLike
-) -> NDArray[np.float64]:
-    """Reading of a first-order sensor, tau dy/dt = x - y, settled at the start.
-
-    Discretised exactly for an input linear between samples (so uneven grids
-    are fine): y_k = a y_(k-1) + x_k - a x_(k-1) - tau s (1 - a), with
-    a = exp(-dt / tau) and s the input's slope over the interval.
-
-    Parameters
-    ----------
-    signal : array_like, shape (n,) or (n_sets, n)
-        True signal x.
-    time : array_like, shape (n,)
-        Sample times (s).
-    time_constant : float or array_like, shape (n_sets,)
-        tau (s); 0 returns the signal.
-
-    Returns
-    -------
-    ndarray, same shape as ``signal``.
-    """
-    x = np.asarray(signal, dtype=float)
-    x2 = np.atleast_2d(x)
-    tau = np.broadcast_to(np.asarray(time_constant, dtype=float), (x2.shape[0],)).copy()
-    y = np.empty_like(x2)
-    _lag_kernel(np.ascontiguousarray(x2), np.asarray(time, dtype=float), tau, y)
-    return y.reshape(x.shape)
 
 
 def fit_sensor_lag(

@@ -28,7 +28,7 @@ from pneumafit.rig.protocol import (
     sparse_protocol,
     tutorial_protocol,
 )
-from pneumafit.rig.sensors import SensorModel, first_order_lag
+from pneumafit.rig.sensors import SensorModel
 from pneumafit.rig.virtual import (
     DEMO_CLEAN_TRUTH_PRESET,
     DEMO_SEED,
@@ -77,7 +77,6 @@ __all__ = [
     "VirtualRig",
     "check_output_folder",
     "demo_protocol",
-    "first_order_lag",
     "get_protocol",
     "parse_effect_options",
     "quick_protocol",

@@ -12,39 +12,18 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import lfilter
 
-__all__ = ["SensorModel", "first_order_lag"]
+from pneumafit.simulation.sensor import first_order_lag
+
+__all__ = ["SensorModel"]
 
 
-def first_order_lag(
-    signal: NDArray[np.float64], dt: float, time_constant: float
-) -> NDArray[np.float64]:
-    """Response of a first-order sensor, tau dy/dt = x - y, settled at the start.
-
-    Discretised exactly for an input held over each sample interval:
-    y[k] = a y[k-1] + (1 - a) x[k] with a = exp(-dt / tau), y[0] = x[0].
-
-    Parameters
-    ----------
-    signal : ndarray
-        True signal x, uniformly sampled.
-    dt : float
-        Sample interval (s).
-    time_constant : float
-        tau (s); 0 returns the signal unchanged.
-
-    Returns
-    -------
-    ndarray
-        The sensor's reading y, same shape as ``signal``.
-    """
+def _lag(signal: NDArray[np.float64], dt: float, time_constant: float) -> NDArray[np.float64]:
+    """A uniformly sampled signal through the shared first-order sensor (s)."""
     x = np.asarray(signal, dtype=float)
-    if time_constant <= 0.0 or x.size == 0:
+    if x.size == 0:
         return x.copy()
-    a = math.exp(-dt / time_constant)
-    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])
-    return np.asarray(y, dtype=float)
+    return first_order_lag(x, dt * np.arange(x.size), time_constant)
 
 
 @dataclass(frozen=True)
@@ -114,7 +93,7 @@ class SensorModel:
         self, true: NDArray[np.float64], dt: float, rng: np.random.Generator
     ) -> NDArray[np.float64]:
         """Reading of the slow gas-temperature sensor (K): lag, then noise."""
-        lagged = first_order_lag(true, dt, self.temperature_time_constant)
+        lagged = _lag(true, dt, self.temperature_time_constant)
         return lagged + rng.normal(0.0, self.temperature_noise, size=true.shape)
 
     def flow(
@@ -132,5 +111,5 @@ class SensorModel:
         every : int
             Keep one sample in ``every`` (the recording's rate).
         """
-        lagged = first_order_lag(true, dt, self.flow_time_constant)[::every]
+        lagged = _lag(true, dt, self.flow_time_constant)[::every]
         return lagged + rng.normal(0.0, self.flow_noise, size=lagged.shape)

@@ -27,7 +27,8 @@ from pneumafit.identification.quality import (
     interval_problems,
     phases,
 )
-from pneumafit.identification.staged import fit_structure, replay
+from pneumafit.identification.replay import replay
+from pneumafit.identification.staged import fit_structure
 
 RATE = 1000.0
 

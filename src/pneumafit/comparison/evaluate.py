@@ -2,27 +2,16 @@
 
 A fit (the content of a ``fit.json``) gives the model parameters, the
 structure (heat law, air properties) and the fitted initial states of the
-``fit`` recordings. :func:`evaluate_fit` simulates every recording of the
-campaign with them and compares every measured channel the model predicts,
-the same way the identification computes ``fit.json: metrics.rmse``
-(:func:`pneumafit.identification.staged._metrics`):
+``fit`` recordings. :func:`evaluate_fit` replays every recording of the
+campaign with them through :func:`pneumafit.identification.replay.replay`,
+the same replay that gives ``fit.json: metrics.rmse`` (compared samples,
+initial states, reference solver and sensor lag are described there), and
+scores every compared channel (RMSE, normalised fit, largest error).
 
-- the recordings are bound to a :class:`~pneumafit.identification.Problem`
-  with every comparable channel, no averaging at rest, no flow-level means,
-  no profiled offsets, at the identification's largest step (every k-th
-  sample with k dt <= step is compared, flow tests on settled samples);
-- initial states: the fitted ones for ``fit`` recordings, estimated from the
-  data (line intercept over the first 50 ms) for ``validate`` ones;
-- the simulation is the identification's reference solver (DP5 at four
-  times the steps), which is what the fit's defect-corrected predictions
-  reproduce;
-- temperatures are compared after the first-order sensor lag of the fit
-  (``metrics.temperature_sensor_lag``); a fit without one gets the lag that
-  best fits its own prediction (1-D search, as the identification does).
-
-Unlike the identification, the temperature is compared for the polytropic
-model too: it predicts the gas at the wall temperature throughout, and the
-size of that error is the point of the comparison (paper, section 2).
+Unlike the identification's metrics, the temperature is compared for the
+polytropic model too: it predicts the gas at the wall temperature
+throughout, and the size of that error is the point of the comparison
+(paper, section 2).
 """
 
 from __future__ import annotations
@@ -39,17 +28,13 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.problem import (
-    COMPARABLE_CHANNELS,
     INITIAL_PREFIX,
     MAX_STEP,
     QUANTITIES,
-    Problem,
-    first_order_lag,
-    fit_sensor_lag,
 )
+from pneumafit.identification.replay import replay
 from pneumafit.models.structure import MODELS, ModelStructure
 from pneumafit.parameters_io import parse_parameters
-from pneumafit.simulation import Simulator
 
 __all__ = [
     "TRACE_CHANNELS",
@@ -63,10 +48,6 @@ __all__ = [
 
 #: Channels kept in the simulated traces (for figures and the JSON).
 TRACE_CHANNELS: tuple[str, ...] = ("y", "p_P", "p_N", "T_P", "T_N", "qm_P", "qm_N", "u_P", "u_N")
-#: Reference solver of the comparison: method and step refinement over the
-#: problem's steps (the identification's defect correction uses the same).
-REFERENCE_METHOD = "dp5"
-REFERENCE_REFINE = 4
 
 
 @dataclass(frozen=True)
@@ -139,7 +120,7 @@ class RecordingTrace:
     ----------
     recording, kind, role : str
     time : ndarray
-        Simulated sample times (s): the problem's integration grid.
+        Every sample time of the recording (s).
     simulated : dict of str to ndarray
         :data:`TRACE_CHANNELS` (SI), the gas temperatures without sensor lag.
     compared : dict of str to (ndarray, ndarray, ndarray)
@@ -281,77 +262,27 @@ def evaluate_fit(
         Not a fit document.
     """
     model, structure, values = fit_values(document, where)
-    recs = list(campaign.recordings)
-    problem = Problem(
-        recs, structure, values, channels=COMPARABLE_CHANNELS, max_step=max_step,
-        initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
-    )  # fmt: skip
-    one = {k: np.array([v]) for k, v in values.items()}
-    vec = problem.model_vectors(one, 1)
-    x0s = problem.initial_states(one, 1)
-    sim = Simulator(structure, method=REFERENCE_METHOD, channels=TRACE_CHANNELS)
-    nsub = problem.packed.nsub_all * REFERENCE_REFINE
-    out, status = sim.simulate_batch(vec, problem.packed, initial_states=x0s, nsub=nsub)
-    col = {c: j for j, c in enumerate(TRACE_CHANNELS)}
-    offsets = problem.packed.offsets
-    warnings: list[str] = []
-
     metrics = document.get("metrics") or {}
     lag = metrics.get("temperature_sensor_lag")
-    lag_source = "fit"
     if not (isinstance(lag, int | float) and lag > 0):
-        lag, lag_source = None, "estimated"
-
-    # the compared blocks: the problem's observations, plus the measured gas
-    # temperatures the problem leaves out for the polytropic structure
-    blocks: list[tuple[int, str, NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]]
-    blocks = [(o.index, o.channel, o.time, o.data, o.rows) for o in problem.observations]
-    have = {(o.index, o.channel) for o in problem.observations}
-    for i, rec in enumerate(problem.recordings):
-        if rec.kind == "flow":
-            continue
-        ref = next(o for o in problem.observations if o.index == i)
-        for c in ("T_P", "T_N"):
-            if (i, c) in have or c not in rec.channels:
-                continue
-            if rec.kind in ("charge", "discharge") and c[-1] != rec.chamber:
-                continue
-            idx = np.searchsorted(rec.time, ref.time)
-            keep = rec.mask.get(c, np.ones(rec.n_samples, bool))[idx]
-            if keep.sum() >= 3:
-                blocks.append((i, c, ref.time[keep], rec.channels[c][idx][keep], ref.rows[keep]))
-
-    def simulated(i: int, c: str, rows: NDArray[np.int64]) -> NDArray[np.float64]:
-        return out[0, offsets[i] + rows, col[c]]
-
-    if lag is None:
-        temps = [
-            (t, d, simulated(i, c, r))
-            for i, c, t, d, r in blocks
-            if QUANTITIES[c] == "temperature" and status[0, i] == 0
-        ]
-        if temps and structure.heat != "polytropic":
-            lag = fit_sensor_lag(temps)
+        lag = None
+    # the one replay (fit metrics, discovery and the report read the same)
+    rep = replay(
+        campaign, structure, values, trace_channels=TRACE_CHANNELS, lag=lag,
+        gas_temperatures=True, max_step=max_step,
+    )  # fmt: skip
+    warnings: list[str] = []
     traces: list[RecordingTrace] = []
-    for i, rec in enumerate(problem.recordings):
-        sl = slice(offsets[i], offsets[i + 1])
-        ok = bool(status[0, i] == 0)
-        if not ok:
-            warnings.append(f"{model}: {rec.file}: the simulation failed (status {status[0, i]})")
+    for r in rep.recordings:
+        if not r.ok:
+            warnings.append(f"{model}: {r.file}: the simulation failed (status {r.status})")
         trace = RecordingTrace(
-            recording=rec.file, kind=rec.kind, role=rec.role,
-            time=problem.experiments[i].time.copy(),
-            simulated={c: out[0, sl, col[c]].copy() for c in TRACE_CHANNELS},
-            compared={}, errors={}, ok=ok,
+            recording=r.file, kind=r.kind, role=r.role, time=r.time, simulated=r.simulated,
+            compared={}, errors={}, ok=r.ok,
         )  # fmt: skip
-        for j, c, t, d, r in blocks:
-            if j != i:
-                continue
-            pred = simulated(i, c, r)
-            if QUANTITIES[c] == "temperature" and lag:
-                pred = first_order_lag(pred, t, lag) if np.all(np.isfinite(pred)) else pred
-            trace.compared[c] = (t, d, pred)
-            if ok and np.all(np.isfinite(pred)):
-                trace.errors[c] = channel_error(d, pred)
+        for c, cmp in r.compared.items():
+            trace.compared[c] = (cmp.time, cmp.measured, cmp.predicted)
+            if r.ok and np.all(np.isfinite(cmp.predicted)):
+                trace.errors[c] = channel_error(cmp.measured, cmp.predicted)
         traces.append(trace)
-    return ModelEvaluation(model, structure, traces, lag, lag_source if lag else "none", warnings)
+    return ModelEvaluation(model, structure, traces, rep.lag, rep.lag_source, warnings)

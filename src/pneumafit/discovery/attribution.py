@@ -61,7 +61,6 @@ refitted first (:mod:`.refit`).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -75,9 +74,10 @@ from scipy.signal import savgol_filter
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.discovery.catalog import EFFECTS, get_effect
 from pneumafit.discovery.phases import PHASES, label_phases, window_samples
+from pneumafit.identification.replay import replay
 from pneumafit.models import kernel, layout
 from pneumafit.models.structure import ModelStructure
-from pneumafit.simulation import Experiment, Simulator
+from pneumafit.simulation import Experiment
 
 __all__ = [
     "GAMMA",
@@ -302,14 +302,18 @@ def simulate_recording(
 ) -> dict[str, NDArray[np.float64]] | None:
     """Simulate one recording with the fitted values and initial states.
 
+    The one replay of a fit (:func:`pneumafit.identification.replay.replay`:
+    fitted initial states, reference solver, every sample).
+
     Returns the simulated channels (SI) or None when the simulation failed.
     """
-    exp = Experiment.from_recording(rec)
-    exp = dataclasses.replace(exp, initial={**exp.initial, **_initial(rec, values)})
-    result = Simulator(structure).simulate(model_values(values), exp)
-    if not result.ok:
+    try:
+        rep = replay([rec], structure, values, estimate_lag=False)
+    except ValueError:  # no channel to compare: nothing to attribute
         return None
-    return dict(result.channels)
+    if not rep.recordings or not rep.recordings[0].ok:
+        return None
+    return rep.recordings[0].simulated
 
 
 def _slope_kernel(width: int) -> NDArray[np.float64]:

@@ -66,9 +66,10 @@ from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import MAX_STEP, Problem
+from pneumafit.identification.replay import replay
 from pneumafit.identification.staged import (
     DEFAULT_CHANNELS,
-    replay_rmse,
+    RMSE_CHANNELS,
     with_initial_states,
 )
 from pneumafit.models.structure import ModelStructure
@@ -391,14 +392,15 @@ def rmse(
     max_step: float | None = MAX_STEP,
     temperature_lag: float | None = None,
 ) -> dict[str, dict[str, float]]:
-    """RMSE per role and channel on every sample (SI), as fit.json's ``metrics.rmse``
-    (:func:`pneumafit.identification.staged.replay_rmse`; temperatures after
+    """RMSE per role and channel (SI), as fit.json's ``metrics.rmse``
+    (:func:`pneumafit.identification.replay.replay`; temperatures after
     the ``temperature_sensor_lag`` value, else ``temperature_lag`` s, else none).
     """
-    out, _ = replay_rmse(
-        campaign, structure, values, max_step=max_step, lag=temperature_lag, estimate_lag=False
-    )
-    return out
+    rep = replay(
+        campaign, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
+        lag=temperature_lag, estimate_lag=False,
+    )  # fmt: skip
+    return rep.rmse()
 
 
 def offset_free_rmse(
@@ -410,9 +412,11 @@ def offset_free_rmse(
 ) -> dict[str, float]:
     """Pressure RMSE (Pa) per channel on the fit recordings, each recording's
     mean residual (its sensor offset, which the fit profiles) removed."""
-    out, _ = replay_rmse(
-        campaign, structure, values, max_step=max_step, estimate_lag=False, remove_offsets=True
-    )
+    rep = replay(
+        campaign, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
+        estimate_lag=False,
+    )  # fmt: skip
+    out = rep.rmse(remove_offsets=True)
     return {c: v for c, v in out.get("fit", {}).items() if c in PRESSURES}
 
 

@@ -58,8 +58,6 @@ from pneumafit.identification.parameters import Normal, Parameter, ParameterSet
 from pneumafit.identification.problem import (
     MAX_STEP,
     Problem,
-    first_order_lag,
-    fit_sensor_lag,
 )
 from pneumafit.identification.quality import (
     FitQuality,
@@ -69,6 +67,7 @@ from pneumafit.identification.quality import (
     interval_problems,
 )
 from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
+from pneumafit.identification.replay import Replay, replay
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import (
     friction_starts,
@@ -1357,140 +1356,6 @@ def _brief(est: PointEstimate, names: Sequence[str]) -> str:
 RMSE_CHANNELS = ("p_P", "p_N", "y", "T_P", "T_N", "qm_P", "qm_N")
 
 
-@dataclass
-class Replay:
-    """Residuals of a fit replayed on every sample of a campaign.
-
-    Attributes
-    ----------
-    residuals : dict of str to list of tuple
-        Per role: (recording file, channel, quantity, sample indices,
-        residual) with residual = data - model (SI), temperatures after the
-        sensor lag; pressure residuals keep their mean (the sensor offset).
-    lag : float or None
-        Temperature sensor lag (s) used.
-    """
-
-    residuals: dict[str, list[tuple[str, str, str, NDArray[np.int64], NDArray[np.float64]]]]
-    lag: float | None
-
-    def rmse(self, remove_offsets: bool = False) -> dict[str, dict[str, float]]:
-        """``{role: {channel: RMSE}}`` pooled over the role's recordings."""
-        out: dict[str, dict[str, float]] = {}
-        for role, items in self.residuals.items():
-            sums: dict[str, list[float]] = {}
-            for _file, channel, quantity, _idx, res in items:
-                if not np.all(np.isfinite(res)):
-                    continue
-                if remove_offsets and quantity == "pressure":
-                    res = res - np.mean(res)
-                acc = sums.setdefault(channel, [0.0, 0.0])
-                acc[0] += float(np.sum(res * res))
-                acc[1] += res.size
-            out[role] = {c: math.sqrt(s / n) for c, (s, n) in sums.items() if n > 0}
-        return out
-
-    def offset_free(self) -> list[tuple[str, str, NDArray[np.int64], NDArray[np.float64]]]:
-        """Every role's residuals, pressure offsets removed (for the quality check)."""
-        out = []
-        for items in self.residuals.values():
-            for file, channel, quantity, idx, res in items:
-                if quantity == "pressure":
-                    good = np.isfinite(res)
-                    res = res - (np.mean(res[good]) if np.any(good) else 0.0)
-                out.append((file, channel, idx, res))
-        return out
-
-
-def replay(
-    campaign: Campaign,
-    structure: ModelStructure,
-    values: Mapping[str, float],
-    *,
-    max_step: float | None = MAX_STEP,
-    lag: float | None = None,
-    estimate_lag: bool = True,
-) -> Replay:
-    """Replay a fit on every sample of every recording (see :func:`replay_rmse`)."""
-    lag = values.get("temperature_sensor_lag", lag)
-    residuals: dict[str, list[Any]] = {}
-    for role in ("fit", "validate"):
-        recs = campaign.by_role(role)
-        residuals[role] = []
-        if not recs:
-            continue
-        try:
-            # every sample: no rest averaging, no flow-level means
-            prob = Problem(
-                recs, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
-                initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
-            )  # fmt: skip
-        except ValueError:
-            continue
-        # fitted initial states (fit recordings), estimated from the data otherwise
-        initial = {n: np.array([values[n]]) for n in prob.initial_parameters if n in values}
-        prob.correct_solver({**values})
-        pred = prob.predict(initial, 1)
-        raws = prob.raw_residuals(pred)
-        if lag is None and estimate_lag:
-            lag = _sensor_lag(prob, pred)
-        by_file = {r.file: r for r in recs}
-        for o, r, b in zip(prob.observations, raws, pred.blocks, strict=True):
-            res = r[0]
-            if o.quantity == "temperature" and lag:
-                res = o.data - first_order_lag(b[0], o.time, lag)
-            rec_time = by_file[o.recording].time
-            idx = np.clip(np.searchsorted(rec_time, o.time - 1e-9), 0, rec_time.size - 1)
-            residuals[role].append((o.recording, o.channel, o.quantity, idx, np.asarray(res)))
-    return Replay(residuals, lag)
-
-
-def replay_rmse(
-    campaign: Campaign,
-    structure: ModelStructure,
-    values: Mapping[str, float],
-    *,
-    max_step: float | None = MAX_STEP,
-    lag: float | None = None,
-    estimate_lag: bool = True,
-    remove_offsets: bool = False,
-) -> tuple[dict[str, dict[str, float]], float | None]:
-    """RMSE per role and channel on every sample (SI), as fit.json's ``metrics.rmse``.
-
-    Fit recordings start from their fitted initial states (``initial:...``
-    entries of ``values``), the others from the data; no sensor offset is
-    removed; the fixed-step solver is corrected at ``values``; temperatures
-    are compared after the first-order sensor lag.
-
-    Parameters
-    ----------
-    campaign : Campaign
-    structure : ModelStructure
-    values : mapping of str to float
-        Model parameters and initial states by name (SI).
-    max_step : float or None
-        Largest integration step (s).
-    lag : float, optional
-        Temperature sensor lag (s); default ``values["temperature_sensor_lag"]``.
-    estimate_lag : bool
-        Without a lag, fit one to the first role's temperatures (else compare
-        temperatures without lag).
-    remove_offsets : bool
-        Remove the mean of each recording's pressure residual first (the
-        sensor offset the fit profiles per recording): what is left is the
-        model's misfit plus the sensor noise.
-
-    Returns
-    -------
-    rmse : dict
-        ``{role: {channel: RMSE}}``.
-    lag : float or None
-        The temperature sensor lag used (s).
-    """
-    rep = replay(campaign, structure, values, max_step=max_step, lag=lag, estimate_lag=estimate_lag)
-    return rep.rmse(remove_offsets), rep.lag
-
-
 def _metrics(
     campaign: Campaign,
     structure: ModelStructure,
@@ -1503,7 +1368,7 @@ def _metrics(
     n_data = joint_problem.n_data
     k = est.parameters.n_free + joint_problem.n_noise_parameters
     ll = est.log_likelihood
-    rep = replay(campaign, structure, values, max_step=options.max_step)
+    rep = replay(campaign, structure, values, channels=RMSE_CHANNELS, max_step=options.max_step)
     metrics = {
         "rmse": rep.rmse(),
         "log_likelihood": _finite(ll),
@@ -1614,15 +1479,4 @@ def assess(
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
-    )
-
-
-def _sensor_lag(problem: Problem, pred: Any) -> float | None:
-    """Time constant (s) of the temperature sensors that best fits the data."""
-    return fit_sensor_lag(
-        [
-            (o.time, o.data, b[0])
-            for o, b in zip(problem.observations, pred.blocks, strict=True)
-            if o.quantity == "temperature" and np.all(np.isfinite(b[0]))
-        ]
     )

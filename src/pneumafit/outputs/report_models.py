@@ -1,19 +1,17 @@
 """Measurement against the fitted models, residual diagnostics and the air
 each model uses: the simulation part of the validation report.
 
-Every recording of the campaign is simulated with each fit's parameters
-(``fit.json`` read by :func:`pneumafit.parameters_io.read_parameter_file`)
-and structure (``fit.json`` ``structure``: heat law, air properties,
-effects), from the recording's own initial state
-(:meth:`Experiment.from_recording`), all recordings of one model in one
-batched call. The channels compared are :data:`COMPARED` (a
-charge/discharge test on its own chamber's pressure, a flow test on its flow
-only), plus a measured temperature, which is compared with the simulated gas
-temperature seen through the fitted first-order sensor lag
-(``metrics.temperature_sensor_lag``).
+Every recording of the campaign is replayed with each fit by
+:func:`pneumafit.identification.replay.replay`, the replay that gives
+fit.json's metrics and the comparison's traces: the fit's parameters,
+structure and fitted initial states, the reference solver, every sample.
+The channels compared are :data:`COMPARED` (a charge/discharge test on its
+own chamber's pressure, a flow test on its flow only), plus a measured
+temperature, which is compared with the simulated gas temperature seen
+through the fitted first-order sensor lag (``metrics.temperature_sensor_lag``).
 
-The numbers differ slightly from fit.json's RMSE: the fit uses its fitted
-initial states and sensor offsets, the report the measured first samples.
+The report's RMSE is on every sample and keeps each pressure sensor's
+offset; fit.json's is on the compared samples.
 """
 
 from __future__ import annotations
@@ -133,41 +131,30 @@ def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str
     PneumafitInputError, ValueError
         A fit.json whose parameters or structure cannot be used.
     """
-    from pneumafit.identification.fitfile import SavedFit
+    from pneumafit.comparison.evaluate import fit_values
+    from pneumafit.identification.replay import replay as replay_campaign
     from pneumafit.models import parameter_vector
-    from pneumafit.models.structure import MODELS
-    from pneumafit.parameters_io import read_parameter_file
-    from pneumafit.simulation import Experiment, Simulator
+    from pneumafit.simulation.sensor import first_order_lag
     from pneumafit.simulation.simulator import STATUS_MESSAGES, AirConsumption
 
-    name, values = read_parameter_file(fit_path)
-    saved = SavedFit.from_document(fit, str(fit_path))  # with the documented fallbacks
-    structure = saved.structure
-    if structure is None:
-        raise ValueError(
-            f"{fit_path}: structure: expected a structure or a model among {sorted(MODELS)}, "
-            f"found {name!r}"
-        )
-    params = parameter_vector(values)
-    lag = saved.metrics.get("temperature_sensor_lag")
+    _name, structure, values = fit_values(fit, str(fit_path))  # the one fit.json reader
+    lag = (fit.get("metrics") or {}).get("temperature_sensor_lag")
     lag = float(lag) if isinstance(lag, int | float) and math.isfinite(lag) and lag > 0 else 0.0
-    sim = Simulator(structure, channels=list(SIMULATED))
-    recordings = list(campaign.recordings)
-    packed = sim.pack([Experiment.from_recording(r) for r in recordings])
-    out, status = sim.simulate_batch(params, packed)
+    params = parameter_vector({k: v for k, v in values.items() if ":" not in k})
+    # the one replay: the comparison's and the fit metrics' traces, every sample
+    rep = replay_campaign(
+        campaign, structure, values, trace_channels=SIMULATED, lag=lag or None,
+        estimate_lag=False,
+    )  # fmt: skip
     replay = ModelReplay(model=model, structure=structure.name, sensor_lag=lag)
-    for r, (rec, sl) in enumerate(zip(recordings, packed.slices(), strict=True)):
-        code = int(status[0, r])
-        if code != 0:
-            replay.failed[rec.file] = STATUS_MESSAGES.get(code, f"status {code}")
+    for rec in rep.recordings:
+        if not rec.ok:
+            replay.failed[rec.file] = STATUS_MESSAGES.get(rec.status, f"status {rec.status}")
             continue
-        rows = out[0, sl]
-        chans = {c: rows[:, j].copy() for j, c in enumerate(sim.channels)}
+        chans = dict(rec.simulated)
         if lag > 0:
-            from pneumafit.identification import first_order_lag
-
             for t_name in ("T_P", "T_N"):
-                if t_name in rec.channels and np.all(np.isfinite(chans[t_name])):
+                if np.all(np.isfinite(chans[t_name])):
                     chans[t_name] = first_order_lag(chans[t_name], rec.time, lag)
         replay.channels[rec.file] = chans
         air = AirConsumption.from_mass(chans["m_supply"][-1], chans["m_exhaust"][-1], params)

@@ -1,0 +1,326 @@
+"""One replay of a fit: every recording simulated once, compared once.
+
+The fit's metrics (``fit.json: metrics.rmse`` and the quality verdict),
+the model comparison, the report's overlays and discovery's attribution all
+read the same :class:`Replay`, made here and nowhere else:
+
+- the recordings are bound to a :class:`~pneumafit.identification.Problem`
+  with every comparable channel, no averaging at rest, no flow-level means,
+  no profiled offsets, at the identification's largest step: that gives the
+  compared samples (every k-th sample with k dt <= step; flow tests on
+  settled samples), the initial states (the fitted ones, ``initial:FILE:STATE``
+  entries of the values, for ``fit`` recordings; estimated from the data, a
+  line intercept over the first 50 ms, for the others) and the parameter
+  vector;
+- each recording is simulated once on **every sample** of the recording with
+  the reference solver (DP5 at a quarter of the problem's step: what the
+  fit's defect-corrected predictions reproduce), so the traces serve the
+  figures and attribution's rates as they are, and the compared samples are
+  read off them;
+- temperatures are compared after the first-order sensor lag (the fit's, or
+  the one that best fits the replay's own temperatures, or none).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pneumafit.campaign.model import Campaign, Recording
+from pneumafit.identification.problem import (
+    COMPARABLE_CHANNELS,
+    MAX_STEP,
+    QUANTITIES,
+    Problem,
+    fit_sensor_lag,
+)
+from pneumafit.models.layout import CHANNELS
+from pneumafit.models.structure import ModelStructure
+from pneumafit.simulation import Experiment, Simulator
+from pneumafit.simulation.sensor import first_order_lag
+
+__all__ = [
+    "REFERENCE_METHOD",
+    "REFERENCE_REFINE",
+    "Compared",
+    "RecordingReplay",
+    "Replay",
+    "replay",
+]
+
+#: Reference solver of every replay: method and step refinement over the
+#: problem's steps (the identification's defect correction uses the same).
+REFERENCE_METHOD = "dp5"
+REFERENCE_REFINE = 4
+
+
+@dataclass(frozen=True)
+class Compared:
+    """One measured channel of a recording against the replay.
+
+    Attributes
+    ----------
+    channel, quantity : str
+    rows : ndarray of int
+        Indices of the compared samples in the recording.
+    time : ndarray
+        Their times (s).
+    measured : ndarray
+        The measurement (SI).
+    predicted : ndarray
+        The replay at those samples (SI), temperatures after the sensor lag.
+    """
+
+    channel: str
+    quantity: str
+    rows: NDArray[np.int64]
+    time: NDArray[np.float64]
+    measured: NDArray[np.float64]
+    predicted: NDArray[np.float64]
+
+    @property
+    def residual(self) -> NDArray[np.float64]:
+        """measured - predicted (SI)."""
+        return self.measured - self.predicted
+
+
+@dataclass(frozen=True)
+class RecordingReplay:
+    """One recording replayed.
+
+    Attributes
+    ----------
+    file, kind, role : str
+    time : ndarray
+        Every sample time of the recording (s).
+    simulated : dict of str to ndarray
+        Simulated channels on every sample (SI; temperatures are the gas's,
+        without the sensor lag). NaN after a failure.
+    status : int
+        The simulator's status, 0 on success.
+    compared : dict of str to Compared
+        The compared channels.
+    """
+
+    file: str
+    kind: str
+    role: str
+    time: NDArray[np.float64]
+    simulated: dict[str, NDArray[np.float64]]
+    status: int
+    compared: dict[str, Compared] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """The simulation succeeded."""
+        return self.status == 0
+
+
+@dataclass(frozen=True)
+class Replay:
+    """A fit replayed on a set of recordings (see the module doc).
+
+    Attributes
+    ----------
+    structure : ModelStructure
+    recordings : tuple of RecordingReplay
+        In the order of the campaign.
+    lag : float or None
+        Temperature sensor lag (s) applied to the compared temperatures.
+    lag_source : str
+        ``"fit"`` (given), ``"estimated"`` or ``"none"``.
+    """
+
+    structure: ModelStructure
+    recordings: tuple[RecordingReplay, ...]
+    lag: float | None
+    lag_source: str
+
+    def recording(self, file: str) -> RecordingReplay:
+        """The replay of one recording, by file name."""
+        for r in self.recordings:
+            if r.file == file:
+                return r
+        raise KeyError(f"replay: recording {file!r} was not replayed")  # a bug, not bad input
+
+    @property
+    def residuals(self) -> dict[str, list[tuple[str, str, str, NDArray[np.int64], NDArray]]]:
+        """Per role: (file, channel, quantity, sample rows, measured - predicted)."""
+        out: dict[str, list[tuple[str, str, str, NDArray[np.int64], NDArray]]] = {}
+        for r in self.recordings:
+            items = out.setdefault(r.role, [])
+            for c in r.compared.values():
+                items.append((r.file, c.channel, c.quantity, c.rows, c.residual))
+        return out
+
+    def rmse(self, remove_offsets: bool = False) -> dict[str, dict[str, float]]:
+        """``{role: {channel: RMSE}}`` pooled over the role's recordings (SI).
+
+        Parameters
+        ----------
+        remove_offsets : bool
+            Remove the mean of each recording's pressure residual first (the
+            sensor offset the fit profiles per recording).
+        """
+        out: dict[str, dict[str, float]] = {}
+        for role, items in self.residuals.items():
+            sums: dict[str, list[float]] = {}
+            for _file, channel, quantity, _idx, res in items:
+                if not np.all(np.isfinite(res)):
+                    continue
+                if remove_offsets and quantity == "pressure":
+                    res = res - np.mean(res)
+                acc = sums.setdefault(channel, [0.0, 0.0])
+                acc[0] += float(np.sum(res * res))
+                acc[1] += res.size
+            out[role] = {c: math.sqrt(s / n) for c, (s, n) in sums.items() if n > 0}
+        return out
+
+    def offset_free(self) -> list[tuple[str, str, NDArray[np.int64], NDArray[np.float64]]]:
+        """Every role's residuals, pressure offsets removed (for the quality check)."""
+        out = []
+        for items in self.residuals.values():
+            for file, channel, quantity, idx, res in items:
+                if quantity == "pressure":
+                    good = np.isfinite(res)
+                    res = res - (np.mean(res[good]) if np.any(good) else 0.0)
+                out.append((file, channel, idx, res))
+        return out
+
+
+def _gas_temperature_blocks(
+    problem: Problem, have: set[tuple[int, str]]
+) -> list[tuple[int, str, NDArray[np.float64], NDArray[np.float64]]]:
+    """Measured gas temperatures the problem leaves out (the polytropic structure's)."""
+    blocks = []
+    for i, rec in enumerate(problem.recordings):
+        if rec.kind == "flow":
+            continue
+        ref = next((o for o in problem.observations if o.index == i), None)
+        if ref is None:
+            continue
+        for c in ("T_P", "T_N"):
+            if (i, c) in have or c not in rec.channels:
+                continue
+            if rec.kind in ("charge", "discharge") and c[-1] != rec.chamber:
+                continue
+            idx = np.searchsorted(rec.time, ref.time)
+            keep = rec.mask.get(c, np.ones(rec.n_samples, bool))[idx]
+            if keep.sum() >= 3:
+                blocks.append((i, c, ref.time[keep], rec.channels[c][idx][keep]))
+    return blocks
+
+
+def replay(
+    recordings: Campaign | Sequence[Recording],
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    *,
+    channels: Sequence[str] = COMPARABLE_CHANNELS,
+    trace_channels: Sequence[str] | None = None,
+    lag: float | None = None,
+    estimate_lag: bool = True,
+    gas_temperatures: bool = False,
+    max_step: float | None = MAX_STEP,
+) -> Replay:
+    """Simulate recordings with a fit and compare them (the module doc).
+
+    Parameters
+    ----------
+    recordings : Campaign or sequence of Recording
+        A campaign (every recording) or some of its recordings.
+    structure : ModelStructure
+    values : mapping of str to float
+        Model parameters (SI) and fitted initial states (``initial:FILE:STATE``).
+    channels : sequence of str
+        Measured channels to compare (those the recordings have).
+    trace_channels : sequence of str, optional
+        Simulated channels kept on every sample (default: all the simulator's).
+    lag : float, optional
+        Temperature sensor lag (s); default ``values["temperature_sensor_lag"]``.
+    estimate_lag : bool
+        Without a lag, fit one to the replay's temperatures (the ``fit``
+        recordings' if they have any), except for the polytropic structure.
+    gas_temperatures : bool
+        Also compare the measured gas temperatures that the problem leaves
+        out (the polytropic structure predicts the gas at the wall
+        temperature throughout; the comparison shows that error).
+    max_step : float or None
+        The identification's largest step (s): sets the compared samples and
+        the reference solver's step (a quarter of it).
+
+    Returns
+    -------
+    Replay
+        Recordings without a comparable channel are left out.
+
+    Raises
+    ------
+    PneumafitInputError, ValueError
+        No recording with a comparable channel, or unusable values.
+    """
+    recs = list(recordings.recordings if isinstance(recordings, Campaign) else recordings)
+    problem = Problem(
+        recs, structure, values, channels=tuple(channels), max_step=max_step,
+        initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
+    )  # fmt: skip
+    one = {k: np.array([float(v)]) for k, v in values.items()}
+    vec = problem.model_vectors(one, 1)
+    x0s = problem.initial_states(one, 1)
+
+    names = tuple(CHANNELS if trace_channels is None else trace_channels)
+    need = tuple(dict.fromkeys([*names, *channels, "T_P", "T_N"]))
+    sim = Simulator(structure, method=REFERENCE_METHOD, channels=need)
+    packed = sim.pack(
+        [Experiment.from_recording(r) for r in problem.recordings],
+        [s / REFERENCE_REFINE for s in problem.steps],
+    )
+    out, status = sim.simulate_batch(vec, packed, initial_states=x0s)
+    col = {c: j for j, c in enumerate(need)}
+    slices = packed.slices()
+
+    # the compared blocks: the problem's observations (and the gas temperatures)
+    blocks = [(o.index, o.channel, o.time, o.data) for o in problem.observations]
+    if gas_temperatures:
+        have = {(o.index, o.channel) for o in problem.observations}
+        blocks += _gas_temperature_blocks(problem, have)
+
+    def at(i: int, c: str, t: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray]:
+        rec_time = problem.recordings[i].time
+        rows = np.clip(np.searchsorted(rec_time, t - 1e-9), 0, rec_time.size - 1)
+        return rows, out[0, slices[i], col[c]][rows]
+
+    lag = values.get("temperature_sensor_lag", lag)
+    lag_source = "fit" if lag else "none"
+    if not (isinstance(lag, int | float) and lag > 0):
+        lag = None
+        if estimate_lag and structure.heat != "polytropic":
+            temps = [
+                (i, t, d, at(i, c, t)[1])
+                for i, c, t, d in blocks
+                if QUANTITIES[c] == "temperature" and status[0, i] == 0
+            ]
+            fitted = [b for b in temps if problem.recordings[b[0]].role == "fit"] or temps
+            lag = fit_sensor_lag([(t, d, p) for _i, t, d, p in fitted if np.all(np.isfinite(p))])
+            lag_source = "estimated" if lag else "none"
+
+    replays = []
+    for i, rec in enumerate(problem.recordings):
+        compared: dict[str, Compared] = {}
+        for j, c, t, d in blocks:
+            if j != i:
+                continue
+            rows, pred = at(i, c, t)
+            if QUANTITIES[c] == "temperature" and lag and np.all(np.isfinite(pred)):
+                pred = first_order_lag(pred, t, lag)
+            compared[c] = Compared(c, QUANTITIES[c], rows, t, np.asarray(d), np.asarray(pred))
+        simulated = {c: out[0, slices[i], col[c]].copy() for c in names}
+        replays.append(
+            RecordingReplay(rec.file, rec.kind, rec.role, rec.time, simulated,
+                            int(status[0, i]), compared)
+        )  # fmt: skip
+    return Replay(structure, tuple(replays), lag, lag_source)

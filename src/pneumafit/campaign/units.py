@@ -29,11 +29,13 @@ from numpy.typing import ArrayLike, NDArray
 from pneumafit.campaign.errors import PneumafitInputError
 
 __all__ = [
+    "DISPLAY_UNITS",
     "QUANTITY_KINDS",
     "ParsedUnit",
     "QuantityKind",
     "UnitError",
     "describe_unit",
+    "display_unit",
     "format_value",
     "from_si",
     "parse_quantity",
@@ -353,9 +355,7 @@ def parse_value(value: object, kind: str, *, exhaust_pressure: float | None = No
         raise UnitError(exc.expected, f'"{value}" ({_reason(exc, unit_text)})') from None
 
 
-def parse_quantity(
-    value: str, si_unit: str, *, exhaust_pressure: float | None = None
-) -> float:
+def parse_quantity(value: str, si_unit: str, *, exhaust_pressure: float | None = None) -> float:
     """Read ``"<number> <unit>"`` as a float in ``si_unit``, as campaigns are read.
 
     The same reading as :func:`parse_value` (a space between number and unit
@@ -385,7 +385,7 @@ def parse_quantity(
         gauge pressure without a reference, or a non-finite value.
     """
     target = si_unit.replace("^", "**") if si_unit else "dimensionless"
-    expected = f'a value in {si_unit or "no unit"}'
+    expected = f"a value in {si_unit or 'no unit'}"
     match = _NUMBER.match(value)
     if match is None:
         raise UnitError(expected, f'"{value}" (no number in front)')
@@ -456,3 +456,41 @@ def split_header(cell: str) -> tuple[str, str] | None:
     if match is None or not match["name"]:
         return None
     return match["name"], match["unit"].strip()
+
+
+#: The one display-unit table: every console table, report and figure shows a
+#: quantity of this kind in this unit (factor from SI, unit). fit.json and
+#: every other file keep SI.
+DISPLAY_UNITS: dict[str, tuple[float, str]] = {
+    "voltage": (1.0, "V"),
+    "pressure": (1e-3, "kPa"),
+    "temperature": (1.0, "K"),
+    "length": (1e3, "mm"),
+    "velocity": (1e3, "mm/s"),
+    "mass flow": (1e3, "g/s"),
+    "force": (1.0, "N"),
+}
+#: Quantity names used by the comparison's tables and figures, as kinds.
+_QUANTITY_ALIASES = {"position": "length", "flow": "mass flow"}
+
+
+def display_unit(name: str) -> tuple[float, str]:
+    """Display factor from SI and unit of a channel, quantity or kind.
+
+    Parameters
+    ----------
+    name : str
+        A campaign channel (``"p_P"``), a comparison quantity (``"flow"``) or
+        a kind of quantity (``"mass flow"``).
+
+    Returns
+    -------
+    factor : float
+        Multiply an SI value by it.
+    unit : str
+        The display unit; ``""`` (factor 1) for an unknown name.
+    """
+    from pneumafit.campaign.model import CHANNELS
+
+    kind = CHANNELS.get(name) or _QUANTITY_ALIASES.get(name, name)
+    return DISPLAY_UNITS.get(kind, (1.0, ""))

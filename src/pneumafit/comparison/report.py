@@ -52,6 +52,7 @@ from rich.table import Table
 from rich.text import Text
 
 from pneumafit.campaign.model import Campaign
+from pneumafit.campaign.units import display_unit
 from pneumafit.comparison.evaluate import ModelEvaluation
 from pneumafit.identification.fitfile import _version, json_safe
 
@@ -62,13 +63,6 @@ COMPARISON_VERSION = 1
 ROLES = ("fit", "validate")
 CHANNEL_ORDER = ("p_P", "p_N", "y", "T_P", "T_N", "qm_P", "qm_N")
 QUANTITY_ORDER = ("pressure", "position", "temperature", "flow")
-#: Console display: scale and unit per channel or quantity.
-DISPLAY = {
-    "p_P": (1e-3, "kPa"), "p_N": (1e-3, "kPa"), "pressure": (1e-3, "kPa"),
-    "y": (1e3, "mm"), "position": (1e3, "mm"),
-    "T_P": (1.0, "K"), "T_N": (1.0, "K"), "temperature": (1.0, "K"),
-    "qm_P": (1e3, "g/s"), "qm_N": (1e3, "g/s"), "flow": (1e3, "g/s"),
-}  # fmt: skip
 
 
 def _temperature_summary(ev: ModelEvaluation) -> dict[str, Any]:
@@ -250,7 +244,7 @@ def print_table(document: Mapping[str, Any], console: Console) -> None:
         keys = [k for k in (*CHANNEL_ORDER, *QUANTITY_ORDER) if k in best.get(role, {})]
         for k in keys:
             source = "rmse" if k in CHANNEL_ORDER else "rmse_by_quantity"
-            scale, unit = DISPLAY[k]
+            scale, unit = display_unit(k)
             cells = []
             for m in models:
                 v = document[m][source][role].get(k)

@@ -32,6 +32,7 @@ from typing import Any
 from rich.console import Console
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.campaign.units import display_unit
 from pneumafit.fileio import check_output, write_text_atomic
 from pneumafit.outputs.report_html import (
     Section,
@@ -482,9 +483,6 @@ def _interval(entry: Mapping[str, Any], key: str, unit: str) -> str:
     return "-"
 
 
-_QUALITY_DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
-
-
 def _quality_html(doc: Mapping[str, Any]) -> str:
     """A fit's verdict and its residual-over-noise table (fit.json ``quality``)."""
     quality = doc.get("quality")
@@ -497,7 +495,7 @@ def _quality_html(doc: Mapping[str, Any]) -> str:
                   + (f"<ul>{items}</ul>" if items else ""), kind)]  # fmt: skip
     rows = []
     for r in quality.get("recordings") or []:
-        scale, unit = _QUALITY_DISPLAY.get(str(r.get("channel", " "))[0], (1.0, ""))
+        scale, unit = display_unit(str(r.get("channel", "")))
         ratio = r.get("ratio")
         over = [
             f"{p} {v['ratio']:.1f}x"

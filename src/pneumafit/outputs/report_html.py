@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pneumafit.campaign.units import display_unit
+
 __all__ = [
     "CHANNEL_DISPLAY",
     "Section",
@@ -32,23 +34,13 @@ __all__ = [
     "table",
 ]
 
-#: Display unit of each channel: (factor from SI, unit).
+#: Display unit of each channel: (factor from SI, unit), from the one table
+#: (:data:`pneumafit.campaign.units.DISPLAY_UNITS`).
 CHANNEL_DISPLAY: dict[str, tuple[float, str]] = {
-    "p_P": (1e-3, "kPa"),
-    "p_N": (1e-3, "kPa"),
-    "pressure": (1e-3, "kPa"),
-    "y": (1e3, "mm"),
-    "position": (1e3, "mm"),
-    "y_ref": (1e3, "mm"),
-    "T_P": (1.0, "K"),
-    "T_N": (1.0, "K"),
-    "temperature": (1.0, "K"),
-    "qm_P": (1e3, "g/s"),
-    "qm_N": (1e3, "g/s"),
-    "flow": (1e3, "g/s"),
-    "u_P": (1.0, "V"),
-    "u_N": (1.0, "V"),
-}
+    name: display_unit(name)
+    for name in ("p_P", "p_N", "pressure", "y", "position", "y_ref", "T_P", "T_N",
+                 "temperature", "qm_P", "qm_N", "flow", "u_P", "u_N")
+}  # fmt: skip
 
 
 @dataclass

@@ -139,7 +139,7 @@ def render_csv_excerpt(work: Path) -> str:
 def write_rig(work: Path) -> None:
     """The practice rig, as the tutorial's first command writes it (the noise of
     each file depends on the whole protocol, so not one file alone)."""
-    from pneumafit.rig import VirtualRig, tutorial_protocol
+    from pneumafit.virtual_rig import VirtualRig, tutorial_protocol
 
     VirtualRig(seed=7).write(work / "my_rig", tutorial_protocol())
 

@@ -33,8 +33,8 @@ from pneumafit.identification import (
     fit_structure,
     run_mcmc,
 )
-from pneumafit.rig import VirtualRig
-from pneumafit.rig.protocol import quick_protocol
+from pneumafit.virtual_rig import VirtualRig
+from pneumafit.virtual_rig.protocol import quick_protocol
 
 pytest.importorskip("distributed")
 

@@ -27,7 +27,7 @@ from pneumafit.campaign import read_campaign
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
 from pneumafit.outputs.report import SECTIONS, write_report
-from pneumafit.rig import BlockedTest, Protocol, StepTest, VirtualRig
+from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
 
 #: Short chains: these tests check the report, not the posteriors.
 WALKERS, STEPS = 8, 20

@@ -435,7 +435,7 @@ def rig(
     ] = None,
 ) -> None:
     """Record a campaign on the virtual rig (deterministic for a seed)."""
-    from pneumafit.rig import run_rig
+    from pneumafit.virtual_rig import run_rig
 
     check_output(out, "folder")
     raise typer.Exit(

@@ -372,7 +372,7 @@ def _analyses(
 def _runnable_truth(truth: Path) -> bool:
     """True for a virtual rig's truth.json that the compiled model can run as
     a plant: one recorded with the fitted models' laws, not an independent
-    truth (key ``truth_model``, :mod:`pneumafit.rig.truth`)."""
+    truth (key ``truth_model``, :mod:`pneumafit.virtual_rig.truth`)."""
     from pneumafit.analysis.closed_loop import independent_truth
 
     try:

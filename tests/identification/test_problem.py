@@ -15,8 +15,8 @@ from pneumafit.identification import (
     fit_structure,
 )
 from pneumafit.identification.problem import INITIAL_PREFIX
-from pneumafit.rig import first_order_lag as rig_lag
 from pneumafit.simulation import Experiment, Simulator
+from pneumafit.virtual_rig import first_order_lag as rig_lag
 
 STRUCTURE = fit_structure("convection")
 

@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from pneumafit.rig.truth.constants import GRAVITY, R_GAS, air_conductivity, air_viscosity
+from pneumafit.virtual_rig.truth.constants import GRAVITY, R_GAS, air_conductivity, air_viscosity
 
 __all__ = ["AREA_CONVENTIONS", "HEAT_MODELS", "NusseltConvection", "exchange_area"]
 

@@ -11,7 +11,8 @@ from rich.console import Console
 
 from pneumafit.campaign import read_campaign, validate_campaign
 from pneumafit.models import EFFECT_SLOTS
-from pneumafit.rig import (
+from pneumafit.simulation import DEFAULT_STEP, Simulator
+from pneumafit.virtual_rig import (
     DEMO_TRUTH,
     TRUTH_FILE,
     TRUTH_FORMAT,
@@ -22,7 +23,6 @@ from pneumafit.rig import (
     quick_protocol,
     run_rig,
 )
-from pneumafit.simulation import DEFAULT_STEP, Simulator
 
 #: The effect the shared campaign (conftest.quick_folder) hides from campaign.toml.
 HIDDEN_EFFECT = "chamber_leakage"

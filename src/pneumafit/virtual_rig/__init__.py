@@ -3,20 +3,20 @@
 :class:`VirtualRig` simulates a richer model than the fitted structures, at a
 finer step, through a sensor model, following a :class:`Protocol`, and writes
 a campaign folder plus a ``truth.json`` that campaign.toml never mentions.
-:func:`run_rig` is the body of ``pneumafit rig``. :mod:`pneumafit.rig.truth`
+:func:`run_rig` is the body of ``pneumafit rig``. :mod:`pneumafit.virtual_rig.truth`
 holds an independently written truth simulator with configurable parts
 (``VirtualRig(truth=...)``, ``pneumafit rig --truth``).
 """
 
-from pneumafit.rig.command import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, run_rig
-from pneumafit.rig.effects import (
+from pneumafit.virtual_rig.command import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, run_rig
+from pneumafit.virtual_rig.effects import (
     EFFECT_DEFAULTS,
     PRINCIPAL_PARAMETERS,
     ResolvedEffects,
     parse_effect_options,
     resolve_effects,
 )
-from pneumafit.rig.protocol import (
+from pneumafit.virtual_rig.protocol import (
     PROTOCOLS,
     BlockedTest,
     FlowTest,
@@ -28,8 +28,8 @@ from pneumafit.rig.protocol import (
     sparse_protocol,
     tutorial_protocol,
 )
-from pneumafit.rig.sensors import SensorModel, first_order_lag
-from pneumafit.rig.virtual import (
+from pneumafit.virtual_rig.sensors import SensorModel, first_order_lag
+from pneumafit.virtual_rig.virtual import (
     DEMO_CLEAN_TRUTH_PRESET,
     DEMO_SEED,
     DEMO_TRUTH,

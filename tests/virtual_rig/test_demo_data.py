@@ -11,7 +11,7 @@ import pytest
 from rich.console import Console
 
 from pneumafit.campaign import read_campaign, validate_campaign
-from pneumafit.rig import (
+from pneumafit.virtual_rig import (
     DEMO_CLEAN_TRUTH_PRESET,
     DEMO_SEED,
     DEMO_TRUTH,
@@ -19,7 +19,7 @@ from pneumafit.rig import (
     TRUTH_FILE,
     run_rig,
 )
-from pneumafit.rig.truth import PRESETS
+from pneumafit.virtual_rig.truth import PRESETS
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 DEMO = DATA / "demo"

@@ -65,11 +65,11 @@ from pathlib import Path
 from typing import Any
 
 from pneumafit.campaign import PneumafitInputError
-from pneumafit.rig.truth.friction import FRICTION_MODELS, EndStops
-from pneumafit.rig.truth.heat import HEAT_MODELS, exchange_area
-from pneumafit.rig.truth.leak import EXTERNAL_LEAKS
-from pneumafit.rig.truth.probe import PROBE_MODELS
-from pneumafit.rig.truth.valve import CONDUCTANCE_FAMILIES, LEAK_SHAPES, ServoValve
+from pneumafit.virtual_rig.truth.friction import FRICTION_MODELS, EndStops
+from pneumafit.virtual_rig.truth.heat import HEAT_MODELS, exchange_area
+from pneumafit.virtual_rig.truth.leak import EXTERNAL_LEAKS
+from pneumafit.virtual_rig.truth.probe import PROBE_MODELS
+from pneumafit.virtual_rig.truth.valve import CONDUCTANCE_FAMILIES, LEAK_SHAPES, ServoValve
 
 __all__ = [
     "PRESETS",
@@ -186,7 +186,7 @@ class TruthConfig:
         Temperature probes; None keeps the rig's :class:`SensorModel`.
     external_leak : OrificeLeak or None
         Air escaping from the chambers to the atmosphere
-        (:mod:`pneumafit.rig.truth.leak`); None: tight chambers.
+        (:mod:`pneumafit.virtual_rig.truth.leak`); None: tight chambers.
     barrel : Barrel or None
         The real bore where it differs from the declared one; None: the
         declared bore.

@@ -9,7 +9,7 @@ from rich.console import Console
 
 from pneumafit.campaign import PneumafitInputError
 from pneumafit.models import EFFECT_SLOTS
-from pneumafit.rig import (
+from pneumafit.virtual_rig import (
     EFFECT_DEFAULTS,
     PRINCIPAL_PARAMETERS,
     VirtualRig,

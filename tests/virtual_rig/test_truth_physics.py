@@ -1,4 +1,4 @@
-"""Physics checks of the independent truth simulator (pneumafit.rig.truth).
+"""Physics checks of the independent truth simulator (pneumafit.virtual_rig.truth).
 
 Analytic limits and conservation laws, each with a tolerance derived from
 the integrator's settings (solve_ivp LSODA, rtol 1e-8 unless stated).
@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from pneumafit.models import parameter_dict, parameter_vector
-from pneumafit.rig.truth import (
+from pneumafit.simulation import PD, Experiment
+from pneumafit.virtual_rig.truth import (
     PRESETS,
     LuGreFriction,
     PowerConductance,
@@ -24,9 +25,8 @@ from pneumafit.rig.truth import (
     get_truth,
     restriction_flow,
 )
-from pneumafit.rig.truth.constants import GAMMA, R_GAS
-from pneumafit.rig.virtual import DEMO_TRUTH
-from pneumafit.simulation import PD, Experiment
+from pneumafit.virtual_rig.truth.constants import GAMMA, R_GAS
+from pneumafit.virtual_rig.virtual import DEMO_TRUTH
 
 PAR = parameter_dict(parameter_vector(DEMO_TRUTH))
 S_P = 0.25 * math.pi * PAR["bore"] ** 2

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from pneumafit.rig import RigRun, VirtualRig, run_rig
+from pneumafit.virtual_rig import RigRun, VirtualRig, run_rig
 
 
 def quiet_console() -> Console:

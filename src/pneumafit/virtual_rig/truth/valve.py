@@ -39,7 +39,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from pneumafit.rig.truth.constants import RHO_REF, T_REF
+from pneumafit.virtual_rig.truth.constants import RHO_REF, T_REF
 
 __all__ = [
     "CONDUCTANCE_FAMILIES",

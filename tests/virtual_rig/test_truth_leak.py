@@ -1,4 +1,4 @@
-"""The independent truth's external leak (pneumafit.rig.truth.leak): law, balance, input."""
+"""The independent truth's external leak (pneumafit.virtual_rig.truth.leak): law, balance, input."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import pytest
 
 from pneumafit.campaign import PneumafitInputError
 from pneumafit.models import parameter_dict, parameter_vector
-from pneumafit.rig.truth import PRESETS, OrificeLeak, TruthConfig, TruthSimulator
-from pneumafit.rig.truth.constants import R_GAS, RHO_REF, T_REF
-from pneumafit.rig.truth.simulator import _Plant
-from pneumafit.rig.virtual import DEMO_TRUTH
 from pneumafit.simulation import Experiment
+from pneumafit.virtual_rig.truth import PRESETS, OrificeLeak, TruthConfig, TruthSimulator
+from pneumafit.virtual_rig.truth.constants import R_GAS, RHO_REF, T_REF
+from pneumafit.virtual_rig.truth.simulator import _Plant
+from pneumafit.virtual_rig.virtual import DEMO_TRUTH
 
 PAR = parameter_dict(parameter_vector(DEMO_TRUTH))
 

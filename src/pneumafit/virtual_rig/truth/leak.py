@@ -3,7 +3,7 @@
 A worn rod seal, a loose push-in fitting or a porous port thread lets air out
 of a chamber through a small, fixed opening. The truth models each chamber's
 leak as an ISO 6358 restriction to the atmosphere (its own flow function,
-:func:`pneumafit.rig.truth.valve.restriction_flow`): choked, so proportional
+:func:`pneumafit.virtual_rig.truth.valve.restriction_flow`): choked, so proportional
 to the *absolute* chamber pressure, above the critical ratio, subsonic
 below it, and linear in the pressure difference only very near P_atm. The
 fitted models' catalog effect ``external_leakage`` is a laminar law instead,
@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from pneumafit.rig.truth.valve import restriction_flow
+from pneumafit.virtual_rig.truth.valve import restriction_flow
 
 __all__ = ["EXTERNAL_LEAKS", "NoExternalLeak", "OrificeLeak"]
 

@@ -22,19 +22,24 @@ Nothing here imports :mod:`pneumafit.models` kernels, :mod:`pneumafit.physics`
 or the fitting simulator.
 """
 
-from pneumafit.rig.truth.config import (
+from pneumafit.virtual_rig.truth.config import (
     PRESETS,
     REFERENCE_STATE,
     TruthConfig,
     get_truth,
     reference_quantities,
 )
-from pneumafit.rig.truth.friction import FRICTION_MODELS, DahlFriction, EndStops, LuGreFriction
-from pneumafit.rig.truth.heat import AREA_CONVENTIONS, HEAT_MODELS, NusseltConvection
-from pneumafit.rig.truth.leak import EXTERNAL_LEAKS, NoExternalLeak, OrificeLeak
-from pneumafit.rig.truth.probe import PROBE_MODELS, LaggedProbe
-from pneumafit.rig.truth.simulator import CHANNELS, TruthSimulation, TruthSimulator
-from pneumafit.rig.truth.valve import (
+from pneumafit.virtual_rig.truth.friction import (
+    FRICTION_MODELS,
+    DahlFriction,
+    EndStops,
+    LuGreFriction,
+)
+from pneumafit.virtual_rig.truth.heat import AREA_CONVENTIONS, HEAT_MODELS, NusseltConvection
+from pneumafit.virtual_rig.truth.leak import EXTERNAL_LEAKS, NoExternalLeak, OrificeLeak
+from pneumafit.virtual_rig.truth.probe import PROBE_MODELS, LaggedProbe
+from pneumafit.virtual_rig.truth.simulator import CHANNELS, TruthSimulation, TruthSimulator
+from pneumafit.virtual_rig.truth.valve import (
     CONDUCTANCE_FAMILIES,
     LEAK_SHAPES,
     BumpLeak,

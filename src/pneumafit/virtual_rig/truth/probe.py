@@ -7,8 +7,8 @@ a constant offset (calibration error) and white noise:
     tau_1 dT_1/dt = T - T_1,   tau_2 dT_2/dt = T_1 - T_2,   reading = T_2 + offset + noise
 
 Each lag starts settled at the first sample. Used by
-:class:`pneumafit.rig.VirtualRig` in place of
-:meth:`pneumafit.rig.SensorModel.temperature` when a truth configuration
+:class:`pneumafit.virtual_rig.VirtualRig` in place of
+:meth:`pneumafit.virtual_rig.SensorModel.temperature` when a truth configuration
 names a probe.
 """
 

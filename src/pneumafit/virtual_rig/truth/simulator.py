@@ -52,12 +52,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from pneumafit.rig.truth.constants import CV, GAMMA, GRAVITY, R_GAS
-from pneumafit.rig.truth.heat import exchange_area
 from pneumafit.simulation import Experiment
+from pneumafit.virtual_rig.truth.constants import CV, GAMMA, GRAVITY, R_GAS
+from pneumafit.virtual_rig.truth.heat import exchange_area
 
 if TYPE_CHECKING:
-    from pneumafit.rig.truth.config import TruthConfig
+    from pneumafit.virtual_rig.truth.config import TruthConfig
 
 __all__ = ["CHANNELS", "TruthSimulation", "TruthSimulator"]
 

@@ -19,9 +19,9 @@ from rich.text import Text
 
 from pneumafit.campaign import PneumafitInputError
 from pneumafit.models import EFFECT_SLOTS
-from pneumafit.rig.effects import parse_effect_options
-from pneumafit.rig.protocol import Protocol, get_protocol
-from pneumafit.rig.virtual import (
+from pneumafit.virtual_rig.effects import parse_effect_options
+from pneumafit.virtual_rig.protocol import Protocol, get_protocol
+from pneumafit.virtual_rig.virtual import (
     DEMO_SEED,
     TRUTH_FILE,
     RigError,
@@ -73,7 +73,7 @@ def run_rig(
         ``"demo"`` (default), ``"quick"``, ``"tutorial"``, ``"sparse"`` or a protocol.
     truth : str or None
         ``--truth``: an independently simulated truth, a preset name of
-        :data:`pneumafit.rig.truth.PRESETS` or a TOML/JSON configuration file
+        :data:`pneumafit.virtual_rig.truth.PRESETS` or a TOML/JSON configuration file
         (docs/virtual-rig.md, "Mismatched truths"); None simulates the truth
         with the fitting kernel.
 

@@ -50,8 +50,9 @@ from pneumafit.models import (
     parameter_vector,
 )
 from pneumafit.physics.geometry import piston_areas
-from pneumafit.rig.effects import resolve_effects
-from pneumafit.rig.protocol import (
+from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_step
+from pneumafit.virtual_rig.effects import resolve_effects
+from pneumafit.virtual_rig.protocol import (
     FLOW_COMPUTE_RATE,
     BlockedTest,
     FlowTest,
@@ -60,15 +61,14 @@ from pneumafit.rig.protocol import (
     Test,
     get_protocol,
 )
-from pneumafit.rig.sensors import SensorModel
-from pneumafit.rig.truth import (
+from pneumafit.virtual_rig.sensors import SensorModel
+from pneumafit.virtual_rig.truth import (
     TruthConfig,
     TruthSimulation,
     TruthSimulator,
     get_truth,
     reference_quantities,
 )
-from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_step
 
 __all__ = [
     "DEMO_SEED",
@@ -110,7 +110,7 @@ DEMO_TRUTH: dict[str, float] = {
 #: Seed of the committed demo campaign.
 DEMO_SEED = 2026
 #: Independent truth of the committed demo campaign (a preset of
-#: :data:`pneumafit.rig.truth.PRESETS`): data/demo is
+#: :data:`pneumafit.virtual_rig.truth.PRESETS`): data/demo is
 #: ``pneumafit rig --out data/demo --seed 2026 --truth demo``, a rig whose
 #: valve, leak, friction and probes are not the fitted models' laws and whose
 #: chambers leak to the atmosphere (an effect campaign.toml does not declare).
@@ -197,7 +197,7 @@ class VirtualRig:
     effects : mapping of str to float or None, optional
         Optional effects of the truth: effect name (value sets its principal
         parameter) or effect parameter name -> SI value, None for the default
-        magnitude (:func:`pneumafit.rig.effects.resolve_effects`). They win
+        magnitude (:func:`pneumafit.virtual_rig.effects.resolve_effects`). They win
         over ``truth_parameters``.
     sensors : SensorModel, optional
         Sensor noise, offsets, resolution and lags; default
@@ -214,7 +214,7 @@ class VirtualRig:
     air_properties : {"sutherland", "constant"}
         Air viscosity and conductivity in the Grashof number.
     truth : TruthConfig, str or None
-        An independently simulated truth (:mod:`pneumafit.rig.truth`): a
+        An independently simulated truth (:mod:`pneumafit.virtual_rig.truth`): a
         configuration, a preset name or a TOML/JSON file. Its valve,
         friction, heat and probe parts replace the fitted laws, its
         ``parameters`` table overrides ``truth_parameters``; the rig's
@@ -591,7 +591,7 @@ class VirtualRig:
 
         With an independent truth (``truth``), ``truth_model`` holds its
         configuration (``config``, :meth:`TruthConfig.as_dict`), its
-        ``reference_quantities`` (:func:`pneumafit.rig.truth.reference_quantities`),
+        ``reference_quantities`` (:func:`pneumafit.virtual_rig.truth.reference_quantities`),
         the simulator settings and the names of the parameters it took from
         ``parameters`` (the rig's geometry and conditions; the valve,
         friction and heat entries of ``parameters`` are then not the truth).
@@ -657,7 +657,7 @@ class VirtualRig:
                 "config": cfg.as_dict(),
                 "reference_quantities": reference_quantities(cfg, self.parameters),
                 "simulator": {
-                    "program": "pneumafit.rig.truth",
+                    "program": "pneumafit.virtual_rig.truth",
                     "method": self.truth_simulator.method,
                     "rtol": self.truth_simulator.rtol,
                 },
@@ -772,7 +772,7 @@ def _independent_truth_lines(independent: Mapping[str, Any]) -> list[str]:
     ref = independent["reference_quantities"]
     lines = [
         f"- independent truth `{cfg['name']}` ({cfg.get('description', '')}), written "
-        "apart from the fitting code (`pneumafit.rig.truth`), simulated with scipy "
+        "apart from the fitting code (`pneumafit.virtual_rig.truth`), simulated with scipy "
         f"`{independent['simulator']['method']}` at rtol {independent['simulator']['rtol']:g}",
         f"- valve supply path: {part(valve['supply'], 'family')}",
         f"- valve exhaust path: {part(valve['exhaust'], 'family')}",

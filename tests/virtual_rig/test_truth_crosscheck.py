@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from pneumafit.models import ModelStructure, parameter_dict, parameter_vector
-from pneumafit.rig.truth import PRESETS, TruthConfig, TruthSimulator
-from pneumafit.rig.virtual import DEMO_TRUTH
 from pneumafit.simulation import Experiment, Simulator
+from pneumafit.virtual_rig.truth import PRESETS, TruthConfig, TruthSimulator
+from pneumafit.virtual_rig.virtual import DEMO_TRUTH
 
 #: Both laminar tails start at x = 0.9999, so that the only structural
 #: difference left (the truth's linear tail vs the kernel's C1 quadratic one)

@@ -189,7 +189,7 @@ def run_commands(work: Path, reuse: bool, say: Callable[[str], None]) -> dict[st
             say(f"{name}: reused {output}")
             continue
         t0 = time.perf_counter()
-        argv = [sys.executable, "-m", "pneumafit.cli", *shlex.split(line)[1:]]
+        argv = [sys.executable, "-m", "pneumafit", *shlex.split(line)[1:]]
         res = subprocess.run(argv, cwd=work, capture_output=True, text=True)
         seconds[name] = time.perf_counter() - t0
         (work / f"{name.replace(' ', '_')}.log").write_text(res.stdout + res.stderr)

@@ -21,7 +21,7 @@ from pneumafit.virtual_rig import DEMO_TRUTH
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "pneumafit", *args], capture_output=True,
                           text=True, timeout=600)  # fmt: skip
 
 

@@ -209,7 +209,7 @@ def test_parameter_file_friction_key(tmp_path: Path) -> None:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "pneumafit", *args], capture_output=True,
                           text=True, timeout=600)  # fmt: skip
 
 

@@ -196,7 +196,7 @@ def test_bad_run_folder_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(PneumafitInputError, match="--campaign"):
         write_report(tmp_path, tmp_path / "r.html", campaign=tmp_path / "no-campaign")
     res = subprocess.run(
-        [sys.executable, "-m", "pneumafit.cli", "report", str(tmp_path / "nowhere")],
+        [sys.executable, "-m", "pneumafit", "report", str(tmp_path / "nowhere")],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert res.returncode == 2

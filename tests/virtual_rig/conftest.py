@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from pneumafit.virtual_rig import RigRun, VirtualRig, run_rig
+from pneumafit.cli.rig import run_rig
+from pneumafit.virtual_rig import RigRun, VirtualRig
 
 
 def quiet_console() -> Console:

@@ -11,13 +11,13 @@ import pytest
 from rich.console import Console
 
 from pneumafit.campaign import read_campaign, validate_campaign
+from pneumafit.cli.rig import run_rig
 from pneumafit.virtual_rig import (
     DEMO_CLEAN_TRUTH_PRESET,
     DEMO_SEED,
     DEMO_TRUTH,
     DEMO_TRUTH_PRESET,
     TRUTH_FILE,
-    run_rig,
 )
 from pneumafit.virtual_rig.truth import PRESETS
 

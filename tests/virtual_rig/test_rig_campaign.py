@@ -10,6 +10,7 @@ import pytest
 from rich.console import Console
 
 from pneumafit.campaign import read_campaign, validate_campaign
+from pneumafit.cli.rig import run_rig
 from pneumafit.models import EFFECT_SLOTS
 from pneumafit.simulation import DEFAULT_STEP, Simulator
 from pneumafit.virtual_rig import (
@@ -21,7 +22,6 @@ from pneumafit.virtual_rig import (
     VirtualRig,
     first_order_lag,
     quick_protocol,
-    run_rig,
 )
 
 #: The effect the shared campaign (conftest.quick_folder) hides from campaign.toml.

@@ -8,6 +8,7 @@ import pytest
 from rich.console import Console
 
 from pneumafit.campaign import PneumafitInputError
+from pneumafit.cli.rig import run_rig
 from pneumafit.models import EFFECT_SLOTS
 from pneumafit.virtual_rig import (
     EFFECT_DEFAULTS,
@@ -15,7 +16,6 @@ from pneumafit.virtual_rig import (
     VirtualRig,
     parse_effect_options,
     resolve_effects,
-    run_rig,
 )
 
 

@@ -13,7 +13,8 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 from pneumafit.campaign import PneumafitInputError, read_campaign, validate_campaign
-from pneumafit.virtual_rig import TRUTH_FILE, RigRun, VirtualRig, get_protocol, run_rig
+from pneumafit.cli.rig import run_rig
+from pneumafit.virtual_rig import TRUTH_FILE, RigRun, VirtualRig, get_protocol
 from pneumafit.virtual_rig.truth import PRESETS, TruthConfig, get_truth, reference_quantities
 
 

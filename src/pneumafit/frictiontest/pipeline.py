@@ -22,7 +22,7 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
     folder_problem,
@@ -54,8 +54,8 @@ def run_friction(
     strict: bool = False,
 ) -> int:
     """The friction-test job; same exit statuses as :func:`pneumafit.pipeline.run`."""
-    from pneumafit.frictiontest.command import friction_fit_command
-    from pneumafit.frictiontest.discover_command import friction_discover_command
+    from pneumafit.cli.friction import friction_fit_command
+    from pneumafit.cli.friction_discover import friction_discover_command
     from pneumafit.frictiontest.report import write_friction_report
     from pneumafit.pipeline import StageBook, StageFailed, fit_is_reusable
 

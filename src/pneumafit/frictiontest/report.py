@@ -185,7 +185,7 @@ def _discovery_section(folder: Path, disc: Any, error: str | None) -> Section:
         return Section(
             "discovery", "Discovery", "not run", note("no discovery.json", "notrun"), src
         )
-    from pneumafit.frictiontest.discover_command import before_after_rows
+    from pneumafit.cli.friction_discover import before_after_rows
 
     cands = [
         [

@@ -3,12 +3,12 @@
 :class:`VirtualRig` simulates a richer model than the fitted structures, at a
 finer step, through a sensor model, following a :class:`Protocol`, and writes
 a campaign folder plus a ``truth.json`` that campaign.toml never mentions.
-:func:`run_rig` is the body of ``pneumafit rig``. :mod:`pneumafit.virtual_rig.truth`
-holds an independently written truth simulator with configurable parts
-(``VirtualRig(truth=...)``, ``pneumafit rig --truth``).
+``pneumafit rig`` is :func:`pneumafit.cli.rig.run_rig`.
+:mod:`pneumafit.virtual_rig.truth` holds an independently written truth
+simulator with configurable parts (``VirtualRig(truth=...)``, ``pneumafit rig
+--truth``).
 """
 
-from pneumafit.virtual_rig.command import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, run_rig
 from pneumafit.virtual_rig.effects import (
     EFFECT_DEFAULTS,
     PRINCIPAL_PARAMETERS,
@@ -54,9 +54,6 @@ __all__ = [
     "DEMO_TRUTH",
     "DEMO_TRUTH_PRESET",
     "EFFECT_DEFAULTS",
-    "EXIT_BAD_INPUT",
-    "EXIT_FAILED",
-    "EXIT_OK",
     "PRINCIPAL_PARAMETERS",
     "PROTOCOLS",
     "RIG_VERSION",
@@ -82,7 +79,6 @@ __all__ = [
     "parse_effect_options",
     "quick_protocol",
     "resolve_effects",
-    "run_rig",
     "sparse_protocol",
     "truth_readme",
     "tutorial_protocol",

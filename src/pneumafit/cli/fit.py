@@ -34,7 +34,7 @@ from rich.table import Table
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -151,7 +151,7 @@ def fit_command(
         Campaign folder (or its campaign.toml).
     model : {"convection", "constant-lambda", "polytropic", "friction"}
         ``friction``: the friction law on a campaign of friction tests
-        (:mod:`pneumafit.frictiontest.command`).
+        (:mod:`pneumafit.cli.friction`).
     out : Path
         Output folder (created; its fit.json and chains.h5 are replaced).
     walkers, steps : int or None
@@ -179,7 +179,7 @@ def fit_command(
     from pneumafit.campaign import read_campaign
 
     if model == "friction":  # friction tests: the friction law on the rod-force balance
-        from pneumafit.frictiontest.command import friction_fit_command
+        from pneumafit.cli.friction import friction_fit_command
 
         return friction_fit_command(
             campaign, out, walkers, steps, seed, mcmc, console, strict, friction, seal

@@ -18,6 +18,7 @@ from rich.table import Table
 from rich.text import Text
 
 from pneumafit.campaign import PneumafitInputError
+from pneumafit.cli.console import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK
 from pneumafit.models import EFFECT_SLOTS
 from pneumafit.virtual_rig.effects import parse_effect_options
 from pneumafit.virtual_rig.protocol import Protocol, get_protocol
@@ -30,12 +31,8 @@ from pneumafit.virtual_rig.virtual import (
     check_output_folder,
 )
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_OK", "run_rig"]
+__all__ = ["run_rig"]
 
-#: Exit statuses of :func:`run_rig`.
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_BAD_INPUT = 2
 
 
 def _error(console: Console, message: str) -> None:

@@ -45,7 +45,7 @@ from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -493,7 +493,7 @@ def discover_command(
         0 done, 1 failed, 2 bad input, 130 interrupted.
     """
     from pneumafit.campaign import read_campaign
-    from pneumafit.frictiontest.discover_command import friction_discover_command, is_friction_fit
+    from pneumafit.cli.friction_discover import friction_discover_command, is_friction_fit
 
     if is_friction_fit(Path(fit)):  # friction tests: the rod-force residual (frictiontest)
         return friction_discover_command(

@@ -3,7 +3,7 @@
 ``compare_command`` checks every input before any work and reports bad input
 as one message per problem naming the option or file, what was expected and
 what was found (exit status 2, no traceback). The fits it makes are those of
-``pneumafit fit`` (:func:`~pneumafit.identification.command.fit_command`),
+``pneumafit fit`` (:func:`~pneumafit.cli.fit.fit_command`),
 written to ``OUT/fits/<model>/``; a model given with ``--fits`` is not
 refitted.
 
@@ -28,19 +28,19 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import folder_problem, int_problem, report_problems
-from pneumafit.comparison.evaluate import fit_values
-from pneumafit.comparison.figures import plot_recording
-from pneumafit.comparison.information import DEFAULT_DRAWS
-from pneumafit.comparison.report import print_table
-from pneumafit.comparison.result import compare_fits
-from pneumafit.identification.command import (
+from pneumafit.cli.console import folder_problem, int_problem, report_problems
+from pneumafit.cli.fit import (
     EXIT_BAD_INPUT,
     EXIT_OK,
     FIT_FILE,
     MAX_SAMPLED,
     fit_command,
 )
+from pneumafit.comparison.evaluate import fit_values
+from pneumafit.comparison.figures import plot_recording
+from pneumafit.comparison.information import DEFAULT_DRAWS
+from pneumafit.comparison.report import print_table
+from pneumafit.comparison.result import compare_fits
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.staged import FitResult
 from pneumafit.models.structure import MODELS

@@ -1,6 +1,6 @@
 """Body of ``pneumafit fit CAMPAIGN --model friction``: the friction law on friction tests.
 
-Same contract as the other models' ``fit`` (:mod:`pneumafit.identification.command`):
+Same contract as the other models' ``fit`` (:mod:`pneumafit.cli.fit`):
 ``OUT/fit.json`` (format ``pneumafit-fit``, written by the same writer) and,
 with MCMC, ``OUT/chains.h5``; exit 0 done, 1 failed, 2 bad input (one
 message, no traceback), 3 untrustworthy under ``--strict``, 130 interrupted.
@@ -22,7 +22,7 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
@@ -120,7 +120,7 @@ def friction_fit_command(
     except OSError as exc:
         console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
         return EXIT_FAILED
-    from pneumafit.identification.command import _summary, write_inference_data
+    from pneumafit.cli.fit import _summary, write_inference_data
 
     netcdf = write_inference_data(result, out) if mcmc else []
     _summary(result, console)

@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     LOG_RULE_WIDTH,
     LogConsole,
     configure_output,

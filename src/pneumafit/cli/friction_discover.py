@@ -1,6 +1,6 @@
 """Body of ``pneumafit discover`` on friction tests (a base fit of model ``friction``).
 
-Same contract as the cylinder discovery (:mod:`pneumafit.discovery.command`):
+Same contract as the cylinder discovery (:mod:`pneumafit.cli.discover`):
 ``OUT/discovery.json`` (format ``pneumafit-discovery``, version 1, the same
 top-level keys where they mean something here: ``base_model``,
 ``candidates``, ``rounds``, ``refits``, ``selected``, ``rmse_before`` /
@@ -28,7 +28,7 @@ from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,

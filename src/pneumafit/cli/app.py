@@ -3,7 +3,7 @@
 Every command reports bad input as one readable message (file, key, expected,
 found) and a non-zero exit status; tracebacks are for bugs only, and shown
 with ``PNEUMAFIT_DEBUG=1``. Every command that writes checks its ``--out``
-first (:func:`pneumafit.commandline.check_output`), and every command takes
+first (:func:`pneumafit.cli.console.check_output`), and every command takes
 ``--quiet`` and ``--verbose`` (added by :class:`_App`).
 """
 
@@ -26,7 +26,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -277,7 +277,7 @@ def fit(
     of the summary and in fit.json's quality), 1 the fit failed, 2 bad input,
     3 untrustworthy result under --strict, 130 interrupted.
     """
-    from pneumafit.identification.command import fit_command
+    from pneumafit.cli.fit import fit_command
 
     code = fit_command(
         campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve,
@@ -302,7 +302,7 @@ def compare(
     ] = False,
 ) -> None:
     """Fit (or reuse) the convection, constant-lambda and polytropic models and compare them."""
-    from pneumafit.comparison import compare_command
+    from pneumafit.cli.compare import compare_command
 
     code = compare_command(campaign, out, fits or [], walkers, steps, seed, not no_mcmc, console)
     raise typer.Exit(code)
@@ -355,7 +355,7 @@ def discover(
     per_round: Annotated[int, typer.Option("--per-round", help="Refits per round.")] = 3,
 ) -> None:
     """Find the effect a fit's residual asks for, refit with it, report before/after."""
-    from pneumafit.discovery.command import discover_command
+    from pneumafit.cli.discover import discover_command
 
     code = discover_command(
         campaign, fit, out, seed=seed, rounds=rounds, per_round=per_round, console=console
@@ -435,7 +435,7 @@ def rig(
     ] = None,
 ) -> None:
     """Record a campaign on the virtual rig (deterministic for a seed)."""
-    from pneumafit.virtual_rig import run_rig
+    from pneumafit.cli.rig import run_rig
 
     check_output(out, "folder")
     raise typer.Exit(
@@ -867,6 +867,3 @@ def _internal_error(exc: BaseException, debug: bool) -> None:
     )
     sys.exit(EXIT_FAILED)
 
-
-if __name__ == "__main__":
-    main()

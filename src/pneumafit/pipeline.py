@@ -255,7 +255,7 @@ def _friction_job(
 ) -> int | None:  # fmt: skip
     """A campaign of friction tests runs its own job (check, fit, discover, report);
     its exit status, or None for any other campaign."""
-    from pneumafit.frictiontest.pipeline import is_friction_campaign, run_friction
+    from pneumafit.friction_pipeline import is_friction_campaign, run_friction
 
     if not is_friction_campaign(path):
         return None

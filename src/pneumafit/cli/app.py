@@ -398,7 +398,10 @@ def report(
     Exit status: 0 written, 2 bad input (no run folder, an --out that cannot be
     written, or inputs that are missing or disagree, unless --allow-partial).
     """
-    from pneumafit.frictiontest.report import is_friction_run, write_friction_report_of_folder
+    from pneumafit.outputs.friction_report import (
+        is_friction_run,
+        write_friction_report_of_folder,
+    )
     from pneumafit.outputs.report import FIT_MODELS, write_report
 
     target = out or Path(run_dir) / "report.html"
@@ -866,4 +869,3 @@ def _internal_error(exc: BaseException, debug: bool) -> None:
         f"{_REPORT_BUG}"
     )
     sys.exit(EXIT_FAILED)
-

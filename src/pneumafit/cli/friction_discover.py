@@ -45,6 +45,7 @@ from pneumafit.frictiontest.discover import (
 )
 from pneumafit.identification.fitfile import SavedFit, json_safe
 from pneumafit.identification.staged import FitResult
+from pneumafit.outputs.friction_report import before_after_rows
 
 __all__ = ["friction_discover_command", "friction_discovery_document", "is_friction_fit"]
 
@@ -133,27 +134,6 @@ def _f(x: Any, digits: int = 3) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
     return f"{x:.{digits}g}"
-
-
-def _change(b: Any, a: Any) -> str:
-    if not b or a is None:
-        return "-"
-    return f"{100.0 * (a - b) / b:+.0f} %"
-
-
-def before_after_rows(doc: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]]:
-    """(recording or role, role, before N, after N, change) rows of the before/after table."""
-    rows = []
-    roles = dict(doc.get("roles") or {})
-    for f, b in doc["rmse_by_recording_before"].items():
-        a = doc["rmse_by_recording_after"].get(f)
-        rows.append((f, roles.get(f, ""), _f(b), _f(a), _change(b, a)))
-    for role in ("fit", "validate"):
-        b = (doc["rmse_before"].get(role) or {}).get("F")
-        a = (doc["rmse_after"].get(role) or {}).get("F")
-        if b is not None:
-            rows.append((f"all {role}", role, _f(b), _f(a), _change(b, a)))
-    return rows
 
 
 def _markdown(doc: Mapping[str, Any], figures: list[str]) -> str:
@@ -256,7 +236,7 @@ def _plot(result: FrictionDiscovery, path: Path) -> Path | None:
     return path
 
 
-def write_friction_report(out: Path, doc: dict[str, Any], result: FrictionDiscovery) -> list[Path]:
+def write_discovery_files(out: Path, doc: dict[str, Any], result: FrictionDiscovery) -> list[Path]:
     """Write discovery.json, force_residuals.png and discovery.md into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     fig = _plot(result, out / "force_residuals.png")
@@ -337,7 +317,7 @@ def friction_discover_command(
         options={"seed": seed, "rounds": rounds, "per_round": per_round},
     )  # fmt: skip
     try:
-        written = write_friction_report(out, doc, result)
+        written = write_discovery_files(out, doc, result)
     except OSError as exc:
         console.print(Text(f"{os.fspath(out)}: cannot write the report: {exc}", "bold red"))
         return EXIT_FAILED

@@ -34,7 +34,6 @@ from pneumafit.virtual_rig.virtual import (
 __all__ = ["run_rig"]
 
 
-
 def _error(console: Console, message: str) -> None:
     line = Text("error: ", style="bold red")
     line.append(message)

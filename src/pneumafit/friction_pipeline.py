@@ -10,7 +10,7 @@ Stages, each writing into ``OUT`` and reused on a re-run as the main job's
    intervals only, see ``docs/measured-data.md``).
 3. ``discovery``: ``pneumafit discover`` on the base fit: the force
    residual, the effects' signatures, refits, the before/after table.
-4. ``report.html``: :func:`pneumafit.frictiontest.report.write_friction_report`.
+4. ``report.html``: :func:`pneumafit.outputs.friction_report.write_friction_report`.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def run_friction(
     """The friction-test job; same exit statuses as :func:`pneumafit.pipeline.run`."""
     from pneumafit.cli.friction import friction_fit_command
     from pneumafit.cli.friction_discover import friction_discover_command
-    from pneumafit.frictiontest.report import write_friction_report
+    from pneumafit.outputs.friction_report import write_friction_report
     from pneumafit.pipeline import StageBook, StageFailed, fit_is_reusable
 
     started = time.perf_counter()

@@ -1,7 +1,7 @@
 """The report of a friction-test run: one self-contained HTML file.
 
 Read from a run folder written by ``pneumafit run`` on a friction-test
-campaign (:mod:`pneumafit.frictiontest.pipeline`); every input optional, a
+campaign (:mod:`pneumafit.friction_pipeline`); every input optional, a
 missing one labelled "not run"::
 
     RUN/fits/friction/fit.json          the base fit (pneumafit fit --model friction)
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,39 @@ from pneumafit.outputs.report_html import (
     table,
 )
 
-__all__ = ["is_friction_run", "write_friction_report", "write_friction_report_of_folder"]
+__all__ = [
+    "before_after_rows",
+    "is_friction_run",
+    "write_friction_report",
+    "write_friction_report_of_folder",
+]
+
+
+def _short(x: Any, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.{digits}g}"
+
+
+def _change_percent(b: Any, a: Any) -> str:
+    if not b or a is None:
+        return "-"
+    return f"{100.0 * (a - b) / b:+.0f} %"
+
+
+def before_after_rows(doc: Mapping[str, Any]) -> list[tuple[str, str, str, str, str]]:
+    """(recording or role, role, before N, after N, change) rows of the before/after table."""
+    rows = []
+    roles = dict(doc.get("roles") or {})
+    for f, b in doc["rmse_by_recording_before"].items():
+        a = doc["rmse_by_recording_after"].get(f)
+        rows.append((f, roles.get(f, ""), _short(b), _short(a), _change_percent(b, a)))
+    for role in ("fit", "validate"):
+        b = (doc["rmse_before"].get(role) or {}).get("F")
+        a = (doc["rmse_after"].get(role) or {}).get("F")
+        if b is not None:
+            rows.append((f"all {role}", role, _short(b), _short(a), _change_percent(b, a)))
+    return rows
 
 
 def _read(path: Path) -> tuple[Any, str | None]:
@@ -185,8 +218,6 @@ def _discovery_section(folder: Path, disc: Any, error: str | None) -> Section:
         return Section(
             "discovery", "Discovery", "not run", note("no discovery.json", "notrun"), src
         )
-    from pneumafit.cli.friction_discover import before_after_rows
-
     cands = [
         [
             esc(c["effect"]),

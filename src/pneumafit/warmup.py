@@ -5,7 +5,7 @@ at its first call and kept in numba's on-disk cache (``__pycache__`` next to
 the modules, or ``NUMBA_CACHE_DIR``); on a fresh clone that first call takes
 about a minute on the 2-core reference machine. Running
 
-    python -m pneumafit.simulation.warmup
+    python -m pneumafit.warmup
 
 right after the install (the README's main command does) compiles every
 entry point the commands call, with the argument types they call it with,
@@ -113,7 +113,7 @@ def _small_kernels(params: np.ndarray) -> None:
 
 
 def main() -> int:
-    """``python -m pneumafit.simulation.warmup``: compile, print the times."""
+    """``python -m pneumafit.warmup``: compile, print the times."""
     print("pneumafit: compiling the simulator into numba's cache (once per install) ...",
           flush=True)  # fmt: skip
     t0 = time.perf_counter()

@@ -1,7 +1,7 @@
 """Recovery on mismatched truths: fit campaigns whose truth the model does not share.
 
 Each case records a campaign on the virtual rig with an independently
-written truth simulator (``pneumafit.rig.truth``: its own valve, friction,
+written truth simulator (``pneumafit.virtual_rig.truth``: its own valve, friction,
 leak, heat-area and sensor laws, a finer solver, sensor noise), fits the
 convection model to it as a user would (``identify``, no MCMC by default)
 and reports:
@@ -39,7 +39,7 @@ import numpy as np
 
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify
-from pneumafit.rig import VirtualRig
+from pneumafit.virtual_rig import VirtualRig
 
 #: (truth preset, protocol) pairs of the matrix.
 #: Every case fits step tests (the friction figures need them), so the quick
@@ -79,7 +79,7 @@ def run_case(
     seal: str = "off",
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
-    from pneumafit.rig.truth import reference_quantities
+    from pneumafit.virtual_rig.truth import reference_quantities
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:

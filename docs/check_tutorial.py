@@ -139,7 +139,7 @@ def render_csv_excerpt(work: Path) -> str:
 def write_rig(work: Path) -> None:
     """The practice rig, as the tutorial's first command writes it (the noise of
     each file depends on the whole protocol, so not one file alone)."""
-    from pneumafit.rig import VirtualRig, tutorial_protocol
+    from pneumafit.virtual_rig import VirtualRig, tutorial_protocol
 
     VirtualRig(seed=7).write(work / "my_rig", tutorial_protocol())
 
@@ -189,7 +189,7 @@ def run_commands(work: Path, reuse: bool, say: Callable[[str], None]) -> dict[st
             say(f"{name}: reused {output}")
             continue
         t0 = time.perf_counter()
-        argv = [sys.executable, "-m", "pneumafit.cli", *shlex.split(line)[1:]]
+        argv = [sys.executable, "-m", "pneumafit", *shlex.split(line)[1:]]
         res = subprocess.run(argv, cwd=work, capture_output=True, text=True)
         seconds[name] = time.perf_counter() - t0
         (work / f"{name.replace(' ', '_')}.log").write_text(res.stdout + res.stderr)

@@ -37,7 +37,7 @@ from hypothesis import strategies as st
 
 from pneumafit.campaign import read_campaign
 from pneumafit.cli import main
-from pneumafit.identification.command import MAX_SAMPLED
+from pneumafit.cli.fit import MAX_SAMPLED
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
 from pneumafit.parameters_io import PARAMETER_FILE_KEYS

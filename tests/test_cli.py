@@ -18,7 +18,7 @@ DEMO = Path(__file__).resolve().parents[1] / "data" / "demo"
 
 def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "pneumafit.cli", *args],
+        [sys.executable, "-m", "pneumafit", *args],
         capture_output=True, text=True, cwd=cwd, timeout=600,
     )  # fmt: skip
 

@@ -16,12 +16,12 @@ from pneumafit.analysis.closed_loop import compare_controllers, design_controlle
 from pneumafit.analysis.linear import deadband_compensation, numerical_jacobian
 from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.rig import DEMO_TRUTH
 from pneumafit.simulation import Experiment, Simulator, StateFeedback
+from pneumafit.virtual_rig import DEMO_TRUTH
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "pneumafit", *args], capture_output=True,
                           text=True, timeout=600)  # fmt: skip
 
 

@@ -33,8 +33,8 @@ from pneumafit.identification import (
     fit_structure,
     run_mcmc,
 )
-from pneumafit.rig import VirtualRig
-from pneumafit.rig.protocol import quick_protocol
+from pneumafit.virtual_rig import VirtualRig
+from pneumafit.virtual_rig.protocol import quick_protocol
 
 pytest.importorskip("distributed")
 
@@ -156,7 +156,7 @@ def test_cli_unreachable_scheduler_exits_2_without_traceback(
 ) -> None:
     env = dict(os.environ, DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT="2s")
     res = subprocess.run(
-        [sys.executable, "-m", "pneumafit.cli", "fit-many", *map(str, campaigns), "--out",
+        [sys.executable, "-m", "pneumafit", "fit-many", *map(str, campaigns), "--out",
          str(tmp_path / "fits"), "--scheduler", NOWHERE, "--no-mcmc"],
         capture_output=True, text=True, env=env, timeout=300,
     )  # fmt: skip

@@ -11,7 +11,7 @@ from pneumafit.campaign.errors import CampaignError
 from pneumafit.campaign.errors import PneumafitInputError as CampaignInputError
 from pneumafit.campaign.units import UnitError
 from pneumafit.pipeline import StageFailed
-from pneumafit.rig.virtual import RigError
+from pneumafit.virtual_rig.virtual import RigError
 
 
 def test_input_and_computation_errors_share_one_base() -> None:

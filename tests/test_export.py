@@ -149,7 +149,7 @@ def test_c_output_must_name_the_header(tmp_path, doc):
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "pneumafit", *args], capture_output=True,
                           text=True)  # fmt: skip
 
 

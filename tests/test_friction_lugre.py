@@ -6,7 +6,7 @@ Verification, at several levels (docs/physics.md, "Pre-sliding friction
 1. the switch model's results are unchanged by the second law (checksums
    recorded from the code before the law was added);
 2. an independent solver: the right-hand side and a whole open-loop test
-   against the independent truth simulator (:mod:`pneumafit.rig.truth`,
+   against the independent truth simulator (:mod:`pneumafit.virtual_rig.truth`,
    LSODA) with the same LuGre parameters, linear valves and full-area heat;
 3. analytic limits: a piston at rest holds any force below F_s, bristles
    loaded from rest settle at z = F / sigma0 without creep, steady sliding
@@ -209,7 +209,7 @@ def test_parameter_file_friction_key(tmp_path: Path) -> None:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "pneumafit", *args], capture_output=True,
                           text=True, timeout=600)  # fmt: skip
 
 
@@ -290,11 +290,11 @@ def test_blocked_tests_freeze_the_bristles(charge_experiment) -> None:
 def truth_pair() -> tuple[dict, dict, dict]:
     """The 'fit-laws' truth (linear valve ramps, the fit's leak shape, full-area
     Nusselt heat, LuGre) and the kernel parameters of the same rig and law."""
-    from pneumafit.rig.truth import PRESETS
-    from pneumafit.rig.virtual import DEMO_TRUTH
+    from pneumafit.virtual_rig.truth import PRESETS
+    from pneumafit.virtual_rig.virtual import DEMO_TRUTH
 
     data = copy.deepcopy(dict(PRESETS["fit-laws"]))
-    data["valve"]["x_laminar"] = 0.9999  # as tests/rig/test_truth_crosscheck.py
+    data["valve"]["x_laminar"] = 0.9999  # as tests/virtual_rig/test_truth_crosscheck.py
     fr = data["friction"]
     law = {
         "friction_stiffness": fr["sigma0"], "friction_damping": fr["sigma1"],
@@ -313,8 +313,8 @@ def test_rhs_matches_the_truth(truth_pair: tuple[dict, dict, dict], seal: float)
     with the additive seal term (the truth's c_p, the kernel's seal effect).
     Relative to the force scale (100 N for the acceleration, max(|F|, 1 N)
     for the friction) and to |v| for the bristle rate: measured 4e-15."""
-    from pneumafit.rig.truth import TruthConfig
-    from pneumafit.rig.truth.simulator import _Plant
+    from pneumafit.virtual_rig.truth import TruthConfig
+    from pneumafit.virtual_rig.truth.simulator import _Plant
 
     data, values, par = truth_pair
     data = copy.deepcopy(data)
@@ -369,7 +369,7 @@ def test_open_loop_test_matches_the_truth(truth_pair: tuple[dict, dict, dict]) -
     and 48 um, sigma0 + 10 % 321 Pa, F_s + 2 % 896 Pa, the switch model
     6.6 kPa and 2.5 mm.
     """
-    from pneumafit.rig.truth import TruthConfig, TruthSimulator
+    from pneumafit.virtual_rig.truth import TruthConfig, TruthSimulator
 
     data, values, par = truth_pair
     dt = 1e-3
@@ -566,7 +566,7 @@ def test_auto_friction_keeps_the_switch_model_on_a_stick_slip_rig(tmp_path: Path
     four friction parameters within 0.2 % of the truth."""
     from pneumafit.campaign import read_campaign
     from pneumafit.identification import FitOptions, identify
-    from pneumafit.rig import VirtualRig
+    from pneumafit.virtual_rig import VirtualRig
 
     rig = VirtualRig(seed=5)
     rig.write(tmp_path / "c", "sparse")

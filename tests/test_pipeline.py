@@ -19,8 +19,8 @@ from rich.console import Console
 
 from pneumafit.pipeline import RUN_MODELS, StageBook, fit_is_reusable
 from pneumafit.pipeline import run as run_pipeline
-from pneumafit.rig import VirtualRig
-from pneumafit.rig.protocol import quick_protocol
+from pneumafit.virtual_rig import VirtualRig
+from pneumafit.virtual_rig.protocol import quick_protocol
 
 
 def _console() -> Console:

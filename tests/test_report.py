@@ -27,7 +27,7 @@ from pneumafit.campaign import read_campaign
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
 from pneumafit.outputs.report import SECTIONS, write_report
-from pneumafit.rig import BlockedTest, Protocol, StepTest, VirtualRig
+from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
 
 #: Short chains: these tests check the report, not the posteriors.
 WALKERS, STEPS = 8, 20
@@ -196,7 +196,7 @@ def test_bad_run_folder_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(PneumafitInputError, match="--campaign"):
         write_report(tmp_path, tmp_path / "r.html", campaign=tmp_path / "no-campaign")
     res = subprocess.run(
-        [sys.executable, "-m", "pneumafit.cli", "report", str(tmp_path / "nowhere")],
+        [sys.executable, "-m", "pneumafit", "report", str(tmp_path / "nowhere")],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert res.returncode == 2

@@ -27,8 +27,8 @@ from pneumafit.frictiontest.model import (
 from pneumafit.models import EFFECT_SLOTS, ModelStructure, kernel, parameter_vector
 from pneumafit.models.layout import NX, SPECS, X_PN, X_PP, X_TN, X_TP, X_V, X_Y, X_Z
 from pneumafit.physics.seal_effects import SEAL_EFFECTS, seal_effect
-from pneumafit.rig import EFFECT_DEFAULTS, PRINCIPAL_PARAMETERS
 from pneumafit.simulation import Experiment, Simulator
+from pneumafit.virtual_rig import EFFECT_DEFAULTS, PRINCIPAL_PARAMETERS
 
 P_ATM = 1.013e5
 
@@ -251,9 +251,9 @@ def test_double_acting_bench_scales_the_bore_not_the_rod() -> None:
 
 # ------------------------------------------------------------- independent truth
 def test_truth_asymmetry_and_barrel() -> None:
-    from pneumafit.rig.truth import PRESETS, TruthConfig
-    from pneumafit.rig.truth.friction import LuGreFriction
-    from pneumafit.rig.truth.simulator import _Plant
+    from pneumafit.virtual_rig.truth import PRESETS, TruthConfig
+    from pneumafit.virtual_rig.truth.friction import LuGreFriction
+    from pneumafit.virtual_rig.truth.simulator import _Plant
 
     lugre = LuGreFriction(sigma0=1e5, sigma1=0.0, sigma2=0.0, F_c=20.0, F_s=30.0, v_s=0.01,
                           asymmetry=0.2)  # fmt: skip

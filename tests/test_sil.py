@@ -147,7 +147,7 @@ def test_export_command_runs_the_c_code_in_the_loop(tmp_path):
 
     params = tmp_path / "p.json"
     params.write_text('{"model": "convection", "parameters": {"rod": "20 mm"}}')
-    res = subprocess.run([sys.executable, "-m", "pneumafit.cli", "export", str(params), "--format",
+    res = subprocess.run([sys.executable, "-m", "pneumafit", "export", str(params), "--format",
                           "c", "--out", str(tmp_path / "controller.h"), "--w0", "15",
                           "--positions", "100,400 mm", "--sil"],
                          capture_output=True, text=True)  # fmt: skip

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from pneumafit.campaign import read_campaign
-from pneumafit.rig import Protocol, VirtualRig, tutorial_protocol
+from pneumafit.virtual_rig import Protocol, VirtualRig, tutorial_protocol
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "tutorial.md"
 

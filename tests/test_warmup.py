@@ -9,7 +9,7 @@ import numpy as np
 from pneumafit.models import kernel
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.simulation import Experiment, Simulator, choose_step, simulate_sampled
-from pneumafit.simulation.warmup import warm_up
+from pneumafit.warmup import warm_up
 
 ENTRY_POINTS = (
     kernel.integrate_many, kernel.integrate_many_serial, kernel.stiffness_bound,

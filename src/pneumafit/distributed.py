@@ -3,7 +3,7 @@
 Two things are distributed (``docs/distributed.md``):
 
 - campaigns: :func:`fit_many` runs one task per campaign, each calling
-  :func:`~pneumafit.identification.command.fit_command` into
+  :func:`~pneumafit.cli.fit.fit_command` into
   ``OUT/<campaign folder name>/`` on a worker (``pneumafit fit-many``);
 - the log posterior of one MCMC: :class:`DistributedLogProb` splits each
   batch of walkers into chunks evaluated on the workers and is passed to
@@ -38,7 +38,7 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
@@ -186,7 +186,7 @@ class CampaignFit:
     campaign : Path
         The campaign as given.
     code : int
-        :func:`~pneumafit.identification.command.fit_command`'s exit status
+        :func:`~pneumafit.cli.fit.fit_command`'s exit status
         (0 ok, 1 failed, 2 bad input, 130 interrupted).
     fit : Path or None
         ``OUT/<name>/fit.json`` when ``code`` is 0.
@@ -241,7 +241,7 @@ def _fit_one(
 ) -> dict[str, Any]:
     """One campaign's fit, as run on a worker: plain, picklable inputs and result."""
     _single_threaded()
-    from pneumafit.identification.command import fit_command
+    from pneumafit.cli.fit import fit_command
 
     text = io.StringIO()
     console = LogConsole(file=text, force_terminal=False)  # each fit's log, tables in full

@@ -56,7 +56,7 @@ from rich.text import Text
 from pneumafit import __version__
 from pneumafit.campaign import Campaign, check_campaign, read_campaign
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.commandline import (
+from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
     folder_problem,
@@ -255,7 +255,7 @@ def _friction_job(
 ) -> int | None:  # fmt: skip
     """A campaign of friction tests runs its own job (check, fit, discover, report);
     its exit status, or None for any other campaign."""
-    from pneumafit.frictiontest.pipeline import is_friction_campaign, run_friction
+    from pneumafit.friction_pipeline import is_friction_campaign, run_friction
 
     if not is_friction_campaign(path):
         return None
@@ -290,7 +290,7 @@ def _fits(
 ) -> dict[str, Path]:  # fmt: skip
     """Fit the three models (or reuse finished fits); fit.json path per model.
     Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
-    from pneumafit.identification import fit_command
+    from pneumafit.cli.fit import fit_command
 
     files = {}
     for model in RUN_MODELS:
@@ -320,7 +320,7 @@ def _analyses(
     all_fits = [fits[m] for m in RUN_MODELS]
 
     def compare() -> int:
-        from pneumafit.comparison import compare_command
+        from pneumafit.cli.compare import compare_command
 
         return compare_command(path, out / "comparison", [f.parent for f in all_fits],
                                seed=seed, console=console)  # fmt: skip
@@ -328,7 +328,7 @@ def _analyses(
     stage("comparison", all_fits, [out / "comparison" / "comparison.json"], compare)
 
     def discover() -> int:
-        from pneumafit.discovery.command import discover_command
+        from pneumafit.cli.discover import discover_command
 
         return discover_command(path, conv, out / "discovery", seed=seed, console=console)
 
@@ -372,7 +372,7 @@ def _analyses(
 def _runnable_truth(truth: Path) -> bool:
     """True for a virtual rig's truth.json that the compiled model can run as
     a plant: one recorded with the fitted models' laws, not an independent
-    truth (key ``truth_model``, :mod:`pneumafit.rig.truth`)."""
+    truth (key ``truth_model``, :mod:`pneumafit.virtual_rig.truth`)."""
     from pneumafit.analysis.closed_loop import independent_truth
 
     try:

@@ -213,7 +213,7 @@ def test_bad_file_exits_2_without_traceback(tmp_path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
     env_python = sys.executable
     out = subprocess.run(
-        [env_python, "-m", "pneumafit.cli", "check", str(folder)],
+        [env_python, "-m", "pneumafit", "check", str(folder)],
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert out.returncode == 1
@@ -265,7 +265,7 @@ def test_fit_on_a_bad_file_exits_2(
         path = folder / where
         path.write_text(path.read_text().replace(old, new))
     out = subprocess.run(
-        [sys.executable, "-m", "pneumafit.cli", "fit", str(folder), "--model", "friction",
+        [sys.executable, "-m", "pneumafit", "fit", str(folder), "--model", "friction",
          "--out", str(tmp_path / "fit"), "--no-mcmc"],
         capture_output=True, text=True, check=False,
     )  # fmt: skip

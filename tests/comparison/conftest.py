@@ -20,7 +20,7 @@ from rich.console import Console
 
 from pneumafit.campaign import Campaign, read_campaign
 from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
-from pneumafit.rig import BlockedTest, Protocol, VirtualRig
+from pneumafit.virtual_rig import BlockedTest, Protocol, VirtualRig
 
 #: Seed of the comparison campaign.
 SEED = 5

@@ -15,10 +15,10 @@ from typer.testing import CliRunner
 from pneumafit.campaign import Campaign
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli import app
+from pneumafit.cli.compare import compare_command
 from pneumafit.comparison import (
     COMPARISON_FORMAT,
     channel_error,
-    compare_command,
     evaluate_fit,
 )
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from discovery_helpers import SEED
 
-from pneumafit.rig import RigRun, VirtualRig
+from pneumafit.virtual_rig import RigRun, VirtualRig
 
 
 @pytest.fixture(scope="session")

@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from pneumafit.discovery import ResidualReport, residual_analysis
-from pneumafit.rig import RigRun, VirtualRig
 from pneumafit.simulation import Experiment, Simulator
+from pneumafit.virtual_rig import RigRun, VirtualRig
 
 #: Seed of the single-campaign rig tests.
 SEED = 5
@@ -101,7 +101,7 @@ def _fit_laws_truth(**parts: Any) -> dict[str, Any]:
     truth can express them; LuGre bristle friction) with some parts changed."""
     import copy
 
-    from pneumafit.rig.truth import PRESETS
+    from pneumafit.virtual_rig.truth import PRESETS
 
     data = copy.deepcopy(dict(PRESETS["fit-laws"]))
     for key, value in parts.items():
@@ -112,7 +112,7 @@ def _fit_laws_truth(**parts: Any) -> dict[str, Any]:
     return data
 
 
-#: Campaigns recorded by the *independent* truth (:mod:`pneumafit.rig.truth`,
+#: Campaigns recorded by the *independent* truth (:mod:`pneumafit.virtual_rig.truth`,
 #: written apart from the fitting kernel): the ``fit-laws`` preset with one
 #: seal or barrel effect at the catalog's typical size, the preset itself
 #: (nothing hidden), and a valve law no catalog effect describes (power-law
@@ -145,7 +145,7 @@ def discovery_protocol() -> Any:
     base fits landed in a poor friction optimum (position RMSE 2.3 mm against
     0.2 mm here) from which no refit recovers the hidden effect.
     """
-    from pneumafit.rig import BlockedTest, FlowTest, Protocol, StepTest
+    from pneumafit.virtual_rig import BlockedTest, FlowTest, Protocol, StepTest
 
     cmds = (-10.0, -3.0, -0.4, -0.2, 0.0, 0.2, 0.4, 3.0, 10.0)
     pressures = (2.0 * BAR, 4.0 * BAR, 6.0 * BAR)

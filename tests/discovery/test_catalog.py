@@ -21,8 +21,8 @@ from pneumafit.discovery import (
     register_effect,
 )
 from pneumafit.models import EFFECT_SLOTS, PARAMETER_SPECS, ModelStructure
-from pneumafit.rig import EFFECT_DEFAULTS, PRINCIPAL_PARAMETERS
 from pneumafit.simulation import Experiment, Simulator
+from pneumafit.virtual_rig import EFFECT_DEFAULTS, PRINCIPAL_PARAMETERS
 
 SPECS = {s.name: s for s in PARAMETER_SPECS}
 CATALOG = (

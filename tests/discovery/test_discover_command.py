@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from pneumafit.discovery.command import discover_command, discovery_document, write_report
+from pneumafit.cli.discover import discover_command, discovery_document, write_report
 
 pytestmark = pytest.mark.slow
 
@@ -58,7 +58,7 @@ def test_command_on_the_clean_campaign(discovery_cases: object, tmp_path: Path) 
     case = discovery_cases(None)  # type: ignore[operator]
     out = tmp_path / "rep"
     res = subprocess.run(
-        [sys.executable, "-m", "pneumafit.cli", "discover", str(case.folder), "--fit",
+        [sys.executable, "-m", "pneumafit", "discover", str(case.folder), "--fit",
          str(case.fit_path.parent), "--out", str(out), "--seed", "3"],
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip

@@ -12,7 +12,7 @@ explained.
 
 The seal and barrel effects are recorded twice: by the virtual rig's kernel
 truth (the loop cases above) and by the *independent* truth
-(:mod:`pneumafit.rig.truth`, the ``fit-laws`` preset with LuGre bristle
+(:mod:`pneumafit.virtual_rig.truth`, the ``fit-laws`` preset with LuGre bristle
 friction, plus one effect: ``truth:<effect>`` cases); there the effect must
 be selected with its size, and nothing of the kind on the preset alone
 (``truth:clean``).

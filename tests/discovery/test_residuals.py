@@ -23,8 +23,8 @@ from pneumafit.discovery import (
     summarize,
     whiteness_band,
 )
-from pneumafit.rig import RigRun, VirtualRig
 from pneumafit.simulation.sensor import first_order_lag
+from pneumafit.virtual_rig import RigRun, VirtualRig
 
 T = np.arange(0.0, 2.0005, 1e-3)
 NOISE = 400.0  # Pa

@@ -23,7 +23,7 @@ from pneumafit.discovery.attribution import (
     build_rows,
 )
 from pneumafit.physics.seal_effects import SEAL_EFFECTS
-from pneumafit.rig import EFFECT_DEFAULTS, RigRun, VirtualRig
+from pneumafit.virtual_rig import EFFECT_DEFAULTS, RigRun, VirtualRig
 
 SEAL = tuple(SEAL_EFFECTS)
 

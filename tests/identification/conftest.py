@@ -9,7 +9,7 @@ import pytest
 from rich.console import Console
 
 from pneumafit.campaign import Campaign, read_campaign
-from pneumafit.rig import BlockedTest, FlowTest, Protocol, StepTest, VirtualRig
+from pneumafit.virtual_rig import BlockedTest, FlowTest, Protocol, StepTest, VirtualRig
 
 BAR = 1.0e5
 #: Seed of the shared small campaign.

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from pneumafit.identification import fit_command
+from pneumafit.cli.fit import fit_command
 from pneumafit.identification import likelihood as likelihood_module
 from pneumafit.parameters_io import read_parameter_file
 
@@ -260,7 +260,7 @@ def test_discovery_defaults_to_the_fits_seed_and_options(
 ) -> None:  # fmt: skip
     """pneumafit discover without --seed uses the seed the base fit was made
     with (provenance.seed), and its channels, offsets and step (options)."""
-    from pneumafit.discovery import command as discovery_command
+    from pneumafit.cli import discover as discovery_command
 
     out, doc = fitted
     folder, _, _ = small

@@ -1,6 +1,6 @@
 """Identification on a truth the fitted model does not share (no inverse crime).
 
-The campaign comes from :mod:`pneumafit.rig.truth`, a simulator written
+The campaign comes from :mod:`pneumafit.virtual_rig.truth`, a simulator written
 independently of the fitted kernel, preset ``mixed``: a tabulated supply path
 with an opening-dependent critical ratio, a power-law exhaust path, a Gaussian
 leak bump off the centre, LuGre friction with a pressure-dependent seal term,
@@ -29,8 +29,8 @@ import pytest
 
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify
-from pneumafit.rig import VirtualRig
-from pneumafit.rig.truth import reference_quantities
+from pneumafit.virtual_rig import VirtualRig
+from pneumafit.virtual_rig.truth import reference_quantities
 
 pytestmark = pytest.mark.slow
 

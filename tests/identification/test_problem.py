@@ -15,8 +15,8 @@ from pneumafit.identification import (
     fit_structure,
 )
 from pneumafit.identification.problem import INITIAL_PREFIX
-from pneumafit.rig import SensorModel
 from pneumafit.simulation import Experiment, Simulator
+from pneumafit.virtual_rig import SensorModel
 
 STRUCTURE = fit_structure("convection")
 

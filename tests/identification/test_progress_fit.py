@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from pneumafit import progress as progress_module
-from pneumafit.commandline import LogConsole
-from pneumafit.identification import fit_command
+from pneumafit.cli.console import LogConsole
+from pneumafit.cli.fit import fit_command
 
 #: Short chains: the plumbing, not the posteriors.
 WALKERS, STEPS = 8, 12

@@ -194,7 +194,7 @@ def test_shape_exponents_are_freed_only_where_the_flow_levels_resolve_them(small
     do not count."""
     from pneumafit.campaign import Campaign
     from pneumafit.identification.coverage import shape_informed
-    from pneumafit.rig import VirtualRig
+    from pneumafit.virtual_rig import VirtualRig
 
     _, campaign, _ = small
     assert shape_informed(campaign, {"valve_u_sat": 10.0}) == {"supply": False, "exhaust": False}

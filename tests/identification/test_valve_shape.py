@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pneumafit.campaign import Campaign
 from pneumafit.identification import FitOptions, identify
-from pneumafit.rig import VirtualRig
+from pneumafit.virtual_rig import VirtualRig
 
 
 def _flow_only(rig: VirtualRig) -> Campaign:

@@ -14,7 +14,7 @@ import pytest
 
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify, staged
-from pneumafit.rig import BlockedTest, FlowTest, Protocol, VirtualRig
+from pneumafit.virtual_rig import BlockedTest, FlowTest, Protocol, VirtualRig
 
 BAR = 1.0e5
 

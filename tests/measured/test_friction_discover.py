@@ -122,7 +122,7 @@ def test_discover_command_writes_the_report(tmp_path: Path) -> None:
     """``pneumafit discover`` on a shipped seal's base fit: the before/after table."""
     pytest.importorskip("matplotlib")
     from pneumafit.campaign import read_campaign
-    from pneumafit.discovery.command import discover_command
+    from pneumafit.cli.discover import discover_command
 
     path = ROOT / "data" / "measured" / "NAP310"
     camp = read_campaign(path)
@@ -146,7 +146,7 @@ def test_discover_command_writes_the_report(tmp_path: Path) -> None:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pneumafit.cli", *args],
+    return subprocess.run([sys.executable, "-m", "pneumafit", *args],
                           capture_output=True, text=True, timeout=600)  # fmt: skip
 
 

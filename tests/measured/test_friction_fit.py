@@ -104,7 +104,7 @@ def test_recovery_on_a_different_law() -> None:
 @pytest.mark.slow
 def test_fit_of_a_shipped_seal(tmp_path: Path) -> None:
     """``pneumafit fit data/measured/NAP310 --model friction --no-mcmc`` end to end."""
-    from pneumafit.identification.command import fit_command
+    from pneumafit.cli.fit import fit_command
 
     out = io.StringIO()
     status = fit_command(
@@ -132,7 +132,7 @@ def test_fit_of_a_shipped_seal(tmp_path: Path) -> None:
 
 
 def test_bad_input_exits_2(tmp_path: Path) -> None:
-    from pneumafit.identification.command import fit_command
+    from pneumafit.cli.fit import fit_command
 
     folder = tmp_path / "bench"
     folder.mkdir()
@@ -159,7 +159,7 @@ def test_bad_input_exits_2(tmp_path: Path) -> None:
 def test_bad_options_exit_2(
     tmp_path: Path, walkers: int | None, friction: str, seal: str, message: str
 ) -> None:
-    from pneumafit.identification.command import fit_command
+    from pneumafit.cli.fit import fit_command
 
     out = io.StringIO()
     status = fit_command(

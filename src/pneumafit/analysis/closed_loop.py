@@ -582,7 +582,7 @@ def result_document(result: ClosedLoopResult) -> dict:
 
 def independent_truth(document: object) -> str | None:
     """Name of the independent truth a virtual rig's truth.json describes
-    (key ``truth_model``, :mod:`pneumafit.rig.truth`: laws the compiled model
+    (key ``truth_model``, :mod:`pneumafit.virtual_rig.truth`: laws the compiled model
     does not have, so it cannot run it as a plant), or None."""
     if not isinstance(document, dict) or "truth_model" not in document:
         return None

@@ -1,21 +1,15 @@
 """Model comparison: the three heat-transfer models on one campaign.
 
-``pneumafit compare`` (:func:`compare_command`) fits (or reuses) the
-convection, constant-lambda and polytropic models, replays every recording
-with each (:func:`evaluate_fit`), scores them per role and channel (RMSE,
-normalised fit, largest error), by information criteria (AIC, BIC from the
-fits; WAIC and PSIS-LOO from the posterior draws,
+``pneumafit compare`` (:func:`pneumafit.cli.compare.compare_command`) fits
+(or reuses) the convection, constant-lambda and polytropic models, replays
+every recording with each (:func:`evaluate_fit`), scores them per role and
+channel (RMSE, normalised fit, largest error), by information criteria (AIC,
+BIC from the fits; WAIC and PSIS-LOO from the posterior draws,
 :func:`posterior_criteria`), and writes ``comparison.json``
 (:func:`comparison_document`) and one figure per recording
 (:func:`plot_recording`). docs/comparison.md describes the schema.
 """
 
-from pneumafit.comparison.command import (
-    COMPARED_MODELS,
-    COMPARISON_FILE,
-    compare_command,
-    read_fit,
-)
 from pneumafit.comparison.evaluate import (
     ChannelError,
     ModelEvaluation,
@@ -34,15 +28,12 @@ from pneumafit.comparison.report import (
 )
 
 __all__ = [
-    "COMPARED_MODELS",
-    "COMPARISON_FILE",
     "COMPARISON_FORMAT",
     "COMPARISON_VERSION",
     "ChannelError",
     "ModelEvaluation",
     "RecordingTrace",
     "channel_error",
-    "compare_command",
     "comparison_document",
     "evaluate_fit",
     "fit_values",
@@ -50,5 +41,4 @@ __all__ = [
     "pointwise_log_likelihood",
     "posterior_criteria",
     "print_table",
-    "read_fit",
 ]

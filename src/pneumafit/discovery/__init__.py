@@ -14,7 +14,8 @@
   regressed on the effects' signatures, sparse and bootstrapped).
 - :mod:`.refit`: the refit loop (:func:`discover`), kept effects must
   improve both BIC and the held-out error.
-- :mod:`.command`: ``pneumafit discover`` (discovery.json and the report).
+- ``pneumafit discover`` (discovery.json and the report) is
+  :mod:`pneumafit.cli.discover`.
 """
 
 from pneumafit.discovery.attribution import (

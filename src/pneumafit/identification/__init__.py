@@ -14,11 +14,10 @@ Layers (docs/identification.md):
 - :func:`identify`: the staged fit (valve, heat, friction, joint, MCMC);
   :meth:`FitResult.save` / :meth:`FitResult.load` (:class:`SavedFit`): fit.json,
   the only code that writes or reads it (:func:`fit_document`,
-  :func:`write_fit_json`, :func:`load_fit`);
-  :func:`fit_command`: the body of ``pneumafit fit``.
+  :func:`write_fit_json`, :func:`load_fit`). The body of ``pneumafit fit``
+  is :func:`pneumafit.cli.fit.fit_command`.
 """
 
-from pneumafit.identification.command import fit_command
 from pneumafit.identification.fitfile import (
     FIT_FORMAT,
     FIT_VERSION,
@@ -104,7 +103,6 @@ __all__ = [
     "default_moves",
     "detect_resolution",
     "first_order_lag",
-    "fit_command",
     "fit_document",
     "fit_least_squares",
     "fit_structure",

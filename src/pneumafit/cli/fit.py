@@ -1,0 +1,420 @@
+"""Body of ``pneumafit fit``: staged identification of a campaign, with MCMC.
+
+``fit_command`` never lets a traceback out for bad input: it prints one
+message naming the file or option, what was expected and what was found,
+and returns 2. It returns 1 when the fit itself fails (every simulation
+failed), 130 when interrupted (with MCMC the chains sampled so far are kept
+and the same command resumes them after redoing the least-squares stages;
+with ``--no-mcmc`` nothing is kept), 0 on success.
+
+Output folder ``OUT``::
+
+    OUT/fit.json            the result (format pneumafit-fit, see fitfile.py)
+    OUT/chains.h5           emcee HDF5 backend, one group per sampled stage
+    OUT/chains.partial.h5   chains of a run in progress (renamed when done)
+    OUT/chains.<stage>.nc   each sampled stage's kept chain as ArviZ InferenceData
+
+Both final files appear atomically (renamed into place). A partial chains
+file is resumed only when it was made with the same campaign (SHA-256 of
+its files), model, seed, walkers, steps and pneumafit version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+from rich.console import Console
+from rich.table import Table
+from rich.text import Text
+
+from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.cli.console import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_UNTRUSTWORTHY,
+    folder_problem,
+    int_problem,
+    report_problems,
+    run_guarded,
+)
+from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
+from pneumafit.identification.staged import (
+    FRICTION_PARAMETERS,
+    FitOptions,
+    FitResult,
+    identify,
+)
+from pneumafit.models.layout import FRICTION_LAWS, VALVE_LAWS
+from pneumafit.models.structure import MODELS
+from pneumafit.progress import Reporter
+
+__all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
+
+
+PARTIAL_FILE = "chains.partial.h5"
+#: The largest stage sampled by default has this many parameters (friction).
+MAX_SAMPLED = len(FRICTION_PARAMETERS)
+
+
+def _fingerprint(
+    campaign_sha: dict[str, str], model: str, seed: int, walkers: Any, steps: Any
+) -> str:
+    text = json.dumps(
+        {"sha256": campaign_sha, "model": model, "seed": seed, "walkers": walkers,
+         "steps": steps, "version": _version()},
+        sort_keys=True,
+    )  # fmt: skip
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _prepare_partial(partial: Path, fingerprint: str, console: Console) -> None:
+    """Keep a partial chains file made by the same run; otherwise remove it."""
+    if not partial.exists():
+        return
+    try:
+        with h5py.File(partial, "r") as f:
+            same = f.attrs.get("pneumafit_fingerprint") == fingerprint
+    except OSError:
+        same = False
+    if same:
+        console.print(f"resuming the chains in {partial}")
+        return
+    console.print(f"{partial}: made by another run (campaign, model, seed or settings differ): "
+                  "starting afresh")  # fmt: skip
+    partial.unlink()
+
+
+def _interrupted_message(partial: Path | None) -> str:
+    """What an interrupted fit keeps, in words that hold.
+
+    Least-squares stages save nothing: a re-run does them again. Only MCMC
+    steps are stored (``partial``, one group per sampled stage) and resumed.
+    """
+    if partial is None:
+        return (
+            "interrupted: nothing is kept (a fit with --no-mcmc stores no intermediate "
+            "state); the same command starts again from the beginning"
+        )
+    try:
+        with h5py.File(partial, "r") as f:
+            stages = [
+                f"{name} {int(f[name].attrs.get('iteration', 0))} steps"
+                for name in f
+                if isinstance(f[name], h5py.Group) and f[name].attrs.get("iteration", 0) > 0
+            ]
+    except OSError:
+        stages = []
+    if not stages:
+        return (
+            f"interrupted before any MCMC step was stored: nothing is kept ({partial} holds "
+            "no chain yet); the same command starts again from the beginning"
+        )
+    return (
+        f"interrupted: the MCMC chains sampled so far are kept in {partial} "
+        f"({', '.join(stages)}); the same command redoes the least-squares stages and "
+        "resumes the chains where they stopped"
+    )
+
+
+def _stamp(partial: Path, fingerprint: str) -> None:
+    with h5py.File(partial, "a") as f:
+        f.attrs["pneumafit_fingerprint"] = fingerprint
+
+
+def fit_command(
+    campaign: Path,
+    model: str,
+    out: Path,
+    walkers: int | None,
+    steps: int | None,
+    seed: int,
+    mcmc: bool,
+    console: Console,
+    strict: bool = False,
+    valve: str = "iso6358",
+    friction: str = "auto",
+    seal: str = "off",
+) -> int:
+    """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
+
+    Parameters
+    ----------
+    campaign : Path
+        Campaign folder (or its campaign.toml).
+    model : {"convection", "constant-lambda", "polytropic", "friction"}
+        ``friction``: the friction law on a campaign of friction tests
+        (:mod:`pneumafit.cli.friction`).
+    out : Path
+        Output folder (created; its fit.json and chains.h5 are replaced).
+    walkers, steps : int or None
+        Walkers and steps of every sampled stage (None: the defaults).
+    seed : int
+        Same seed, same numbers.
+    mcmc : bool
+        False for point estimates with Laplace uncertainties only.
+    console : rich.console.Console
+    strict : bool
+        Return 3 when the fit is not trustworthy (:class:`FitQuality`).
+    valve : {"iso6358", "map"}
+        Valve law (:class:`FitOptions`).
+    friction : {"auto", "switch", "lugre"}
+        Friction law (:class:`FitOptions`).
+    seal : {"auto", "on", "off"}
+        Pressure-dependent seal friction (:class:`FitOptions`).
+
+    Returns
+    -------
+    int
+        0 ok, 1 the fit failed, 2 bad input, 3 untrustworthy under ``strict``,
+        130 interrupted (MCMC chains resumable).
+    """
+    from pneumafit.campaign import read_campaign
+
+    if model == "friction":  # friction tests: the friction law on the rod-force balance
+        from pneumafit.cli.friction import friction_fit_command
+
+        return friction_fit_command(
+            campaign, out, walkers, steps, seed, mcmc, console, strict, friction, seal
+        )
+    problems = [
+        int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
+        int_problem("--steps", steps, 1),
+        int_problem("--seed", seed, 0),
+    ]
+    if model not in MODELS:
+        problems.append(
+            f"option --model: expected one of {', '.join(MODELS)}, friction, found {model!r}"
+        )
+    if valve not in VALVE_LAWS:
+        problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
+    if friction not in ("auto", *FRICTION_LAWS):
+        problems.append(
+            f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "
+            f"found {friction!r}"
+        )
+    if seal not in ("auto", "on", "off"):
+        problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
+    out = Path(out)
+    problems.append(folder_problem(out))
+    if report_problems(console, problems):
+        return EXIT_BAD_INPUT
+    try:
+        camp = read_campaign(campaign)
+    except PneumafitInputError as exc:
+        console.print(Text(str(exc), style="bold red"))
+        return EXIT_BAD_INPUT
+    command = (
+        f"pneumafit fit {os.fspath(campaign)} --model {model} --out {os.fspath(out)}"
+        + (f" --walkers {walkers}" if walkers is not None else "")
+        + (f" --steps {steps}" if steps is not None else "")
+        + f" --seed {seed}"
+        + ("" if mcmc else " --no-mcmc")
+        + (" --strict" if strict else "")
+        + (f" --valve {valve}" if valve != "iso6358" else "")
+        + (f" --friction {friction}" if friction != "auto" else "")
+        + (f" --seal-friction {seal}" if seal != "off" else "")
+    )
+    options = FitOptions(
+        mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
+        friction=friction, seal=seal,
+    )  # fmt: skip
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        console.print(
+            Text(f"option --out {os.fspath(out)!r}: cannot be created: {exc}", "bold red")
+        )
+        return EXIT_BAD_INPUT
+    partial = out / PARTIAL_FILE
+    chains_path: Path | None = None
+    if mcmc:
+        variant = (
+            ("" if valve == "iso6358" else "+" + valve)
+            + ("" if friction == "auto" else "+friction-" + friction)
+            + ("" if seal == "auto" else "+seal-" + seal)
+        )
+        fingerprint = _fingerprint(camp.sha256, model + variant, seed, walkers, steps)
+        _prepare_partial(partial, fingerprint, console)
+        _stamp(partial, fingerprint)
+        chains_path = partial
+    console.print(f"fitting {model} to {camp.name} ({len(camp.by_role('fit'))} fit recordings)")
+
+    def say(line: str) -> None:
+        console.print(Text(line))
+
+    result, status = run_guarded(
+        console,
+        lambda: identify(
+            camp, model, options=options, seed=seed, chains=chains_path, log=say,
+            progress=Reporter(say, console=console),
+        ),
+        campaign=campaign, failed="fit failed",
+        interrupted=lambda: _interrupted_message(partial if mcmc else None),
+    )  # fmt: skip
+    if status is not None:
+        return status
+    try:
+        if mcmc:
+            os.replace(partial, out / CHAINS_FILE)
+        else:
+            (out / CHAINS_FILE).unlink(missing_ok=True)  # no stale chains beside a new fit
+        result.save(out / FIT_FILE, command=command, chains=CHAINS_FILE if mcmc else None)
+    except OSError as exc:
+        console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
+        return EXIT_FAILED
+    netcdf = write_inference_data(result, out) if mcmc else []
+    _summary(result, console)
+    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
+    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else "") + arviz)
+    quality = result.quality
+    if quality is not None and not quality.trustworthy:
+        console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))
+        if strict:
+            return EXIT_UNTRUSTWORTHY
+    return EXIT_OK
+
+
+def write_inference_data(result: FitResult, out: Path) -> list[Path]:
+    """Each sampled stage's chain as ArviZ netCDF, ``OUT/chains.<stage>.nc`` (atomic).
+
+    The emcee HDF5 file stays the resumable record; these are for ArviZ and
+    xarray (:meth:`~pneumafit.identification.sampling.MCMCResult.to_inference_data`).
+    A stage whose file cannot be written is skipped (the fit is complete
+    without it).
+    """
+    from pneumafit.fileio import atomic_path
+
+    written = []
+    for stage in result.stages:
+        if stage.mcmc is None:
+            continue
+        target = out / f"chains.{stage.name}.nc"
+        try:
+            with atomic_path(target) as tmp:
+                stage.mcmc.to_inference_data().to_netcdf(str(tmp), engine="h5netcdf")
+        except (OSError, ValueError, ImportError):
+            continue
+        written.append(target)
+    return written
+
+
+def _fmt(x: float | None, digits: int = 4) -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    return f"{x:.{digits}g}"
+
+
+#: Display scale and unit of the residual table, by the channel's first letter.
+_DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
+
+
+def _with_unit(channel: str, value: float | None) -> str:
+    """'p_P 1.03 kPa': an SI RMSE in the units of the residual table (fit.json keeps SI)."""
+    scale, unit = _DISPLAY.get(channel[0], (1.0, ""))
+    return f"{channel} {_fmt(None if value is None else value * scale)} {unit}".rstrip()
+
+
+def _quality_table(result: FitResult, console: Console) -> None:
+    """Residual RMS over sensor noise, per recording and channel (worst first per role)."""
+    quality = result.quality
+    if quality is None or not quality.channels:
+        return
+    table = Table(
+        title=Text(
+            f"residual over sensor noise (noise from the recordings' quiet windows; "
+            f"above {quality.threshold:g}x: does not reach the noise)"
+        )
+    )
+    for col in ("recording", "role", "channel", "RMS", "noise", "RMS/noise", "phases over"):
+        table.add_column(col, justify="left" if col in ("recording", "role", "channel",
+                                                         "phases over") else "right")  # fmt: skip
+    order = {"fit": 0, "validate": 1}
+    rows = sorted(quality.channels, key=lambda c: (order.get(c.role, 2), c.recording, c.channel))
+    for c in rows:
+        scale, unit = _DISPLAY.get(c.channel[0], (1.0, ""))
+        ratio = c.ratio
+        style = "bold red" if c.fails else None
+        table.add_row(
+            c.recording, c.role, c.channel + ("" if c.fitted else " (not fitted)"),
+            f"{_fmt(c.rms * scale, 3)} {unit}",
+            f"{_fmt(c.noise * scale, 3)} {unit}" if c.noise is not None else "-",
+            Text(f"{ratio:.2f}" if ratio is not None else "-", style=style or ""),
+            ", ".join(f"{p} {c.phases[p]['ratio']:.1f}x" for p in c.failing_phases()),
+        )  # fmt: skip
+    console.print(table)
+
+
+def _summary(result: FitResult, console: Console) -> None:
+    """The verdict first, then the fitted parameters with their uncertainty and
+    MCMC diagnostics, and the residual over noise per recording."""
+    quality = result.quality
+    if quality is not None:
+        style = "bold green" if quality.trustworthy else "bold red"
+        console.print(Text(f"{result.model}: {quality.verdict()}", style=style))
+        for line in quality.problems():
+            console.print(Text(f"  - {line}", style="red"))
+    flagged: dict[str, str] = {}
+    if quality is not None:
+        for item in quality.at_bounds:
+            flagged[item.split(" ", 1)[0]] = "at bound"
+        for item in quality.outside_interval:
+            flagged[item.split(" ", 1)[0]] = "outside interval"
+        for item in quality.unreliable:
+            flagged.setdefault(item.split(" ", 1)[0], "chain short")
+    diag: dict[str, tuple[float, float, float]] = {}
+    for run in result.mcmc:
+        for n in run.names:
+            diag[n] = (run.tau[n], run.rhat[n], run.ess[n])
+    table = Table(title=Text(f"{result.model}: estimates (90 % intervals)"))
+    for col in (
+        "parameter",
+        "value",
+        "unit",
+        "std",
+        "90 % interval",
+        "from",
+        "tau",
+        "R-hat",
+        "ESS",
+        "flag",
+    ):
+        table.add_column(
+            col, justify="left" if col in ("parameter", "unit", "from", "flag") else "right"
+        )
+    for p in result.parameters:
+        if p.std is None or p.group in ("initial", "rig"):
+            continue
+        lo, hi = p.interval_90 or (math.nan, math.nan)
+        tau, rhat, ess = diag.get(p.name, (math.nan, math.nan, math.nan))
+        table.add_row(
+            p.name, _fmt(p.value, 7), p.unit or "-", _fmt(p.std, 3),
+            f"[{_fmt(lo, 7)}, {_fmt(hi, 7)}]",
+            p.uncertainty or "-", _fmt(tau), _fmt(rhat), _fmt(ess),
+            Text(flagged.get(p.name, ""), style="bold red"),
+        )  # fmt: skip
+    console.print(table)
+    _quality_table(result, console)
+    for run in result.mcmc:
+        if len(run.names) >= 2 and run.name == "heat":
+            names = run.names
+            console.print(f"posterior correlation ({run.name}): " + ", ".join(
+                f"{names[i]}/{names[j]} {run.correlation[i, j]:+.3f}"
+                for i in range(len(names)) for j in range(i + 1, len(names))
+            ))  # fmt: skip
+    rmse = result.metrics.get("rmse", {})
+    for role in ("fit", "validate"):
+        if rmse.get(role):
+            console.print(
+                f"RMSE {role}: " + ", ".join(_with_unit(c, v) for c, v in rmse[role].items())
+            )
+    for w in result.warnings:
+        console.print(Text(f"warning: {w}", style="yellow"))
+    console.print(f"{result.seconds:.1f} s, {result.evaluations} parameter sets simulated")

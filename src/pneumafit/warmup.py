@@ -1,0 +1,128 @@
+"""Compile the simulator once, ahead of its first use.
+
+The compiled simulator (:mod:`pneumafit.models.kernel`) is compiled by numba
+at its first call and kept in numba's on-disk cache (``__pycache__`` next to
+the modules, or ``NUMBA_CACHE_DIR``); on a fresh clone that first call takes
+about a minute on the 2-core reference machine. Running
+
+    python -m pneumafit.warmup
+
+right after the install (the README's main command does) compiles every
+entry point the commands call, with the argument types they call it with,
+so the first ``pneumafit run``, ``fit`` or ``simulate`` only loads them from
+the cache (about a second). On a warm cache it only loads them, so running
+it twice costs nothing. Nothing is run in the background: the warm-up is one
+ordinary process that compiles one function at a time, so it never races a
+simulation, a test or a worker process over the cache.
+
+Entry points: the serial and parallel batch integrators
+(:meth:`Simulator.simulate`, :meth:`Simulator.simulate_batch`), the sampled
+closed loop (:func:`simulate_sampled`), the stiffness bound
+(:func:`choose_step` and the fits' step choice), the static valve flows
+(linear analysis), the parameter check, and the small kernels of the fits,
+the linear analysis and discovery. Each is called once on a short test; the
+models differ only in configuration values, not in compiled code.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+
+def warm_up(log: Callable[[str], None] | None = None) -> dict[str, float]:
+    """Compile (or load from the cache) every simulator entry point.
+
+    Parameters
+    ----------
+    log : callable, optional
+        Called with one line per entry point (name and seconds).
+
+    Returns
+    -------
+    dict of str to float
+        Wall time (s) of each entry point's first call in this process.
+    """
+    from pneumafit.models import kernel
+    from pneumafit.models.layout import P
+    from pneumafit.models.parameters import parameter_vector
+    from pneumafit.simulation.experiment import PD, Experiment
+    from pneumafit.simulation.sampled import simulate_sampled
+    from pneumafit.simulation.simulator import Simulator, choose_step
+
+    params = parameter_vector({})
+    t = np.arange(0.0, 0.0505, 1e-3)
+    step = Experiment(
+        time=t, kind="step", y_ref=np.where(t < 0.01, 0.25, 0.26), controller=PD(kp=60.0, kd=4.0),
+        initial={"y": 0.25, "p_P": 4.0e5, "p_N": 4.0e5 * 0.8 / 0.6}, name="warm-up",
+    )  # fmt: skip
+    sim = Simulator("convection")
+    seconds: dict[str, float] = {}
+
+    def timed(name: str, call: Callable[[], object]) -> None:
+        t0 = time.perf_counter()
+        call()
+        seconds[name] = time.perf_counter() - t0
+        if log is not None:
+            log(f"{name:<28s} {seconds[name]:7.1f} s")
+
+    timed("check_parameters", lambda: kernel.check_parameters(params))
+    stroke, wall = params[P["stroke"]], params[P["wall_temperature"]]
+    # choose_step's call, and the fits' own (default valve and friction laws)
+    timed("stiffness_bound", lambda: (choose_step(params),
+                                      kernel.stiffness_bound(params, 0.0, stroke)))  # fmt: skip
+    timed("static_valve_flows", lambda: kernel.static_valve_flows(params, 0, 1.0, 4e5, wall))
+    timed("simulate (serial)", lambda: sim.simulate(params, step))
+    timed("simulate_batch (parallel)", lambda: sim.simulate_batch(np.tile(params, (2, 1)), [step]))
+    timed("simulate_sampled", lambda: simulate_sampled(params, t, step.y_ref,
+                                                       lambda x, r: 60.0 * (r - x[0])))  # fmt: skip
+    timed("small kernels", lambda: _small_kernels(params))
+    return seconds
+
+
+def _small_kernels(params: np.ndarray) -> None:
+    """The other compiled functions a run calls: the sensor lag of the fits
+    (its time array writable or read-only, both occur), the heat-exchange
+    areas of the linear analysis and discovery's rates along a trajectory."""
+    from pneumafit.discovery import attribution
+    from pneumafit.identification.problem import first_order_lag
+    from pneumafit.models import kernel
+    from pneumafit.models.layout import NX, P
+    from pneumafit.models.structure import get_structure
+    from pneumafit.physics.geometry import exchange_areas
+
+    t = np.linspace(0.0, 0.01, 11)
+    first_order_lag(np.ones((2, t.size)), t, 0.1)
+    t.flags.writeable = False
+    first_order_lag(np.ones((2, t.size)), t, 0.1)
+    names = ("stroke", "stroke", "bore", "rod", "dead_volume_P", "dead_volume_N")
+    exchange_areas(*(float(params[P[name]]) for name in names))
+    rates_along = getattr(attribution, "_rates_along", None)
+    if rates_along is not None:
+        d = np.empty(kernel.ND)
+        kernel.derive(params, d)
+        xs = np.zeros((2, NX))
+        kernel._initial_state(np.full(NX, np.nan), params, get_structure("convection").config(),
+                              xs[0])  # fmt: skip
+        xs[1] = xs[0]
+        cfg = get_structure("convection").config()
+        rates_along(xs, np.zeros(2, dtype=np.int64), np.zeros((2, 2)), params, d, cfg)
+
+
+def main() -> int:
+    """``python -m pneumafit.warmup``: compile, print the times."""
+    print("pneumafit: compiling the simulator into numba's cache (once per install) ...",
+          flush=True)  # fmt: skip
+    t0 = time.perf_counter()
+    warm_up(log=lambda line: print("  " + line, flush=True))
+    print(f"pneumafit: simulator ready ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+__all__ = ["warm_up"]
+
+if __name__ == "__main__":
+    sys.exit(main())

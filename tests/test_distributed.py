@@ -114,7 +114,10 @@ def test_distributed_log_posterior_gives_the_serial_chain(
     remote.close()
     assert np.isfinite(serial.log_prob).all()
     assert np.array_equal(dist.chain, serial.chain)
-    assert np.array_equal(dist.log_prob, serial.log_prob)
+    # the same chain; a log-probability computed in a worker process may differ
+    # from the calling process's in its last bits (measured 2.8e-14 on values
+    # ~100, once in 160: 1e-16 relative), never enough to change an acceptance
+    np.testing.assert_allclose(dist.log_prob, serial.log_prob, rtol=1e-13, atol=0.0)
 
 
 def test_dask_pool_is_an_emcee_pool(client: object) -> None:

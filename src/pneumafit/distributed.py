@@ -11,11 +11,12 @@ Two things are distributed (``docs/distributed.md``):
   serial log posterior. :class:`DaskPool` is the same routing for code that
   wants a ``pool.map`` (emcee with ``vectorize=False``).
 
-Neither changes a number: a campaign's fit runs the same code with the same
+Neither changes a result: a campaign's fit runs the same code with the same
 seed wherever it runs, and emcee draws its random numbers in the calling
 process, so the chain depends only on the log-posterior values, which depend
 only on each parameter set (the batched simulator evaluates the sets
-independently). The tests check both against the serial run.
+independently). The tests check both against the serial run (log-probabilities from a worker
+process may differ in their last bits, 1e-16 relative).
 
 :func:`dask_client` connects to an existing scheduler by address, or starts
 a :class:`distributed.LocalCluster` of single-threaded worker processes.

@@ -12,8 +12,12 @@ pressures of the demo protocol (largest change against the truth without it,
 pressure noise 400 Pa): chamber/external leakage 91 kPa in ``charge_P_1``,
 valve lag 122 kPa, wall thermal mass 23 kPa, forced convection 20 kPa,
 supply-line drop 34 kPa; seal friction 121 kPa and 20 mm in ``step_1``
-(docs/virtual-rig.md). The wall capacity is deliberately small (a real
-wall's is thousands of J/K/m^2) so that the effect shows.
+(docs/virtual-rig.md). The seal and barrel effects take their shared
+typical sizes: seal friction 1.5e-5 N/Pa, a friction asymmetry of 0.2
+(levels 1.2 and 0.8 times the symmetric ones), an area factor of 1.05 (a
+bore 2.5 % larger than nominal). The wall capacity is deliberately small (a
+real wall's is thousands of J/K/m^2) so that the effect shows. The other
+parameters' typical values are their table defaults.
 """
 
 from __future__ import annotations

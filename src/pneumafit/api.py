@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 from pneumafit.campaign import read_campaign
 from pneumafit.identification.fitfile import SavedFit, fit_document, load_fit
 from pneumafit.identification.staged import FitOptions, FitResult
+from pneumafit.models.parts import NameList, model_names
 
 if TYPE_CHECKING:
     from pneumafit.campaign.model import Campaign
@@ -38,8 +39,9 @@ if TYPE_CHECKING:
 
 __all__ = ["FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign"]
 
-#: The models :func:`fit` knows: the three chamber models and the friction-test law.
-MODELS = ("convection", "constant-lambda", "polytropic", "friction")
+#: The models :func:`fit` knows: the chamber models (one per heat law,
+#: :data:`pneumafit.models.parts.MODEL_NAMES`, live) and the friction-test law.
+MODELS = NameList(lambda: (*model_names(), "friction"))
 
 
 def fit(

@@ -55,14 +55,14 @@ def test_signatures_have_the_laws_signs_and_sizes() -> None:
     f_p = att.signature_features(s, "P", values, t, 11)
     f_n = att.signature_features(s, "N", values, t, 11)
     v_p = values["dead_volume_P"] + 0.25 * np.pi * values["bore"] ** 2 * 0.2
-    assert f_p["chamber_leakage"][0] == pytest.approx(-1.4 * 287.0 * 300.0 * 3e5 / v_p)
+    assert f_p["chamber_leakage"][0] == pytest.approx(-1.4 * 287.058 * 300.0 * 3e5 / v_p)
     assert f_n["chamber_leakage"][0] > 0  # N gains what P loses
     assert f_p["external_leakage"][0] < 0 and f_n["external_leakage"][0] < 0
     assert f_p["supply_pressure_drop"][0] < 0  # a drawn flow lowers the supply
     assert f_n["supply_pressure_drop"][0] == 0.0  # N is not filling
     assert f_p["forced_convection"][0] < 0  # gas hotter than the wall: more cooling
     # steady flow: no lag term (round-off of the valve term's slope only)
-    h_p = 1.4 * 287.0 * values["ambient_temperature"] * 2e-3 / v_p
+    h_p = 1.4 * 287.058 * values["ambient_temperature"] * 2e-3 / v_p
     assert np.max(np.abs(f_p["valve_dynamics"])) < 1e-9 * h_p
     warm = f_p["wall_thermal_mass"]
     assert warm[0] == 0.0 and np.all(np.diff(warm) > 0)  # the wall warms, less cooling

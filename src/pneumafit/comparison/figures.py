@@ -18,6 +18,7 @@ import numpy as np
 
 from pneumafit.comparison.evaluate import RecordingTrace
 from pneumafit.fileio import atomic_path
+from pneumafit.models.parts import MODEL_COLOURS
 
 __all__ = ["plot_recording"]
 
@@ -30,8 +31,8 @@ DISPLAY = {
 }
 QUANTITY = {"p_P": "pressure", "p_N": "pressure", "y": "position", "T_P": "temperature",
             "T_N": "temperature", "qm_P": "flow", "qm_N": "flow"}  # fmt: skip
-#: One colour per model, measured data in black.
-COLOURS = {"convection": "tab:red", "constant-lambda": "tab:blue", "polytropic": "tab:green"}
+#: One colour per model, measured data in black (the heat laws' parts, live).
+COLOURS = MODEL_COLOURS
 LINESTYLES = {"P": "-", "N": "--"}
 
 

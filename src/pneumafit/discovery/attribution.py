@@ -75,8 +75,10 @@ from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.discovery.catalog import EFFECTS, get_effect
 from pneumafit.discovery.phases import PHASES, label_phases, window_samples
 from pneumafit.identification.replay import replay
-from pneumafit.models import kernel, layout
+from pneumafit.models import kernel, layout, parts
+from pneumafit.models.parts import RegistryView
 from pneumafit.models.structure import ModelStructure
+from pneumafit.physics.air import GAMMA, R_AIR  # the kernel's constants (docs/physics.md)
 from pneumafit.simulation import Experiment
 
 __all__ = [
@@ -92,9 +94,6 @@ __all__ = [
     "signature_features",
 ]
 
-#: Ratio of specific heats and gas constant of air (docs/physics.md).
-GAMMA = 1.4
-R_AIR = 287.0
 #: A candidate is refitted only with at least this inclusion probability ...
 MIN_INCLUSION = 0.5
 #: ... and this share of the residual rate's (weighted) sum of squares explained alone.
@@ -116,8 +115,8 @@ DECIMATE = 5
 BLOCK = 0.2
 #: Smallest spool time constant (s) a refit starts from: the fitting
 #: problem integrates with fixed steps up to 4 ms (Kutta RK3, stable for
-#: tau > ~1.6 ms).
-MIN_SPOOL_START = 2.0e-3
+#: tau > ~1.6 ms); the valve_dynamics part's ``start_floor``.
+MIN_SPOOL_START = parts.EFFECTS["valve_dynamics"].start_floor
 #: Pressure step (Pa) of the finite-difference sensitivity d(dP/dt)/dP.
 SENS_STEP = 200.0
 #: Rows where the model's rate changes by more than this per pascal of its
@@ -949,17 +948,10 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-_COEFFICIENT_UNIT = {
-    "chamber_leakage": "kg/s/Pa",
-    "external_leakage": "kg/s/Pa",
-    "valve_dynamics": "s",
-    "wall_thermal_mass": "m^2 K/J (1/C_w)",
-    "forced_convection": "W/m^2/K/(kg/s)",
-    "supply_pressure_drop": "Pa/(kg/s)",
-    "seal_friction": "N/Pa",
-    "friction_asymmetry": "- (a)",
-    "effective_area": "- (k_A - 1)",
-}
+#: Unit of each effect's regression coefficient (its part's ``coefficient_unit``).
+_COEFFICIENT_UNIT: RegistryView[parts.Effect, str] = RegistryView(
+    parts.EFFECTS, lambda e: e.coefficient_unit
+)
 
 
 def _sparse_fit(
@@ -1252,11 +1244,14 @@ def _attribute_channel(
 def suggested_start(effect: str, coefficient: float) -> dict[str, float]:
     """Refit start of an effect's parameters from a regression coefficient.
 
-    The coefficient is the principal parameter itself (the wall capacity is
-    its inverse; a signed effect's departure from its neutral value, e.g.
-    k_A - 1); it is used when finite, positive (either sign for a signed
-    effect) and inside the catalog's fitting bounds, else the catalog's
-    typical value.
+    The coefficient is the principal parameter itself (its inverse for a
+    part with ``inverse_coefficient``, the wall capacity; a signed effect's
+    departure from its neutral value, e.g. k_A - 1); it is used when finite,
+    positive (either sign for a signed effect) and inside the catalog's
+    fitting bounds, else the catalog's typical value. A start below the
+    part's ``start_floor`` is raised to it (the spool: a spool faster than
+    the fitting integrator's step cannot be simulated by it, fixed-step RK3
+    at up to 4 ms is stable for tau > ~1.6 ms).
     """
     eff = get_effect(effect)
     start = eff.typical_values()
@@ -1271,11 +1266,10 @@ def suggested_start(effect: str, coefficient: float) -> dict[str, float]:
         if math.isfinite(value) and par.lower <= value <= par.upper:
             start[principal] = float(value)
         return start
-    value = 1.0 / coefficient if effect == "wall_thermal_mass" else coefficient
-    if effect == "valve_dynamics":
-        # a spool faster than the fitting integrator's step cannot be simulated
-        # by it (fixed-step RK3 at up to 4 ms is stable for tau > ~1.6 ms)
-        value = max(value, MIN_SPOOL_START)
+    part = parts.EFFECTS[effect]
+    value = 1.0 / coefficient if part.inverse_coefficient else coefficient
+    if part.start_floor > 0.0:
+        value = max(value, part.start_floor)
     if par.lower <= value <= par.upper:
         start[principal] = float(value)
     return start

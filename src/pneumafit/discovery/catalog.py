@@ -14,12 +14,19 @@ the chambers, valves and supply, and the three seal and barrel effects
 definitions (law, parameter, unit, bounds, typical size) are shared with the
 friction-test model (:mod:`pneumafit.physics.seal_effects`).
 
+Every entry is built from the effect's part
+(:class:`pneumafit.models.parts.Effect`: law, description, options, fitting
+ranges and priors, signature, phases; the typical values are the rig's
+defaults and the table's) by :func:`catalog_entry`; an effect registered
+with :func:`pneumafit.models.parts.register_effect` later, from outside the
+package too, enters the catalog at once, and leaves it when unregistered.
+
 Adding an effect (docs/effects.md): its law needs a configuration slot and
-parameters in ``models/layout.py``, an entry in
-``models/structure.EFFECT_SLOTS`` and a few lines in ``models/kernel.rhs``;
-then one small module defines an :class:`Effect` and calls
-:func:`register_effect`, which checks it against the structure and the
-parameter table.
+parameters in ``models/layout.py`` and a few lines in ``models/kernel.rhs``;
+its part in ``models/parts/effects.py`` holds everything else.
+:func:`register_effect` (here) still takes a hand-written catalog entry for
+an effect whose part is registered, and checks it against the structure and
+the parameter table.
 
 >>> effect = get_effect("chamber_leakage")
 >>> effect.structure("convection").effects
@@ -40,9 +47,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.discovery.phases import PHASES
+from pneumafit.models import parts
 from pneumafit.models.layout import SPECS
+from pneumafit.models.parts import SignatureTerm
 from pneumafit.models.structure import EFFECT_SLOTS, ModelStructure, get_structure
-from pneumafit.physics.seal_effects import SEAL_EFFECTS, SealEffect
 
 __all__ = [
     "EFFECTS",
@@ -51,13 +59,14 @@ __all__ = [
     "EffectParameter",
     "EffectPrior",
     "SignatureTerm",
+    "catalog_entry",
     "effects_for_phase",
     "get_effect",
     "register_effect",
 ]
 
 #: Kinds of :class:`EffectPrior`.
-PRIOR_KINDS: tuple[str, ...] = ("log-uniform", "half-normal", "uniform")
+PRIOR_KINDS: tuple[str, ...] = parts.PRIOR_KINDS
 
 
 @dataclass(frozen=True)
@@ -210,25 +219,6 @@ class EffectParameter:
 
 
 @dataclass(frozen=True)
-class SignatureTerm:
-    """A regressor through which an effect enters the model equations.
-
-    Parameters
-    ----------
-    regressor : str
-        The term, in words and symbols, e.g. ``"P_P - P_N"``.
-    enters : str
-        The rates it appears in, e.g. ``"dP_P/dt, dP_N/dt"``.
-    note : str
-        Its coefficient or how to form it from measured/simulated signals.
-    """
-
-    regressor: str
-    enters: str
-    note: str = ""
-
-
-@dataclass(frozen=True)
 class Effect:
     """An optional effect of the catalog.
 
@@ -361,9 +351,10 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
         raise ValueError(f"{where}: an effect of this name is registered; pass replace=True")
     if effect.name not in EFFECT_SLOTS:
         raise ValueError(
-            f"{where}: expected a configuration slot in pneumafit.models.EFFECT_SLOTS, found "
-            "none: the law needs a slot and parameters in models/layout.py, an EFFECT_SLOTS "
-            "entry in models/structure.py and its lines in models/kernel.rhs (docs/effects.md)"
+            f"{where}: expected an effect in pneumafit.models.EFFECT_SLOTS, found none: "
+            "register its part first (pneumafit.models.parts.register_effect; a law the "
+            "kernel simulates needs a slot and parameters in models/layout.py and its lines "
+            "in models/kernel.rhs, docs/effects.md)"
         )
     for p in effect.parameters:
         spec = SPECS.get(p.name)
@@ -423,321 +414,56 @@ def effects_for_phase(phase: str) -> tuple[Effect, ...]:
 
 
 # ----------------------------------------------------------------- the catalog
-# Typical magnitudes: the virtual rig's defaults (pneumafit.rig.EFFECT_DEFAULTS,
-# chosen to be clearly visible on the demo protocol) for the principal
-# parameters, the parameter table's defaults for the others.
+def catalog_entry(part: parts.Effect) -> Effect:
+    """The catalog's record of an effect part: nothing in it is written twice.
 
-register_effect(
-    Effect(
-        name="chamber_leakage",
-        description=EFFECT_SLOTS["chamber_leakage"][2],
-        law=(
-            "q_l = G_cl (P_P - P_N)  [kg/s, from P to N across the piston seal];\n"
-            "m_P loses q_l and m_N gains it; the enthalpy flow q_l T_up leaves P and enters N,\n"
-            "T_up = T_P if q_l > 0 else T_N (laminar: linear in the pressure difference)."
-        ),
-        parameters=(
+    Parameters: the part's fitting range and prior per parameter, its unit
+    from the parameter table, the typical value the rig's default for the
+    principal parameter and the table's default for the others, the table's
+    default as the neutral value of a signed parameter.
+    """
+    params = []
+    for name in part.parameters:
+        r = part.fit_range(name)
+        spec = SPECS[name]
+        if r.prior == "half-normal":
+            prior = _half_normal(r.scale)
+        else:
+            prior = EffectPrior(r.prior, lower=r.lower, upper=r.upper)
+        params.append(
             EffectParameter(
-                name="chamber_leak_conductance",
-                unit="kg/s/Pa",
-                lower=1e-13,
-                upper=1e-9,
-                prior=_log_uniform(1e-13, 1e-9),
-                typical=5e-11,
-                description="laminar conductance G_cl of the piston seal",
-            ),
-        ),
-        signature=(
-            SignatureTerm(
-                regressor="P_P - P_N",
-                enters="dP_P/dt, dP_N/dt",
-                note="coefficient -gamma r T_up G_cl / V_P in dP_P/dt and +gamma r T_up G_cl / "
-                "V_N in dP_N/dt: opposite signs, volume-weighted (what sets it apart from "
-                "external leakage)",
-            ),
-        ),
-        phases=("relaxation", "rest"),
-    )
-)
-
-register_effect(
-    Effect(
-        name="external_leakage",
-        description=EFFECT_SLOTS["external_leakage"][2],
-        law=(
-            "q_P = G_el (1 + s) (P_P - P_atm), q_N = G_el (1 - s) (P_N - P_atm)  [kg/s, out of\n"
-            "each chamber to atmosphere; s = 0: the same conductance, s = -1: only N leaks];\n"
-            "an outflow carries T_X, an inflow (P_X < P_atm) T_atm; both count as exhausted air."
-        ),
-        parameters=(
-            EffectParameter(
-                name="external_leak_conductance",
-                unit="kg/s/Pa",
-                lower=1e-13,
-                upper=1e-9,
-                prior=_log_uniform(1e-13, 1e-9),
-                typical=5e-11,
-                description="laminar conductance G_el of each chamber to atmosphere (mean)",
-            ),
-            EffectParameter(
-                name="external_leak_split",
-                unit="",
-                lower=-1.0,
-                upper=1.0,
-                prior=EffectPrior("uniform", lower=-1.0, upper=1.0),
-                typical=0.0,
-                description="how the chambers share it: G_P = G_el (1 + s), G_N = G_el (1 - s)",
-                neutral=0.0,
-            ),
-        ),
-        signature=(
-            SignatureTerm("P_P - P_atm", "dP_P/dt", "coefficient -gamma r T_P G_el (1 + s) / V_P"),
-            SignatureTerm("P_N - P_atm", "dP_N/dt", "coefficient -gamma r T_N G_el (1 - s) / V_N"),
-        ),
-        phases=("relaxation", "rest"),
-    )
-)
-
-register_effect(
-    Effect(
-        name="valve_dynamics",
-        description=EFFECT_SLOTS["valve_dynamics"][2],
-        law=(
-            "The valve flows see a spool position u_s instead of the command u, per valve:\n"
-            "order 1: tau du_s/dt = u - u_s;\n"
-            "order 2: d2u_s/dt2 = w_n^2 (u - u_s) - 2 zeta w_n du_s/dt;\n"
-            "u_s starts at the first command, at rest."
-        ),
-        parameters=(
-            EffectParameter(
-                name="valve_time_constant",
-                unit="s",
-                lower=1e-4,
-                upper=0.1,
-                prior=_log_uniform(1e-4, 0.1),
-                typical=0.015,
-                description="first-order spool time constant tau",
-            ),
-            EffectParameter(
-                name="valve_natural_frequency",
-                unit="rad/s",
-                lower=30.0,
-                upper=1e4,
-                prior=_log_uniform(30.0, 1e4),
-                typical=600.0,
-                description="second-order spool natural frequency w_n",
-            ),
-            EffectParameter(
-                name="valve_damping_ratio",
-                unit="",
-                lower=0.1,
-                upper=2.0,
-                prior=_log_uniform(0.1, 2.0),
-                typical=0.7,
-                description="second-order spool damping ratio zeta",
-            ),
-        ),
-        option=1,
-        option_parameters={
-            1: ("valve_time_constant",),
-            2: ("valve_natural_frequency", "valve_damping_ratio"),
-        },
-        signature=(
-            SignatureTerm(
-                regressor="d/dt [gamma r T_up q_valve(u, P) / V]",
-                enters="dP_P/dt, dP_N/dt",
-                note="to first order in tau, q(u_s) = q(u) - tau dq/dt: the rate of the static "
-                "valve-flow term, coefficient -tau (order 2: tau = 2 zeta / w_n)",
-            ),
-        ),
-        phases=("filling", "emptying", "motion"),
-    )
-)
-
-register_effect(
-    Effect(
-        name="wall_thermal_mass",
-        description=EFFECT_SLOTS["wall_thermal_mass"][2],
-        law=(
-            "Per chamber a wall temperature state T_w,X (starting at the wall temperature):\n"
-            "C_w dT_w,X/dt = lambda_X (T_X - T_w,X) + h_o (T_atm - T_w,X)  [per unit area];\n"
-            "the gas exchanges Q_X = lambda_X A_X (T_w,X - T_X) with it instead of the fixed\n"
-            "wall. No effect in the polytropic structure (no wall exchange)."
-        ),
-        parameters=(
-            EffectParameter(
-                name="wall_heat_capacity",
-                unit="J/K/m^2",
-                lower=10.0,
-                upper=1e5,
-                prior=_log_uniform(10.0, 1e5),
-                typical=100.0,
-                description="heat capacity C_w of the wall per unit exchange area",
-            ),
-            EffectParameter(
-                name="wall_outer_coefficient",
-                unit="W/m^2/K",
-                lower=0.0,
-                upper=200.0,
-                prior=_half_normal(20.0),
-                typical=10.0,
-                description="wall-to-ambient heat-transfer coefficient h_o",
-            ),
-        ),
-        signature=(
-            SignatureTerm(
-                regressor="lambda A (T_wf - T_w0)",
-                enters="dP_X/dt, dT_X/dt",
-                note="T_wf: the gas temperature low-pass filtered with time constant "
-                "C_w / lambda (the wall warming up), T_w0 the fixed wall; coefficient "
-                "(gamma - 1) / V_X in dP_X/dt",
-            ),
-        ),
-        phases=("relaxation",),
-    )
-)
-
-register_effect(
-    Effect(
-        name="forced_convection",
-        description=EFFECT_SLOTS["forced_convection"][2],
-        law=(
-            "lambda_X = lambda_law + K_fc q_s,X while q_s,X > 0, q_s,X the mass flow through\n"
-            "the supply path of valve X into chamber X (the filling jet, centre leakage\n"
-            "included; kg/s); not in the polytropic structure (no wall exchange)."
-        ),
-        parameters=(
-            EffectParameter(
-                name="forced_convection_gain",
-                unit="W/m^2/K/(kg/s)",
-                lower=100.0,
-                upper=1e6,
-                prior=_log_uniform(100.0, 1e6),
-                typical=2e4,
-                description="increase K_fc of lambda per unit supply inflow",
-            ),
-        ),
-        signature=(
-            SignatureTerm(
-                regressor="max(q_s,X, 0) A_X (T_w - T_X)",
-                enters="dP_X/dt, dT_X/dt",
-                note="coefficient (gamma - 1) K_fc / V_X in dP_X/dt; non-zero only while filling",
-            ),
-        ),
-        phases=("filling",),
-    )
-)
-
-register_effect(
-    Effect(
-        name="supply_pressure_drop",
-        description=EFFECT_SLOTS["supply_pressure_drop"][2],
-        law=(
-            "P_S' = max(P_S - R (q_s,P + q_s,N)^+, P_atm): the valves see the supply pressure\n"
-            "behind a line resistance R, q_s the supply-path flows first evaluated at P_S\n"
-            "(one fixed-point iteration); not applied in flow tests (static characteristic)."
-        ),
-        parameters=(
-            EffectParameter(
-                name="supply_line_resistance",
-                unit="Pa/(kg/s)",
-                lower=1e4,
-                upper=1e8,
-                prior=_log_uniform(1e4, 1e8),
-                typical=6e6,
-                description="supply pressure drop R per unit drawn flow",
-            ),
-        ),
-        signature=(
-            SignatureTerm(
-                regressor="q_s dq_valve/dP_S",
-                enters="dP_P/dt, dP_N/dt",
-                note="drawn flow times the valve flow's sensitivity to supply pressure (sonic: "
-                "q_valve / P_S), coefficient -R gamma r T_atm / V_X; only with a supply path open",
-            ),
-        ),
-        phases=("filling", "motion"),
-    )
-)
-
-
-# ----------------------------------------------------------------- seal and barrel
-# The definitions are shared with the friction-test model
-# (pneumafit.physics.seal_effects); only what discovery on the cylinder adds
-# (signature terms, phases) is written here.
-
-
-def _seal_parameter(e: SealEffect) -> EffectParameter:
-    if e.prior == "log-uniform":
-        prior = _log_uniform(e.fit_lower, e.fit_upper)
-    else:
-        prior = EffectPrior("uniform", lower=e.fit_lower, upper=e.fit_upper)
-    return EffectParameter(
-        name=e.parameter,
-        unit=e.unit,
-        lower=e.fit_lower,
-        upper=e.fit_upper,
-        prior=prior,
-        typical=e.typical,
-        description=e.description,
-        neutral=e.neutral if e.signed else None,
-    )
-
-
-def _seal_entry(name: str, signature: tuple[SignatureTerm, ...], phases: tuple[str, ...]) -> None:
-    e = SEAL_EFFECTS[name]
-    register_effect(
-        Effect(
-            name=e.name,
-            description=EFFECT_SLOTS[e.name][2],
-            law=e.law,
-            parameters=(_seal_parameter(e),),
-            signature=signature,
-            phases=phases,
+                name=name,
+                unit=spec.unit,
+                lower=r.lower,
+                upper=r.upper,
+                prior=prior,
+                typical=part.typical(name),
+                description=r.description,
+                neutral=spec.default if r.signed else None,
+            )
         )
+    return Effect(
+        name=part.name,
+        description=part.description,
+        law=part.law,
+        parameters=tuple(params),
+        option=min(part.options),
+        option_parameters=dict(part.options),
+        signature=part.signature,
+        phases=part.phases,
     )
 
 
-_seal_entry(
-    "seal_friction",
-    (
-        SignatureTerm(
-            regressor="-sign(v) max(P_P + P_N - 2 P_atm, 0) / M",
-            enters="dv/dt",
-            note="coefficient c_p; only while sliding (a stuck piston's friction balances the "
-            "drive); the chambers' rates do not see it at the measured state",
-        ),
-    ),
-    ("motion",),
-)
-_seal_entry(
-    "friction_asymmetry",
-    (
-        SignatureTerm(
-            regressor="-g(v) / M, g the friction level (static, Coulomb, seal)",
-            enters="dv/dt",
-            note="coefficient a (either sign); F_f = sign(v) g (1 + a sign v) + b v, so "
-            "dF_f/da = g in both directions: an offset of the sliding force that a constant "
-            "load cannot mimic while the piston is stuck (break-away at F_s (1 +- a))",
-        ),
-    ),
-    ("motion",),
-)
-_seal_entry(
-    "effective_area",
-    (
-        SignatureTerm(
-            regressor="S_bore (P_P - P_N) / M (the force k_A S_bore (P_P - P_N) + S_rod P_N)",
-            enters="dv/dt",
-            note="coefficient k_A - 1 (either sign): the pressure force on the bore's area",
-        ),
-        SignatureTerm(
-            regressor="d(dP_X/dt)/dk_A: -+gamma P_X S_bore v / V_X and the volume change "
-            "S_bore y (resp. L - y) in 1/V_X",
-            enters="dP_P/dt, dP_N/dt",
-            note="coefficient k_A - 1; the kernel's own derivative at the measured state "
-            "(central difference), blocked tests included (the chamber volume changes)",
-        ),
-    ),
-    ("motion", "filling", "emptying"),
-)
+def _follow_parts(event: str, part: object) -> None:
+    # keep the catalog in step with the effect parts registered later
+    if not isinstance(part, parts.Effect):
+        return
+    if event == "register":
+        register_effect(catalog_entry(part), replace=True)
+    else:
+        _EFFECTS.pop(part.name, None)
+
+
+for _part in parts.EFFECTS.values():
+    register_effect(catalog_entry(_part))
+parts.add_listener(_follow_parts)

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Recording
+from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.physics.air import G0, RHO0, T_REF
 from pneumafit.physics.geometry import piston_areas
 
@@ -63,18 +64,21 @@ def valve_starts(flows: Sequence[Recording], rig: Mapping[str, float]) -> list[d
 
 
 def heat_starts(heat: str) -> list[dict[str, float]]:
-    """Textbook starts of the heat law (physics notes).
+    """Textbook starts of the heat law (physics notes): its part's ``starts``.
 
     Convection: laminar (xi 0.59, beta 1/4) and turbulent (0.10, 1/3) free
     convection and one in between; constant lambda: 5, 15 and 40 W/m^2/K;
-    polytropic: k = 1.05, 1.2, 1.35.
+    polytropic: k = 1.05, 1.2, 1.35 (:mod:`pneumafit.models.parts.laws`).
+
+    Raises
+    ------
+    ValueError
+        ``heat`` is not a registered heat law.
     """
-    if heat == "convection":
-        return [{"xi": 0.59, "beta": 0.25}, {"xi": 0.10, "beta": 1.0 / 3.0},
-                {"xi": 0.25, "beta": 0.29}]  # fmt: skip
-    if heat == "constant-lambda":
-        return [{"lambda": 5.0}, {"lambda": 15.0}, {"lambda": 40.0}]
-    return [{"k": 1.05}, {"k": 1.2}, {"k": 1.35}]
+    law = HEAT_LAWS.get(heat)
+    if law is None:
+        raise ValueError(f"heat law: expected one of {sorted(HEAT_LAWS)}, found {heat!r}")
+    return [dict(start) for start in law.starts]
 
 
 def friction_starts(

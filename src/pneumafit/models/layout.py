@@ -75,9 +75,9 @@ C_FRICTION_ASYM = 15  # effect friction_asymmetry on/off
 C_AREA_FACTOR = 16  # effect effective_area on/off
 NCFG = 17
 
-HEAT_LAWS = {"polytropic": 0, "constant-lambda": 1, "convection": 2}
-VALVE_LAWS = {"iso6358": 0, "map": 1}
-FRICTION_LAWS = {"switch": 0, "lugre": 1}
+# HEAT_LAWS, VALVE_LAWS, FRICTION_LAWS (law name -> its code in C_HEAT,
+# C_VALVE_LAW, C_FRICTION_LAW) are live views of the parts registries
+# (models/parts: one object per law); see __getattr__ at the end.
 
 # ----------------------------------------------------------------------------
 # Controller vector (float64): pd law [kp, kd, u0, umax, 0...]; state feedback
@@ -318,3 +318,20 @@ P_MAP_BS = P[MAP_BS_NAMES[0]]
 P_MAP_BE = P[MAP_BE_NAMES[0]]
 MAP_C_LOWER, MAP_C_UPPER = MAP_C_BOUNDS
 MAP_B_LOWER, MAP_B_UPPER = SPECS[MAP_BS_NAMES[0]].lower, SPECS[MAP_BS_NAMES[0]].upper
+
+
+_LAW_CODES = {
+    "HEAT_LAWS": "HEAT_LAW_CODES",
+    "VALVE_LAWS": "VALVE_LAW_CODES",
+    "FRICTION_LAWS": "FRICTION_LAW_CODES",
+}
+
+
+def __getattr__(name: str) -> object:
+    # the law codes come from the parts registries (pneumafit.models.parts),
+    # which import this module: looked up on first use, not at import
+    if name in _LAW_CODES:
+        from pneumafit.models import parts
+
+        return getattr(parts, _LAW_CODES[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -4,7 +4,8 @@ A :class:`ModelStructure` is turned into the integer configuration vector the
 compiled kernel reads. The three structures of the paper are registered in
 :data:`MODELS`; optional effects are switched on by name; the valve law
 (:data:`VALVE_PARAMETERS`) and the friction law (:data:`FRICTION_PARAMETERS`)
-are fields of the structure.
+are fields of the structure. The laws and effects themselves, and every table
+here, come from :mod:`pneumafit.models.parts` (one object per part).
 """
 
 from __future__ import annotations
@@ -14,108 +15,51 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from pneumafit.models import parts
 from pneumafit.models.layout import (
     C_AIRPROPS,
-    C_AREA_FACTOR,
     C_BLOCKED,
     C_CHAMBER,
-    C_CHAMBER_LEAK,
-    C_EXTERNAL_LEAK,
-    C_FORCED_CONV,
-    C_FRICTION_ASYM,
     C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
-    C_SEAL_FRICTION,
     C_STATIC_FLOW,
-    C_SUPPLY_DROP,
     C_VALVE_LAW,
-    C_VALVE_ORDER,
-    C_WALL_MASS,
-    FRICTION_LAWS,
-    HEAT_LAWS,
     NCFG,
-    VALVE_LAWS,
 )
-from pneumafit.physics.seal_effects import SEAL_EFFECTS
-from pneumafit.physics.valve_map import MAP_PARAMETER_NAMES
+from pneumafit.models.parts import Effect, FrictionLaw, HeatLaw, RegistryView, ValveLaw
+
+# law name -> its code in C_HEAT, C_VALVE_LAW, C_FRICTION_LAW (= layout.*_LAWS)
+HEAT_LAWS = parts.HEAT_LAW_CODES
+VALVE_LAWS = parts.VALVE_LAW_CODES
+FRICTION_LAWS = parts.FRICTION_LAW_CODES
+
+# The tables below are live read-only views of the parts registries
+# (pneumafit.models.parts, one object per law or effect): a part registered
+# there appears in them at once.
 
 #: Optional effects: configuration slot, parameters, one-line description.
-EFFECT_SLOTS: dict[str, tuple[int, tuple[str, ...], str]] = {
-    "chamber_leakage": (
-        C_CHAMBER_LEAK,
-        ("chamber_leak_conductance",),
-        "laminar leakage between the chambers across the piston seal",
-    ),
-    "external_leakage": (
-        C_EXTERNAL_LEAK,
-        ("external_leak_conductance", "external_leak_split"),
-        "laminar leakage of each chamber to atmosphere, shared 1 + s : 1 - s",
-    ),
-    "valve_dynamics": (
-        C_VALVE_ORDER,
-        ("valve_time_constant", "valve_natural_frequency", "valve_damping_ratio"),
-        "spool lag: first order (value 1) or second order (value 2)",
-    ),
-    "wall_thermal_mass": (
-        C_WALL_MASS,
-        ("wall_heat_capacity", "wall_outer_coefficient"),
-        "a wall temperature state per chamber instead of a wall at ambient",
-    ),
-    "forced_convection": (
-        C_FORCED_CONV,
-        ("forced_convection_gain",),
-        "filling jet raises lambda in proportion to the inflow",
-    ),
-    "supply_pressure_drop": (
-        C_SUPPLY_DROP,
-        ("supply_line_resistance",),
-        "supply pressure drops with the drawn flow (line resistance)",
-    ),
-    "seal_friction": (
-        C_SEAL_FRICTION,
-        (SEAL_EFFECTS["seal_friction"].parameter,),
-        SEAL_EFFECTS["seal_friction"].description,
-    ),
-    "friction_asymmetry": (
-        C_FRICTION_ASYM,
-        (SEAL_EFFECTS["friction_asymmetry"].parameter,),
-        SEAL_EFFECTS["friction_asymmetry"].description,
-    ),
-    "effective_area": (
-        C_AREA_FACTOR,
-        (SEAL_EFFECTS["effective_area"].parameter,),
-        SEAL_EFFECTS["effective_area"].description,
-    ),
-}
+EFFECT_SLOTS: RegistryView[Effect, tuple[int | None, tuple[str, ...], str]] = RegistryView(
+    parts.EFFECTS, lambda e: (e.slot, e.parameters, e.description)
+)
 
 #: Parameters that each heat law uses.
-HEAT_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "polytropic": ("k",),
-    "constant-lambda": ("lambda",),
-    "convection": ("xi", "beta"),
-}
+HEAT_PARAMETERS: RegistryView[HeatLaw, tuple[str, ...]] = RegistryView(
+    parts.HEAT_LAWS, lambda h: h.parameters
+)
 
 #: Valve parameters that each valve law uses (``valve_m`` and
 #: ``valve_x_laminar``, the flow function's shape, are shared).
-VALVE_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "iso6358": (
-        "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
-        "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak", "valve_leak_width",
-        "valve_n_supply", "valve_n_exhaust",
-    ),
-    "map": ("valve_m", "valve_x_laminar", "valve_u_sat", *MAP_PARAMETER_NAMES),
-}  # fmt: skip
-
-_SWITCH_FRICTION = ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity")
+VALVE_PARAMETERS: RegistryView[ValveLaw, tuple[str, ...]] = RegistryView(
+    parts.VALVE_LAWS, lambda v: v.parameters
+)
 
 #: Friction parameters that each friction law uses: the switch model of
 #: stick-slip (:mod:`pneumafit.physics.friction`) and LuGre, which adds the
 #: bristle stiffness sigma0 and damping sigma1 to the same Stribeck curve.
-FRICTION_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "switch": _SWITCH_FRICTION,
-    "lugre": (*_SWITCH_FRICTION, "friction_stiffness", "friction_damping"),
-}
+FRICTION_PARAMETERS: RegistryView[FrictionLaw, tuple[str, ...]] = RegistryView(
+    parts.FRICTION_LAWS, lambda f: f.parameters
+)
 
 
 @dataclass(frozen=True)
@@ -180,7 +124,7 @@ class ModelStructure:
                     f"model structure: effect: expected one of {sorted(EFFECT_SLOTS)}, "
                     f"found {name!r}"
                 )
-            allowed = (0, 1, 2) if name == "valve_dynamics" else (0, 1)
+            allowed = parts.EFFECTS[name].option_values
             if int(value) not in allowed:
                 raise ValueError(
                     f"model structure: effect {name}: expected a value in {allowed}, "
@@ -218,10 +162,7 @@ class ModelStructure:
         """Model parameters (besides rig, valve, friction) used by this structure."""
         names = list(HEAT_PARAMETERS[self.heat])
         for effect, value in self.effects.items():
-            params = EFFECT_SLOTS[effect][1]
-            if effect == "valve_dynamics":
-                params = params[:1] if value == 1 else params[1:]
-            names.extend(params)
+            names.extend(parts.EFFECTS[effect].options[value])
         return tuple(names)
 
     @property
@@ -266,16 +207,35 @@ class ModelStructure:
         cfg[C_VALVE_LAW] = VALVE_LAWS[self.valve]
         cfg[C_FRICTION_LAW] = FRICTION_LAWS[self.friction]
         for name, value in self.effects.items():
-            cfg[EFFECT_SLOTS[name][0]] = value
+            slot = EFFECT_SLOTS[name][0]
+            if slot is None:
+                raise ValueError(
+                    f"model structure {self.name}: effect {name}: expected an effect the compiled "
+                    "kernel implements (a configuration slot), found one registered without a "
+                    "slot (pneumafit.models.parts: parts defined outside the package have no "
+                    "kernel code)"
+                )
+            cfg[slot] = value
         return cfg
 
 
-#: The paper's three structures.
-MODELS: dict[str, ModelStructure] = {
-    "convection": ModelStructure("convection"),
-    "constant-lambda": ModelStructure("constant-lambda"),
-    "polytropic": ModelStructure("polytropic"),
-}
+_MODEL_CACHE: dict[str, tuple[HeatLaw, ModelStructure]] = {}
+
+
+def _model(law: HeatLaw) -> ModelStructure:
+    # one structure object per registered heat law (rebuilt if the law is replaced)
+    cached = _MODEL_CACHE.get(law.name)
+    if cached is None or cached[0] is not law:
+        cached = _MODEL_CACHE[law.name] = (law, ModelStructure(law.name))
+    return cached[1]
+
+
+#: The registered structures, one per heat law, named after it, in
+#: model-list order (:attr:`pneumafit.models.parts.HeatLaw.order`): the
+#: paper's convection, constant-lambda and polytropic structures.
+MODELS: RegistryView[HeatLaw, ModelStructure] = RegistryView(
+    parts.HEAT_LAWS, _model, order=lambda h: h.order
+)
 
 
 def get_structure(model: str | ModelStructure) -> ModelStructure:

@@ -34,6 +34,7 @@ from rich.console import Console
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import display_unit
 from pneumafit.fileio import check_output, write_text_atomic
+from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.report_html import (
     Section,
     channel_value,
@@ -47,8 +48,10 @@ from pneumafit.outputs.report_html import (
 
 __all__ = ["FIT_MODELS", "SECTIONS", "write_report"]
 
-#: Fits looked for, in this order: ``RUN/fits/<model>/fit.json``.
-FIT_MODELS = ("convection", "constant-lambda", "polytropic")
+#: Fits looked for, in this order: ``RUN/fits/<model>/fit.json``; one per
+#: heat law, in model-list order (:data:`pneumafit.models.parts.MODEL_NAMES`,
+#: live: a heat law registered later is looked for too).
+FIT_MODELS = MODEL_NAMES
 
 #: Files of a run folder that hold a result (any one of them makes a report).
 RESULT_FILES = (

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.models import parts
 from pneumafit.outputs.report_html import (
     CHANNEL_DISPLAY,
     channel_value,
@@ -55,8 +56,9 @@ SIMULATED = ("y", "p_P", "p_N", "qm_P", "qm_N", "T_P", "T_N", "m_supply", "m_exh
 MAX_PLOT_POINTS = 2500
 #: Residual figures drawn at most (the recordings furthest from white).
 MAX_RESIDUAL_FIGURES = 3
-#: Line colour of each model in the overlays.
-MODEL_COLOURS = {"convection": "tab:red", "constant-lambda": "tab:blue", "polytropic": "tab:green"}
+#: Line colour of each model in the overlays (the heat laws' parts, live;
+#: the comparison figures' colours too).
+MODEL_COLOURS = parts.MODEL_COLOURS
 
 
 def compared_channels(recording: Any) -> list[str]:

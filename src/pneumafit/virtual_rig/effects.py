@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.models import EFFECT_SLOTS, PARAMETER_SPECS
-from pneumafit.physics.seal_effects import SEAL_EFFECTS
+from pneumafit.models.parts import EFFECTS
 
 __all__ = [
     "EFFECT_DEFAULTS",
@@ -32,40 +32,16 @@ __all__ = [
 
 _SPECS = {s.name: s for s in PARAMETER_SPECS}
 
-#: Parameter set by ``--effect NAME=VALUE`` when NAME is an effect slot.
-PRINCIPAL_PARAMETERS: dict[str, str] = {
-    "chamber_leakage": "chamber_leak_conductance",
-    "external_leakage": "external_leak_conductance",
-    "valve_dynamics": "valve_time_constant",
-    "wall_thermal_mass": "wall_heat_capacity",
-    "forced_convection": "forced_convection_gain",
-    "supply_pressure_drop": "supply_line_resistance",
-    "seal_friction": "seal_friction_coefficient",
-    "friction_asymmetry": "friction_asymmetry",
-    "effective_area": "area_factor",
-}
+#: Parameter set by ``--effect NAME=VALUE`` when NAME is an effect slot
+#: (:attr:`pneumafit.models.parts.Effect.principal`).
+PRINCIPAL_PARAMETERS: dict[str, str] = {e.name: e.principal for e in EFFECTS.values()}
 
 #: Default magnitude of each effect's principal parameter (SI), used when an
-#: effect is named without a value. Largest change it makes in the demo
-#: protocol against the truth without it (pressure noise is 400 Pa):
-#: chamber/external leakage 91 kPa in ``charge_P_1``, valve lag 122 kPa,
-#: wall thermal mass 23 kPa, forced convection 20 kPa, supply-line drop
-#: 34 kPa; seal friction 121 kPa and 20 mm in ``step_1`` (docs/virtual-rig.md).
-#: The seal and barrel effects take their shared typical sizes
-#: (:mod:`pneumafit.physics.seal_effects`): seal friction 1.5e-5 N/Pa, a
-#: friction asymmetry of 0.2 (levels 1.2 and 0.8 times the symmetric ones),
-#: an area factor of 1.05 (a bore 2.5 % larger than nominal).
-#: The wall capacity is deliberately small (a real wall's is thousands of
-#: J/K/m^2) so that the effect shows.
-EFFECT_DEFAULTS: dict[str, float] = {
-    "chamber_leak_conductance": 5.0e-11,  # kg/s/Pa
-    "external_leak_conductance": 5.0e-11,  # kg/s/Pa
-    "valve_time_constant": 0.015,  # s
-    "wall_heat_capacity": 100.0,  # J/K/m^2
-    "forced_convection_gain": 2.0e4,  # W/m^2/K per kg/s
-    "supply_line_resistance": 6.0e6,  # Pa/(kg/s)
-    **{e.parameter: e.typical for e in SEAL_EFFECTS.values()},  # N/Pa, -, -
-}
+#: effect is named without a value (:attr:`pneumafit.models.parts.Effect.rig_default`;
+#: chosen so that the effect is clearly visible in the demo protocol, see
+#: :mod:`pneumafit.models.parts.effects`). The seal and barrel effects take
+#: their shared typical sizes (:mod:`pneumafit.physics.seal_effects`).
+EFFECT_DEFAULTS: dict[str, float] = {e.principal: e.rig_default for e in EFFECTS.values()}
 
 #: Second-order spool parameters: naming one selects valve_dynamics order 2.
 _SECOND_ORDER = ("valve_natural_frequency", "valve_damping_ratio")

@@ -1,0 +1,642 @@
+"""The part types, their registries and the read-only views derived from them.
+
+See :mod:`pneumafit.models.parts` for what a part is and its limits. This
+module holds the frozen dataclasses (:class:`HeatLaw`, :class:`ValveLaw`,
+:class:`FrictionLaw`, :class:`Effect` with its :class:`FitRange` and
+:class:`SignatureTerm`), the four registries, the ``register_*`` /
+``unregister_*`` functions that validate a part against the parameter table
+(:data:`pneumafit.models.layout.SPECS`) and the configuration layout, and
+:class:`RegistryView` / :class:`NameList`, the live read-only tables the
+older modules export (``EFFECT_SLOTS``, ``HEAT_LAWS`` codes, ``MODELS``, the
+model colours, ...).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Generic, TypeVar
+
+from pneumafit.models.layout import (
+    C_AIRPROPS,
+    C_BLOCKED,
+    C_CHAMBER,
+    C_FRICTION_LAW,
+    C_HEAT,
+    C_INPUT,
+    C_STATIC_FLOW,
+    C_VALVE_LAW,
+    NCFG,
+    SPECS,
+)
+
+__all__ = [
+    "EFFECTS",
+    "FRICTION_LAWS",
+    "HEAT_LAWS",
+    "PRIOR_KINDS",
+    "VALVE_LAWS",
+    "Effect",
+    "FitRange",
+    "FrictionLaw",
+    "HeatLaw",
+    "NameList",
+    "RegistryView",
+    "SignatureTerm",
+    "ValveLaw",
+    "add_listener",
+    "model_names",
+    "register_effect",
+    "register_friction_law",
+    "register_heat_law",
+    "register_valve_law",
+    "remove_listener",
+    "unregister_effect",
+    "unregister_friction_law",
+    "unregister_heat_law",
+    "unregister_valve_law",
+]
+
+#: Prior kinds of a :class:`FitRange` (the discovery catalog's ``EffectPrior``).
+PRIOR_KINDS: tuple[str, ...] = ("log-uniform", "half-normal", "uniform")
+
+#: Configuration slots that are not an effect's: the laws and the experiment.
+_RESERVED_SLOTS = {
+    C_HEAT: "heat law",
+    C_BLOCKED: "blocked piston",
+    C_CHAMBER: "chamber under test",
+    C_INPUT: "input mode",
+    C_AIRPROPS: "air properties",
+    C_STATIC_FLOW: "static flow",
+    C_VALVE_LAW: "valve law",
+    C_FRICTION_LAW: "friction law",
+}
+
+
+def _check_parameters(where: str, names: Sequence[str]) -> None:
+    """Every name is in the parameter table, once."""
+    if len(set(names)) != len(names):
+        raise ValueError(f"{where}: parameters: expected distinct names, found {list(names)}")
+    unknown = [n for n in names if n not in SPECS]
+    if unknown:
+        raise ValueError(
+            f"{where}: parameters: expected names in pneumafit.models.PARAMETER_SPECS "
+            f"(models/layout.py), found unknown {unknown}"
+        )
+
+
+def _check_values(where: str, values: Mapping[str, float], allowed: Sequence[str]) -> None:
+    """Starting values: parameters of the part, inside the table's bounds."""
+    for name, value in values.items():
+        if name not in allowed:
+            raise ValueError(
+                f"{where}: start: expected parameters of the part {list(allowed)}, found {name!r}"
+            )
+        spec = SPECS[name]
+        if not spec.lower <= float(value) <= spec.upper:
+            raise ValueError(
+                f"{where}: start {name}: expected a value in [{spec.lower:g}, {spec.upper:g}] "
+                f"{spec.unit}, found {value!r}"
+            )
+
+
+# ----------------------------------------------------------------- laws
+@dataclass(frozen=True)
+class HeatLaw:
+    """A heat-transfer law of the chambers (paper eqs. 8, 9, 14).
+
+    Attributes
+    ----------
+    name : str
+        Name; also the model name of the structure with this law
+        (:data:`pneumafit.models.MODELS`).
+    code : int
+        Value of the configuration slot ``C_HEAT`` the compiled kernel
+        branches on (:func:`pneumafit.models.kernel.rhs`).
+    parameters : tuple of str
+        Parameters the law uses, names in
+        :data:`pneumafit.models.PARAMETER_SPECS` (unit, bounds and default
+        come from there).
+    description : str
+        One line.
+    label : str
+        Display label for figures and reports.
+    colour : str
+        Matplotlib colour of the model in the comparison figures and the
+        report (measured data are black).
+    order : int
+        Position of the model in model lists (comparison, report): lower first.
+    starts : tuple of mapping of str to float
+        Starting values of the staged fit's heat stage (SI; parameter names
+        of ``parameters``), :func:`pneumafit.identification.starts.heat_starts`.
+    """
+
+    name: str
+    code: int
+    parameters: tuple[str, ...]
+    description: str
+    label: str
+    colour: str
+    order: int
+    starts: tuple[Mapping[str, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class ValveLaw:
+    """A servo-valve law (configuration slot ``C_VALVE_LAW``).
+
+    Attributes
+    ----------
+    name : str
+        Name (``ModelStructure.valve``).
+    code : int
+        Value of ``C_VALVE_LAW`` (``kernel.VALVE_*``).
+    parameters : tuple of str
+        Valve parameters the law uses, names in ``PARAMETER_SPECS``.
+    description : str
+        One line.
+    """
+
+    name: str
+    code: int
+    parameters: tuple[str, ...]
+    description: str
+
+
+@dataclass(frozen=True)
+class FrictionLaw:
+    """A friction law of the piston (configuration slot ``C_FRICTION_LAW``).
+
+    Attributes
+    ----------
+    name : str
+        Name (``ModelStructure.friction``).
+    code : int
+        Value of ``C_FRICTION_LAW`` (``kernel.FRICTION_*``).
+    parameters : tuple of str
+        Friction parameters the law uses, names in ``PARAMETER_SPECS``.
+    description : str
+        One line.
+    """
+
+    name: str
+    code: int
+    parameters: tuple[str, ...]
+    description: str
+
+
+# ----------------------------------------------------------------- effects
+@dataclass(frozen=True)
+class FitRange:
+    """What discovery assumes about one effect parameter (the catalog's facts).
+
+    Attributes
+    ----------
+    parameter : str
+        Parameter name (``PARAMETER_SPECS``).
+    lower, upper : float
+        Fitting bounds (parameter unit): what the effect can plausibly be,
+        inside the table's physical bounds and usually tighter.
+    prior : {"log-uniform", "half-normal", "uniform"}
+        Prior kind; log-uniform and uniform priors span [lower, upper].
+    scale : float
+        Scale of a half-normal prior (parameter unit); NaN otherwise.
+    description : str
+        One line on the parameter's role in the effect.
+    signed : bool
+        The effect acts on either side of its neutral value (the
+        parameter's default, strictly inside [lower, upper]): a friction
+        asymmetry around 0, an area factor around 1.
+    """
+
+    parameter: str
+    lower: float
+    upper: float
+    prior: str = "log-uniform"
+    scale: float = math.nan
+    description: str = ""
+    signed: bool = False
+
+
+@dataclass(frozen=True)
+class SignatureTerm:
+    """A regressor through which an effect enters the model equations.
+
+    Parameters
+    ----------
+    regressor : str
+        The term, in words and symbols, e.g. ``"P_P - P_N"``.
+    enters : str
+        The rates it appears in, e.g. ``"dP_P/dt, dP_N/dt"``.
+    note : str
+        Its coefficient or how to form it from measured/simulated signals.
+    """
+
+    regressor: str
+    enters: str
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Effect:
+    """An optional effect of the actuator model, switched on by a configuration slot.
+
+    Attributes
+    ----------
+    name : str
+        Name (``ModelStructure.effects``, the discovery catalog, ``--effect``).
+    slot : int or None
+        Configuration slot (``layout.C_*``) the compiled kernel reads; the
+        structure writes the option value there. None: the kernel does not
+        implement the effect (a part defined outside the package): the
+        Python side knows it, but a structure with it switched on cannot
+        make a configuration vector.
+    parameters : tuple of str
+        All its parameters over all options (``PARAMETER_SPECS`` names).
+    description : str
+        One line.
+    law : str
+        The law as the kernel implements it (SI; symbols of docs/physics.md).
+    principal : str
+        The parameter that ``--effect NAME=VALUE`` sets, whose regression
+        coefficient attribution reports, and whose departure from its
+        default switches the effect's contribution on.
+    rig_default : float
+        The virtual rig's magnitude of ``principal`` (SI) when the effect is
+        named without a value; also the catalog's typical value.
+    fit : tuple of FitRange
+        Discovery's fitting range and prior, one per parameter.
+    coefficient_unit : str
+        Unit of attribution's regression coefficient (the principal
+        parameter's, or what the coefficient is when it is not the
+        parameter itself).
+    options : mapping of int to tuple of str
+        Option value -> the parameters that variant uses. Empty (the
+        default): the single option 1 with every parameter.
+    signature : tuple of SignatureTerm
+        Regressors for discovery's sparse regression.
+    phases : tuple of str
+        Phases of a test (``pneumafit.discovery.phases.PHASES``) where a
+        missing effect shows most in the residuals.
+    inverse_coefficient : bool
+        Attribution's coefficient is 1 / principal (the wall's capacity).
+    start_floor : float
+        Smallest refit start of the principal parameter taken from a
+        coefficient (SI; 0: none).
+    """
+
+    name: str
+    slot: int | None
+    parameters: tuple[str, ...]
+    description: str
+    law: str
+    principal: str
+    rig_default: float
+    fit: tuple[FitRange, ...]
+    coefficient_unit: str
+    options: Mapping[int, tuple[str, ...]] = field(default_factory=dict, hash=False)
+    signature: tuple[SignatureTerm, ...] = ()
+    phases: tuple[str, ...] = ()
+    inverse_coefficient: bool = False
+    start_floor: float = 0.0
+
+    def __post_init__(self) -> None:
+        options = {int(k): tuple(v) for k, v in self.options.items()} or {1: self.parameters}
+        object.__setattr__(self, "options", MappingProxyType(options))
+
+    @property
+    def option_values(self) -> tuple[int, ...]:
+        """Values ``ModelStructure.effects`` accepts for the effect (0 = off)."""
+        return (0, *sorted(self.options))
+
+    def typical(self, name: str) -> float:
+        """Typical value of a parameter: ``rig_default`` for the principal, else its default."""
+        return self.rig_default if name == self.principal else SPECS[name].default
+
+    def fit_range(self, name: str) -> FitRange:
+        """The :class:`FitRange` of the parameter ``name``."""
+        for r in self.fit:
+            if r.parameter == name:
+                return r
+        raise ValueError(f"effect {self.name!r}: fit range: expected one of "
+                         f"{list(self.parameters)}, found {name!r}")  # fmt: skip
+
+
+# ----------------------------------------------------------------- registries
+_Part = TypeVar("_Part")
+_V = TypeVar("_V")
+
+_HEAT: dict[str, HeatLaw] = {}
+_VALVE: dict[str, ValveLaw] = {}
+_FRICTION: dict[str, FrictionLaw] = {}
+_EFFECTS: dict[str, Effect] = {}
+
+#: Registered heat laws by name, in registration order (read-only).
+HEAT_LAWS: Mapping[str, HeatLaw] = MappingProxyType(_HEAT)
+#: Registered valve laws by name (read-only).
+VALVE_LAWS: Mapping[str, ValveLaw] = MappingProxyType(_VALVE)
+#: Registered friction laws by name (read-only).
+FRICTION_LAWS: Mapping[str, FrictionLaw] = MappingProxyType(_FRICTION)
+#: Registered effects by name (read-only).
+EFFECTS: Mapping[str, Effect] = MappingProxyType(_EFFECTS)
+
+_LISTENERS: list[Callable[[str, object], None]] = []
+
+
+def add_listener(listener: Callable[[str, object], None]) -> None:
+    """Call ``listener(event, part)`` on every later registration change.
+
+    ``event`` is ``"register"`` or ``"unregister"``. A listener that raises
+    on ``"register"`` refuses the part: the registration is undone and the
+    error propagates (the discovery catalog checks an effect's phases this
+    way).
+    """
+    _LISTENERS.append(listener)
+
+
+def remove_listener(listener: Callable[[str, object], None]) -> None:
+    """Stop calling ``listener``."""
+    _LISTENERS.remove(listener)
+
+
+def _commit(registry: dict[str, Any], part: Any, replace: bool) -> Any:
+    old = registry.get(part.name)
+    registry[part.name] = part
+    try:
+        for listener in list(_LISTENERS):
+            listener("register", part)
+    except Exception:
+        if old is None:
+            del registry[part.name]
+        else:
+            registry[part.name] = old
+            for listener in list(_LISTENERS):
+                listener("register", old)
+        raise
+    return part
+
+
+def _remove(registry: dict[str, Any], kind: str, name: str) -> Any:
+    try:
+        part = registry.pop(name)
+    except KeyError:
+        raise ValueError(f"unregister {kind}: expected one of {sorted(registry)}, "
+                         f"found {name!r}") from None  # fmt: skip
+    for listener in list(_LISTENERS):
+        listener("unregister", part)
+    return part
+
+
+def _check_law(registry: Mapping[str, Any], part: Any, kind: str, replace: bool) -> str:
+    where = f"register {kind} {part.name!r}"
+    if not part.name or not isinstance(part.name, str):
+        raise ValueError(f"register {kind}: name: expected a non-empty str, found {part.name!r}")
+    if part.name in registry and not replace:
+        raise ValueError(f"{where}: a {kind} of this name is registered; pass replace=True")
+    if not isinstance(part.code, int) or part.code < 0:
+        raise ValueError(f"{where}: code: expected an int >= 0, found {part.code!r}")
+    taken = {p.code: p.name for p in registry.values() if p.name != part.name}
+    if part.code in taken:
+        raise ValueError(
+            f"{where}: code {part.code}: expected a code no other {kind} has, found it "
+            f"taken by {taken[part.code]!r}"
+        )
+    _check_parameters(where, part.parameters)
+    return where
+
+
+def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
+    """Add a heat law to :data:`HEAT_LAWS` after checking it.
+
+    Checks: a new name (unless ``replace``), a code no other heat law has,
+    parameters in the parameter table, starts naming only its parameters
+    within their physical bounds.
+
+    Returns
+    -------
+    HeatLaw
+        ``law``.
+
+    Raises
+    ------
+    ValueError
+        A failed check; nothing is registered.
+    """
+    where = _check_law(_HEAT, law, "heat law", replace)
+    for start in law.starts:
+        _check_values(where, start, law.parameters)
+    return _commit(_HEAT, law, replace)
+
+
+def register_valve_law(law: ValveLaw, *, replace: bool = False) -> ValveLaw:
+    """Add a valve law to :data:`VALVE_LAWS` (checks as :func:`register_heat_law`)."""
+    _check_law(_VALVE, law, "valve law", replace)
+    return _commit(_VALVE, law, replace)
+
+
+def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> FrictionLaw:
+    """Add a friction law to :data:`FRICTION_LAWS` (checks as :func:`register_heat_law`)."""
+    _check_law(_FRICTION, law, "friction law", replace)
+    return _commit(_FRICTION, law, replace)
+
+
+def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
+    """Add an effect to :data:`EFFECTS` after checking it.
+
+    Checks: an identifier as name, new unless ``replace``; a configuration
+    slot inside the layout, not a law's or the experiment's, not another
+    effect's (or None: no kernel code); parameters in the parameter table;
+    options >= 1 using only its parameters and together all of them; the
+    principal parameter among them with its rig default inside its
+    physical bounds; one fit range per parameter, inside the physical
+    bounds, with a known prior kind.
+
+    Returns
+    -------
+    Effect
+        ``effect`` (``MY_EFFECT = register_effect(Effect(...))``).
+
+    Raises
+    ------
+    ValueError
+        A failed check, or a listener refusing the effect; nothing is
+        registered.
+    """
+    where = f"register effect {effect.name!r}"
+    if not effect.name.isidentifier():
+        raise ValueError(f"register effect: name: expected an identifier, found {effect.name!r}")
+    if effect.name in _EFFECTS and not replace:
+        raise ValueError(f"{where}: an effect of this name is registered; pass replace=True")
+    if effect.slot is not None:
+        if not isinstance(effect.slot, int) or not 0 <= effect.slot < NCFG:
+            raise ValueError(
+                f"{where}: slot: expected a configuration slot in [0, {NCFG}) (models/layout.py "
+                f"C_*) or None, found {effect.slot!r}"
+            )
+        if effect.slot in _RESERVED_SLOTS:
+            raise ValueError(
+                f"{where}: slot {effect.slot}: expected an effect's slot, found the "
+                f"{_RESERVED_SLOTS[effect.slot]}'s"
+            )
+        taken = {e.slot: e.name for e in _EFFECTS.values() if e.name != effect.name}
+        if effect.slot in taken:
+            raise ValueError(
+                f"{where}: slot {effect.slot}: expected a slot no other effect has, found it "
+                f"taken by {taken[effect.slot]!r}"
+            )
+    if not effect.parameters:
+        raise ValueError(f"{where}: parameters: expected at least one, found none")
+    _check_parameters(where, effect.parameters)
+    used: set[str] = set()
+    for value, names in effect.options.items():
+        extra = sorted(set(names) - set(effect.parameters))
+        if value < 1 or extra:
+            raise ValueError(
+                f"{where}: option {value}: expected a value >= 1 using parameters of the effect, "
+                f"found {'value < 1' if value < 1 else extra}"
+            )
+        used |= set(names)
+    if used != set(effect.parameters):
+        raise ValueError(
+            f"{where}: options: expected every parameter used by some option, found "
+            f"{sorted(set(effect.parameters) - used)} unused"
+        )
+    if effect.principal not in effect.parameters:
+        raise ValueError(
+            f"{where}: principal: expected one of {list(effect.parameters)}, "
+            f"found {effect.principal!r}"
+        )
+    spec = SPECS[effect.principal]
+    if not spec.lower <= effect.rig_default <= spec.upper:
+        raise ValueError(
+            f"{where}: rig_default: expected a value in [{spec.lower:g}, {spec.upper:g}] "
+            f"{spec.unit}, found {effect.rig_default!r}"
+        )
+    ranges = [r.parameter for r in effect.fit]
+    if sorted(ranges) != sorted(effect.parameters):
+        raise ValueError(
+            f"{where}: fit: expected one FitRange per parameter {list(effect.parameters)}, "
+            f"found {ranges}"
+        )
+    for r in effect.fit:
+        spec = SPECS[r.parameter]
+        if r.prior not in PRIOR_KINDS:
+            raise ValueError(
+                f"{where}: fit {r.parameter}: prior: expected one of {PRIOR_KINDS}, "
+                f"found {r.prior!r}"
+            )
+        if not spec.lower <= r.lower < r.upper <= spec.upper:
+            raise ValueError(
+                f"{where}: fit {r.parameter}: expected bounds [{r.lower:g}, {r.upper:g}] within "
+                f"the physical bounds [{spec.lower:g}, {spec.upper:g}] {spec.unit}"
+            )
+    return _commit(_EFFECTS, effect, replace)
+
+
+def unregister_heat_law(name: str) -> HeatLaw:
+    """Remove a heat law (for tests and notebooks); returns it."""
+    return _remove(_HEAT, "heat law", name)
+
+
+def unregister_valve_law(name: str) -> ValveLaw:
+    """Remove a valve law; returns it."""
+    return _remove(_VALVE, "valve law", name)
+
+
+def unregister_friction_law(name: str) -> FrictionLaw:
+    """Remove a friction law; returns it."""
+    return _remove(_FRICTION, "friction law", name)
+
+
+def unregister_effect(name: str) -> Effect:
+    """Remove an effect; returns it."""
+    return _remove(_EFFECTS, "effect", name)
+
+
+# ----------------------------------------------------------------- derived tables
+class RegistryView(Mapping[str, _V], Generic[_Part, _V]):
+    """A live read-only table derived from a registry: name -> ``value(part)``.
+
+    Parameters
+    ----------
+    source : mapping of str to part
+        A registry (:data:`HEAT_LAWS`, :data:`EFFECTS`, ...).
+    value : callable
+        Part -> the table's value.
+    order : callable, optional
+        Part -> sort key of the iteration order; default the registry's
+        (registration) order.
+
+    A part registered later appears at once. Compares equal to a dict of
+    the same items.
+    """
+
+    def __init__(
+        self,
+        source: Mapping[str, _Part],
+        value: Callable[[_Part], _V],
+        order: Callable[[_Part], Any] | None = None,
+    ) -> None:
+        self._source = source
+        self._value = value
+        self._order = order
+
+    def _parts(self) -> list[_Part]:
+        parts = list(self._source.values())
+        if self._order is not None:
+            parts.sort(key=self._order)
+        return parts
+
+    def __getitem__(self, key: str) -> _V:
+        return self._value(self._source[key])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([p.name for p in self._parts()])  # type: ignore[attr-defined]
+
+    def __len__(self) -> int:
+        return len(self._source)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._source
+
+    def __repr__(self) -> str:
+        return repr(dict(self.items()))
+
+
+class NameList(Sequence[str]):
+    """A live read-only tuple of names, computed by ``names()`` on each use.
+
+    Compares equal to a tuple or list of the same names.
+    """
+
+    def __init__(self, names: Callable[[], tuple[str, ...]]) -> None:
+        self._names = names
+
+    def __getitem__(self, index: Any) -> Any:
+        return self._names()[index]
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names()
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (tuple, list, NameList)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return repr(self._names())
+
+
+def model_names() -> tuple[str, ...]:
+    """The heat laws' names in model-list order (:attr:`HeatLaw.order`)."""
+    return tuple(h.name for h in sorted(_HEAT.values(), key=lambda h: h.order))

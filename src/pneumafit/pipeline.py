@@ -64,6 +64,7 @@ from pneumafit.cli.console import (
 )
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
+from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.simulation import counter
 
 #: The bundled demo campaign: a virtual-rig recording of a rig like the paper's,
@@ -71,8 +72,9 @@ from pneumafit.simulation import counter
 #: (the independent truth preset ``demo``, docs/virtual-rig.md).
 DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 
-#: Models fitted and compared, in the order of the paper.
-RUN_MODELS = ("polytropic", "constant-lambda", "convection")
+#: Models fitted and compared, in the order of the paper (simplest first: the
+#: heat laws of ``models.parts`` in reverse model-list order).
+RUN_MODELS = tuple(reversed(MODEL_NAMES))
 
 #: Formats of the controller export.
 EXPORT_FORMATS = {"json": "controller.json", "yaml": "controller.yaml", "c": "controller.h",

@@ -36,6 +36,7 @@ from pneumafit.cli.console import (
     make_console,
     release_output,
 )
+from pneumafit.models.parts import Friction, Model, Valve
 
 if TYPE_CHECKING:
     import numpy as np
@@ -228,7 +229,7 @@ def fit(
     model: Annotated[
         str,
         typer.Option(
-            help="convection, constant-lambda or polytropic; or friction (a campaign of "
+            help=f"{', '.join(Model)}; or friction (a campaign of "
             "friction tests: the friction law on the rod-force balance)."
         ),
     ] = "convection",
@@ -249,14 +250,15 @@ def fit(
     valve: Annotated[
         str,
         typer.Option(
-            help="Valve law: iso6358 (parametric) or map (measured conductance and critical "
-            "ratio tables over the command, started from the ISO fit).",
+            help=f"Valve law, one of {', '.join(Valve)}: iso6358 (parametric) or map (measured "
+            "conductance and critical ratio tables over the command, started from the ISO fit).",
         ),
     ] = "iso6358",
     friction: Annotated[
         str,
         typer.Option(
-            help="Friction law: auto (both fitted to the step tests, LuGre kept when BIC "
+            help=f"Friction law: auto or one of {', '.join(Friction)}. auto (both fitted to the "
+            "step tests, LuGre kept when BIC "
             "prefers it), switch (stick-slip, the piston sticks exactly) or lugre (pre-sliding "
             "bristles; their stiffness and damping are fitted too).",
         ),

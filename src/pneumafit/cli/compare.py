@@ -43,12 +43,13 @@ from pneumafit.comparison.report import print_table
 from pneumafit.comparison.result import compare_fits
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.staged import FitResult
+from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.models.structure import MODELS
 
 __all__ = ["COMPARED_MODELS", "COMPARISON_FILE", "compare_command", "read_fit"]
 
 #: The models compared, in table order.
-COMPARED_MODELS: tuple[str, ...] = ("convection", "constant-lambda", "polytropic")
+COMPARED_MODELS = MODEL_NAMES  # the heat laws, model-list order (models.parts, live)
 COMPARISON_FILE = "comparison.json"
 
 

@@ -34,6 +34,7 @@ from rich.table import Table
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.campaign.units import display_unit
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
@@ -312,13 +313,9 @@ def _fmt(x: float | None, digits: int = 4) -> str:
     return f"{x:.{digits}g}"
 
 
-#: Display scale and unit of the residual table, by the channel's first letter.
-_DISPLAY = {"p": (1e-3, "kPa"), "y": (1e3, "mm"), "q": (1e3, "g/s"), "T": (1.0, "K")}
-
-
 def _with_unit(channel: str, value: float | None) -> str:
     """'p_P 1.03 kPa': an SI RMSE in the units of the residual table (fit.json keeps SI)."""
-    scale, unit = _DISPLAY.get(channel[0], (1.0, ""))
+    scale, unit = display_unit(channel)
     return f"{channel} {_fmt(None if value is None else value * scale)} {unit}".rstrip()
 
 
@@ -339,7 +336,7 @@ def _quality_table(result: FitResult, console: Console) -> None:
     order = {"fit": 0, "validate": 1}
     rows = sorted(quality.channels, key=lambda c: (order.get(c.role, 2), c.recording, c.channel))
     for c in rows:
-        scale, unit = _DISPLAY.get(c.channel[0], (1.0, ""))
+        scale, unit = display_unit(c.channel)
         ratio = c.ratio
         style = "bold red" if c.fails else None
         table.add_row(

@@ -16,19 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
+from pneumafit.campaign.units import display_unit
 from pneumafit.comparison.evaluate import RecordingTrace
 from pneumafit.fileio import atomic_path
 from pneumafit.models.parts import MODEL_COLOURS
 
 __all__ = ["plot_recording"]
 
-#: Display scale and unit per quantity.
-DISPLAY = {
-    "pressure": (1e-5, "bar"),
-    "position": (1e3, "mm"),
-    "temperature": (1.0, "K"),
-    "flow": (1e3, "g/s"),
-}
+#: Quantities plotted, one axis each (display units: campaign.units.display_unit).
+QUANTITIES = ("pressure", "position", "temperature", "flow")
 QUANTITY = {"p_P": "pressure", "p_N": "pressure", "y": "position", "T_P": "temperature",
             "T_N": "temperature", "qm_P": "flow", "qm_N": "flow"}  # fmt: skip
 #: One colour per model, measured data in black (the heat laws' parts, live).
@@ -74,14 +70,14 @@ def plot_recording(
 
     first = next(iter(traces.values()))
     channels = list(dict.fromkeys(c for tr in traces.values() for c in tr.compared))
-    quantities = [q for q in DISPLAY if any(QUANTITY[c] == q for c in channels)]
+    quantities = [q for q in QUANTITIES if any(QUANTITY[c] == q for c in channels)]
     chambers = _chambers(first, chamber)
     if "temperature" not in quantities and chambers:
         quantities.append("temperature")  # predicted gas temperature, nothing measured
     n = max(1, len(quantities))
     fig, axes = plt.subplots(n, 2, figsize=(12, 2.8 * n), squeeze=False, sharex="col")
     for row, q in enumerate(quantities):
-        scale, unit = DISPLAY[q]
+        scale, unit = display_unit(q)
         ax, axr = axes[row]
         measured_done: set[str] = set()
         for model, tr in traces.items():

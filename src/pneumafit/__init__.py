@@ -23,7 +23,9 @@ try:
 except _metadata.PackageNotFoundError:  # running from a source tree without install
     __version__ = "unknown"
 
-_API = ("FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign")
+_API = (
+    "FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign", "report",
+)  # fmt: skip
 
 __all__ = [
     "PneumafitComputationError",

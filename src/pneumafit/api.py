@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pneumafit.campaign import read_campaign
@@ -37,7 +38,9 @@ if TYPE_CHECKING:
     from pneumafit.discovery.refit import Discovery
     from pneumafit.frictiontest.discover import FrictionDiscovery
 
-__all__ = ["FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign"]
+__all__ = [
+    "FitResult", "SavedFit", "compare", "discover", "fit", "load_fit", "read_campaign", "report",
+]  # fmt: skip
 
 #: The models :func:`fit` knows: the chamber models (one per heat law,
 #: :data:`pneumafit.models.parts.MODEL_NAMES`, live) and the friction-test law.
@@ -228,3 +231,86 @@ def compare(
     return compare_fits(
         campaign, loaded, draws=DEFAULT_DRAWS if draws is None else draws, seed=seed, log=log
     )
+
+
+def report(
+    run_dir: str | os.PathLike[str],
+    campaign: Campaign | str | os.PathLike[str] | None = None,
+    *,
+    fits: Sequence[FitResult | SavedFit] = (),
+    comparison: Comparison | None = None,
+    discovery: Discovery | None = None,
+    out: str | os.PathLike[str] | None = None,
+) -> Path:
+    """The validation report of a run folder, with results in memory saved into it first.
+
+    The report only reads saved results (:func:`pneumafit.outputs.report.write_report`):
+    each fit given is saved as ``RUN/fits/<model>/fit.json`` and the
+    comparison as ``RUN/comparison/comparison.json``, then the report is
+    written from the folder (a discovery is read from ``RUN/discovery/``,
+    written there by ``pneumafit discover --out RUN/discovery``, or given
+    here with its base fit among ``fits``).
+
+    Parameters
+    ----------
+    run_dir : path
+        The run folder (created if needed).
+    campaign : Campaign or path, optional
+        The campaign (default: the one the fits recorded).
+    fits : sequence of FitResult or SavedFit
+        Chamber-model fits to save into the folder (one per model).
+    comparison : Comparison, optional
+        :func:`compare`'s result, to save into the folder.
+    discovery : Discovery, optional
+        :func:`discover`'s result on one of ``fits`` (its base), saved as
+        ``RUN/discovery/discovery.json`` with its figures.
+    out : path, optional
+        The HTML file (default ``RUN/report.html``).
+
+    Returns
+    -------
+    pathlib.Path
+        The report.
+
+    Raises
+    ------
+    PneumafitInputError
+        Two fits of one model, a friction-test fit, a discovery whose base
+        fit is not among ``fits``, or a folder or file that cannot be written.
+    """
+    from pneumafit.campaign.errors import PneumafitInputError
+    from pneumafit.campaign.model import Campaign
+    from pneumafit.comparison.result import COMPARISON_FILE
+    from pneumafit.identification.fitfile import FIT_FILE
+    from pneumafit.outputs.report import write_report
+
+    run = Path(run_dir)
+    models: set[str] = set()
+    for f in fits:
+        if f.model == "friction" or f.model in models:
+            raise PneumafitInputError(
+                "fits: expected one chamber-model fit per model, found "
+                + ("a friction-test fit" if f.model == "friction" else f"a second {f.model}")
+            )
+        models.add(f.model)
+        f.save(run / "fits" / f.model / FIT_FILE)
+    if comparison is not None:
+        comparison.save(run / "comparison" / COMPARISON_FILE)
+    where = campaign.path if isinstance(campaign, Campaign) else campaign
+    if discovery is not None:
+        from pneumafit.cli.discover import discovery_document
+        from pneumafit.cli.discover import write_report as write_discovery
+
+        base = discovery.base.structure.heat  # the model name of its base fit
+        if base not in models:
+            raise PneumafitInputError(
+                f"discovery: expected its base fit (model {base}) among fits, found "
+                + (", ".join(sorted(models)) or "none")
+            )
+        fit_path = run / "fits" / base / FIT_FILE
+        camp = campaign if isinstance(campaign, Campaign) else read_campaign(where)
+        doc = discovery_document(
+            discovery, camp, fit_path, load_fit(fit_path).document, command="pf.report"
+        )
+        write_discovery(run / "discovery", doc, discovery, camp)
+    return write_report(run, Path(out) if out is not None else run / "report.html", campaign=where)

@@ -62,6 +62,7 @@ from pneumafit.cli.console import (
     folder_problem,
     report_problems,
 )
+from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.parts import MODEL_NAMES
@@ -327,7 +328,7 @@ def _analyses(
         return compare_command(path, out / "comparison", [f.parent for f in all_fits],
                                seed=seed, console=console)  # fmt: skip
 
-    stage("comparison", all_fits, [out / "comparison" / "comparison.json"], compare)
+    stage("comparison", all_fits, [out / "comparison" / COMPARISON_FILE], compare)
 
     def discover() -> int:
         from pneumafit.cli.discover import discover_command
@@ -397,7 +398,7 @@ def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,
     # the report reads every stage's outputs: any change rebuilds it
     report_inputs = [
         *(fits[m] for m in RUN_MODELS),
-        out / "comparison" / "comparison.json",
+        out / "comparison" / COMPARISON_FILE,
         out / "discovery" / "discovery.json",
         out / "linear" / "linear.json",
         out / "closed_loop" / "closed_loop.json",

@@ -231,3 +231,32 @@ def test_compare_from_python_matches_the_command(
     assert again.document["polytropic"]["rmse"] == doc["polytropic"]["rmse"]
     with pytest.raises(PneumafitInputError, match="a second polytropic"):
         pf.compare(campaign, [loaded, blocked_fits["polytropic"]])
+
+
+def test_report_from_python_reads_what_it_saved(
+    blocked_campaign: tuple[Path, Campaign], blocked_fits: dict[str, Path], tmp_path: Path
+) -> None:
+    """pf.report saves the fits and the comparison into the run folder, then
+    writes the report from the folder alone (plumbing, not recovery)."""
+    import pneumafit as pf
+
+    _folder, campaign = blocked_campaign
+    fits = [pf.load_fit(blocked_fits[m]) for m in MODELS]
+    comparison = pf.compare(campaign, fits)
+    found = pf.discover(campaign, fits[0], rounds=1)
+    html = pf.report(
+        tmp_path / "run", campaign, fits=fits, comparison=comparison, discovery=found
+    )
+    assert html == tmp_path / "run" / "report.html" and html.is_file()
+    for m in MODELS:
+        assert (tmp_path / "run" / "fits" / m / "fit.json").is_file()
+    saved = json.loads((tmp_path / "run" / "comparison" / "comparison.json").read_text())
+    assert saved["table"] == comparison.document["table"]
+    disc = json.loads((tmp_path / "run" / "discovery" / "discovery.json").read_text())
+    assert disc["base_model"] == fits[0].model and disc["statement"] == found.statement
+    text = html.read_text()
+    assert "convection" in text and "constant-lambda" in text
+    with pytest.raises(PneumafitInputError, match="a second polytropic"):
+        pf.report(tmp_path / "again", campaign, fits=[fits[2], fits[2]])
+    with pytest.raises(PneumafitInputError, match=f"base fit \\(model {fits[0].model}\\)"):
+        pf.report(tmp_path / "again", campaign, fits=fits[1:], discovery=found)

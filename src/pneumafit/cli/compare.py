@@ -40,7 +40,7 @@ from pneumafit.comparison.evaluate import fit_values
 from pneumafit.comparison.figures import plot_recording
 from pneumafit.comparison.information import DEFAULT_DRAWS
 from pneumafit.comparison.report import print_table
-from pneumafit.comparison.result import compare_fits
+from pneumafit.comparison.result import COMPARISON_FILE, compare_fits
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.staged import FitResult
 from pneumafit.models.parts import MODEL_NAMES
@@ -50,7 +50,6 @@ __all__ = ["COMPARED_MODELS", "COMPARISON_FILE", "compare_command", "read_fit"]
 
 #: The models compared, in table order.
 COMPARED_MODELS = MODEL_NAMES  # the heat laws, model-list order (models.parts, live)
-COMPARISON_FILE = "comparison.json"
 
 
 def read_fit(path: Path, option: str = "--fits") -> tuple[Path, dict[str, Any]]:

@@ -27,7 +27,10 @@ from pneumafit.comparison.report import comparison_document, print_table
 from pneumafit.fileio import write_text_atomic
 from pneumafit.identification.fitfile import SavedFit
 
-__all__ = ["Comparison", "compare_fits"]
+__all__ = ["COMPARISON_FILE", "Comparison", "compare_fits"]
+
+#: The comparison's file in its folder (``RUN/comparison/comparison.json``).
+COMPARISON_FILE = "comparison.json"
 
 
 @dataclass

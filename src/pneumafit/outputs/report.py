@@ -33,6 +33,7 @@ from rich.console import Console
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import display_unit
+from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.fileio import check_output, write_text_atomic
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.report_html import (
@@ -227,7 +228,7 @@ class _Run:
         sources: list[tuple[Any, str]] = [
             (doc.get("campaign"), f"fits/{model}/fit.json") for model, (doc, _) in self.fits.items()
         ]
-        comparison, _ = _read_json(self.dir / "comparison" / "comparison.json")
+        comparison, _ = _read_json(self.dir / "comparison" / COMPARISON_FILE)
         if isinstance(comparison, dict):
             sources.append((comparison.get("campaign"), "comparison/comparison.json"))
         if isinstance(self.summary, dict):
@@ -267,7 +268,7 @@ class _Run:
         recorded: list[tuple[str, Any]] = [
             (f"fits/{m}/fit.json", doc.get("campaign")) for m, (doc, _) in self.fits.items()
         ]
-        comparison, _ = _read_json(self.dir / "comparison" / "comparison.json")
+        comparison, _ = _read_json(self.dir / "comparison" / COMPARISON_FILE)
         if isinstance(comparison, Mapping):
             recorded.append(("comparison/comparison.json", comparison.get("campaign")))
         if isinstance(self.summary, Mapping):
@@ -691,7 +692,7 @@ def _recording_table(rows: Any, models: list[str]) -> str:
 
 def _comparison_section(run: _Run) -> tuple[str, str, str]:
     folder = run.dir / "comparison"
-    path = folder / "comparison.json"
+    path = folder / COMPARISON_FILE
     source = f"<code>{esc(path)}</code> and its figures"
     doc, error = _read_json(path)
     parts = []

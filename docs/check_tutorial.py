@@ -146,7 +146,6 @@ def write_rig(work: Path) -> None:
 
 def check_units(text: str) -> list[str]:
     """The units the tutorial's tables give are those the program prints."""
-    from pneumafit.comparison.report import DISPLAY
     from pneumafit.models.layout import SPECS
 
     problems = []
@@ -163,17 +162,19 @@ def check_units(text: str) -> list[str]:
                 f"fit-table: {name}: unit {cells[3]!r}, pneumafit fit prints {printed!r}"
             )
     units = blocks(text).get("compare-units", "")
-    expected = render_compare_units(DISPLAY)
+    expected = render_compare_units()
     if units != expected:
         problems.append(f"compare-units: {units!r}, pneumafit compare prints {expected!r}")
     return problems
 
 
-def render_compare_units(display: dict) -> str:
+def render_compare_units() -> str:
+    from pneumafit.campaign.units import display_unit
+
     return (f"Held-out RMSE on the practice campaign, as `pneumafit compare` prints it "
-            f"(pressures in {display['p_P'][1]}, position in {display['y'][1]}, temperatures "
-            f"in {display['T_P'][1]} after the sensor lag; the best in bold, starred on the "
-            f"console):\n")  # fmt: skip
+            f"(pressures in {display_unit('p_P')[1]}, position in {display_unit('y')[1]}, "
+            f"temperatures in {display_unit('T_P')[1]} after the sensor lag; the best in bold, "
+            f"starred on the console):\n")  # fmt: skip
 
 
 # --------------------------------------------------------------------------- full run
@@ -207,7 +208,8 @@ def _g(x: float | None, digits: int) -> str:
 
 def render_full(work: Path, seconds: dict[str, float]) -> dict[str, str]:
     """Every figure block, from the files the commands wrote."""
-    from pneumafit.comparison.report import CHANNEL_ORDER, DISPLAY
+    from pneumafit.campaign.units import display_unit
+    from pneumafit.comparison.report import CHANNEL_ORDER
 
     out = work / "out" / "my_rig"
     fits = {m: json.loads((out / "fits" / m / "fit.json").read_text()) for m in MODELS}
@@ -246,7 +248,7 @@ def render_full(work: Path, seconds: dict[str, float]) -> dict[str, str]:
     for channel in CHANNEL_ORDER:
         if channel not in best:
             continue
-        scale, unit = DISPLAY[channel]
+        scale, unit = display_unit(channel)
         cells = []
         for m in MODELS:
             v = comparison[m]["rmse"]["validate"].get(channel)
@@ -254,7 +256,7 @@ def render_full(work: Path, seconds: dict[str, float]) -> dict[str, str]:
             cells.append(f"**{text}**" if best[channel] == m else text)
         rows.append(f"| `{channel}` | {unit} | " + " | ".join(cells) + " |")
     rendered["compare-table"] = "\n".join(rows) + "\n"
-    rendered["compare-units"] = render_compare_units(DISPLAY)
+    rendered["compare-units"] = render_compare_units()
     discovery = json.loads((out / "discovery" / "discovery.json").read_text())
     rendered["discovery-statement"] = f'"{discovery["statement"]}"\n'
     day = _dt.date.today().isoformat()

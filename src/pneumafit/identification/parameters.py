@@ -476,9 +476,8 @@ class ParameterSet:
         free = self.free
         shown = ", ".join(f"{p.name}={p.value:.4g}" for p in free[:4])
         more = f", ... ({len(free) - 4} more)" if len(free) > 4 else ""
-        return (
-            f"ParameterSet({len(self.parameters)} parameters, {len(free)} free"
-            + (f": {shown}{more})" if free else ")")
+        return f"ParameterSet({len(self.parameters)} parameters, {len(free)} free" + (
+            f": {shown}{more})" if free else ")"
         )
 
     def summary(self, *, free_only: bool = True) -> str:

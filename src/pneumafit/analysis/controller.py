@@ -42,7 +42,7 @@ from pneumafit.analysis.closed_loop import (
     design_controller,
     step_reference,
 )
-from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
 
@@ -85,26 +85,36 @@ class ScheduledController:
         n = len(self.positions)
         pos = tuple(float(v) for v in self.positions)
         if n < 1 or any(b <= a for a, b in itertools.pairwise(pos)):
-            raise ValueError(f"scheduled controller: positions: expected one or more strictly "
-                             f"increasing positions (m), found {list(pos)}")  # fmt: skip
+            raise PneumafitInputError(
+                "scheduled controller: positions: expected one or more strictly increasing "
+                f"positions (m), found {list(pos)}"
+            )
         gain = tuple(tuple(float(k) for k in row) for row in self.gain)
         order = len(gain[0]) if gain else 0
         if len(gain) != n or order not in (4, 6) or any(len(r) != order for r in gain):
-            raise ValueError(f"scheduled controller: gain: expected {n} rows of 4 or 6 gains, "
-                             f"found {[len(r) for r in gain]}")  # fmt: skip
+            raise PneumafitInputError(
+                f"scheduled controller: gain: expected {n} rows of 4 or 6 gains, "
+                f"found {[len(r) for r in gain]}"
+            )
         width = tuple(float(v) for v in self.deadband_width) or (0.0,) * n
         for name, values in (("v_e", self.v_e), ("p_N_e", self.p_N_e), ("p_P_e", self.p_P_e),
                              ("T_e", self.T_e), ("deadband_width", width)):  # fmt: skip
             if len(values) != n:
-                raise ValueError(f"scheduled controller: {name}: expected {n} values (one per "
-                                 f"position), found {len(values)}")  # fmt: skip
+                raise PneumafitInputError(
+                    f"scheduled controller: {name}: expected {n} values (one per position), "
+                    f"found {len(values)}"
+                )
             object.__setattr__(self, name, tuple(float(v) for v in values))
         if not (self.deadband >= 0.0 and all(w >= 0.0 for w in width)):
-            raise ValueError("scheduled controller: dead-band compensation: expected a >= 0 "
-                             f"and w >= 0 V, found a = {self.deadband}, w = {width}")  # fmt: skip
+            raise PneumafitInputError(
+                "scheduled controller: dead-band compensation: expected a >= 0 and w >= 0 V, "
+                f"found a = {self.deadband}, w = {width}"
+            )
         if not (self.umax > 0.0 and self.period > 0.0):
-            raise ValueError(f"scheduled controller: expected umax > 0 V and period > 0 s, "
-                             f"found {self.umax} and {self.period}")  # fmt: skip
+            raise PneumafitInputError(
+                "scheduled controller: expected umax > 0 V and period > 0 s, "
+                f"found {self.umax} and {self.period}"
+            )
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "gain", gain)
         object.__setattr__(self, "deadband", float(self.deadband))
@@ -120,8 +130,10 @@ class ScheduledController:
         """The law of an export document (version 2, :func:`build_export`)."""
         version = document.get("version")
         if version != 2 or "controller" not in document:
-            raise ValueError(f"export: expected a version-2 document with a controller section "
-                             f"(the validated controller), found version {version}")  # fmt: skip
+            raise PneumafitInputError(
+                "export: expected a version-2 document with a controller section "
+                f"(the validated controller), found version {version}"
+            )
         grid, ctrl = document["grid"], document["controller"]
         return cls(
             positions=grid["positions"], gain=grid["K"], v_e=grid["v_e"], p_N_e=grid["p_N_e"],
@@ -201,7 +213,7 @@ def design_schedule(
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         When no position has a design.
     """
     p = parameters if isinstance(parameters, np.ndarray) else parameter_vector(parameters)
@@ -221,8 +233,10 @@ def design_schedule(
                             "here (the centre gain matches the open valve's)"})  # fmt: skip
         designs = [d for d in designs if d.compensation is not None]
     if not designs:
-        raise PneumafitInputError("design schedule: no position of the grid has a design: "
-                                  + "; ".join(s["reason"] for s in skipped[:3]))  # fmt: skip
+        raise PneumafitInputError(
+            "design schedule: no position of the grid has a design: "
+            + "; ".join(s["reason"] for s in skipped[:3])
+        )
     amplitude = designs[0].compensation.amplitude if designs[0].compensation else 0.0
     controller = ScheduledController(
         positions=[d.model.equilibrium.y for d in designs],
@@ -293,8 +307,10 @@ def run_sampled(
         else parameter_vector(plant_parameters)  # fmt: skip
     t, y_ref, starts = step_reference(y_mid, [float(s) for s in steps], hold=hold)
     if abs(period - SAMPLE_INTERVAL) > 1e-15:
-        raise ValueError(f"period: the step test samples every {SAMPLE_INTERVAL} s; found "
-                         f"{period}")  # fmt: skip
+        raise PneumafitInputError(
+            f"period: expected {SAMPLE_INTERVAL} s (the step test's sample interval), "
+            f"found {period}"
+        )
     r = simulate_sampled(p, t, y_ref, controller, model=get_structure(plant),
                          initial=initial, channels=CHANNELS)  # fmt: skip
     if not r.ok:

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import (
     C_INPUT,
@@ -666,7 +666,7 @@ def place(model: LinearModel, poles: Sequence[complex]) -> np.ndarray:
     poles = np.asarray(poles, dtype=complex)
     n = model.A.shape[0]
     if poles.size != n:
-        raise ValueError(f"place: poles: expected {n} poles, found {poles.size}")
+        raise PneumafitInputError(f"place: poles: expected {n} poles, found {poles.size}")
     scale = _scaling(model)
     a_z = model.A / scale[:, None] * scale[None, :]
     b_z = model.B / scale[:, None]

@@ -15,7 +15,8 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pneumafit.campaign.errors import PneumafitInputError, Problem
+from pneumafit.campaign.errors import Problem
+from pneumafit.errors import PneumafitInputError
 
 __all__ = [
     "CHAMBERS",
@@ -355,7 +356,11 @@ class Recording:
         if t.size < 2:
             raise PneumafitInputError(f"time: expected at least 2 samples, found {t.size}")
         if np.any(np.diff(t) <= 0.0):
-            raise PneumafitInputError("time: expected strictly increasing values")
+            i = int(np.argmax(np.diff(t) <= 0.0))
+            raise PneumafitInputError(
+                f"time: expected strictly increasing values, found {t[i]:g} s followed by "
+                f"{t[i + 1]:g} s (samples {i} and {i + 1})"
+            )
         values: dict[str, NDArray[np.float64]] = {}
         masks: dict[str, NDArray[np.bool_]] = {}
         for name, data in channels.items():

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign
 from pneumafit.comparison.evaluate import fit_values
+from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.noise import AR1, Gaussian
 from pneumafit.identification.problem import MAX_STEP, Problem
 from pneumafit.identification.staged import DEFAULT_CHANNELS
@@ -121,7 +122,7 @@ def pointwise_log_likelihood(
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         A block's noise model has no pointwise form here (only Gaussian and
         AR(1) do).
     """
@@ -140,7 +141,7 @@ def pointwise_log_likelihood(
         elif isinstance(obs.noise, Gaussian):
             ll = -0.5 * (r / sigma) ** 2 - np.log(sigma) - 0.5 * _LOG_2PI
         else:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"pointwise log-likelihood: {obs.recording} {obs.channel}: expected a Gaussian "
                 f"or AR(1) noise model, found {obs.noise.name}"
             )

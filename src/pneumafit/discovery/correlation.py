@@ -15,6 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = [
     "LjungBox",
     "autocorrelation",
@@ -28,15 +30,19 @@ __all__ = [
 def _series(x: ArrayLike, what: str) -> NDArray[np.float64]:
     arr = np.asarray(x, dtype=float)
     if arr.ndim != 1 or arr.size < 2:
-        raise ValueError(f"{what}: expected a 1-D series of at least 2 samples, found {arr.shape}")
+        raise PneumafitInputError(
+            f"{what}: expected a 1-D series of at least 2 samples, found {arr.shape}"
+        )
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what}: expected finite values, found NaN or infinity")
+        raise PneumafitInputError(f"{what}: expected finite values, found NaN or infinity")
     return arr - arr.mean()
 
 
 def _check_lag(max_lag: int, n: int) -> int:
     if isinstance(max_lag, bool) or int(max_lag) != max_lag or not 1 <= max_lag < n:
-        raise ValueError(f"max_lag: expected an integer in [1, {n - 1}], found {max_lag!r}")
+        raise PneumafitInputError(
+            f"max_lag: expected an integer in [1, {n - 1}], found {max_lag!r}"
+        )
     return int(max_lag)
 
 
@@ -86,7 +92,7 @@ def cross_correlation(residual: ArrayLike, inputs: ArrayLike, max_lag: int) -> N
     e = _series(residual, "cross-correlation: residual")
     u = _series(inputs, "cross-correlation: input")
     if e.size != u.size:
-        raise ValueError(
+        raise PneumafitInputError(
             f"cross-correlation: expected residual and input of equal length, found "
             f"{e.size} and {u.size}"
         )
@@ -116,7 +122,7 @@ def whiteness_band(n: int, alpha: float = 0.01) -> float:
         Two-sided significance level, 0 < alpha < 1.
     """
     if not 0.0 < alpha < 1.0:
-        raise ValueError(f"alpha: expected a level in (0, 1), found {alpha!r}")
+        raise PneumafitInputError(f"alpha: expected a level in (0, 1), found {alpha!r}")
     return float(stats.norm.ppf(1.0 - alpha / 2.0) / math.sqrt(n))
 
 

@@ -17,6 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
+from pneumafit.errors import PneumafitInputError
+
 if TYPE_CHECKING:
     from pneumafit.campaign.model import Recording
 
@@ -70,9 +72,11 @@ class PhaseRules:
         for name in ("open_command", "speed", "pressure_rate", "smoothing"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0.0):
-                raise ValueError(f"phase rules: {name}: expected a number > 0, found {value!r}")
+                raise PneumafitInputError(
+                    f"phase rules: {name}: expected a number > 0, found {value!r}"
+                )
         if self.relaxation_time is not None and not self.relaxation_time > 0.0:
-            raise ValueError(
+            raise PneumafitInputError(
                 "phase rules: relaxation_time: expected None or a number > 0 (s), "
                 f"found {self.relaxation_time!r}"
             )

@@ -61,6 +61,7 @@ from pneumafit.discovery.attribution import (
     build_rows,
 )
 from pneumafit.discovery.catalog import get_effect
+from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares
@@ -179,7 +180,7 @@ class BaseFit:
         """Read a fit.json (:meth:`FitResult.load`, or its parsed document)."""
         fit = doc if isinstance(doc, SavedFit) else SavedFit.from_document(doc)
         if fit.structure is None:
-            raise ValueError(f"model: expected an actuator model, found {fit.model!r}")
+            raise PneumafitInputError(f"model: expected an actuator model, found {fit.model!r}")
         structure = fit.structure
         values = fit.all_values  # model, nuisance, initial:<file>:<state>
         joint = fit.stages.get("joint") or {}

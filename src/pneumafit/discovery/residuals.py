@@ -52,6 +52,7 @@ from pneumafit.discovery.phases import (
     smoothed_rate,
     window_samples,
 )
+from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import atomic_path
 from pneumafit.models.layout import CHANNEL_UNITS
 from pneumafit.models.layout import CHANNELS as SIMULATED_CHANNELS
@@ -323,20 +324,20 @@ def _channel(
     where = f"residual analysis of {recording.file or recording.kind!r}, channel {name}"
     mask = recording.mask.get(name, np.ones(recording.time.size, dtype=bool))
     if simulated.shape != recording.time.shape:
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: expected {recording.time.size} simulated samples like the recording, "
             f"found shape {simulated.shape}"
         )
     if not np.all(np.isfinite(simulated[mask])):
-        raise ValueError(
-            f"{where}: the simulation has NaN or infinite values (did it fail? check "
-            "Simulation.status and .message)"
+        raise PneumafitInputError(
+            f"{where}: simulated values: expected finite values, found NaN or infinity "
+            "(did it fail? check Simulation.status and .message)"
         )
     e = recording.channels[name][mask] - simulated[mask]
     t = recording.time[mask]
     n = e.size
     if n < 8:
-        raise ValueError(f"{where}: expected at least 8 sampled points, found {n}")
+        raise PneumafitInputError(f"{where}: expected at least 8 sampled points, found {n}")
     m = max(1, min(max_lag, n // 4))
     dt = float(np.median(np.diff(t)))
     acf = autocorrelation(e, m)
@@ -421,7 +422,7 @@ def residual_analysis(
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         A requested channel that is not recorded or not simulated, simulated
         arrays of the wrong length or with NaN (a failed simulation), fewer
         than 8 sampled points, or a bad ``max_lag``/``alpha``.
@@ -429,14 +430,14 @@ def residual_analysis(
     sim = _simulated(simulated_channels)
     where = f"residual analysis of {recording.file or recording.kind!r}"
     if not 0.0 < alpha < 1.0:
-        raise ValueError(f"{where}: alpha: expected a level in (0, 1), found {alpha!r}")
+        raise PneumafitInputError(f"{where}: alpha: expected a level in (0, 1), found {alpha!r}")
     lag = DEFAULT_MAX_LAG if max_lag is None else max_lag
     if isinstance(lag, bool) or not isinstance(lag, int | np.integer) or lag < 1:
-        raise ValueError(f"{where}: max_lag: expected an integer >= 1, found {max_lag!r}")
+        raise PneumafitInputError(f"{where}: max_lag: expected an integer >= 1, found {max_lag!r}")
     if channels is None:
         names = [c for c in OUTPUT_CHANNELS if c in recording.channels and c in sim]
         if not names:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: no channel is both recorded and simulated (recorded: "
                 f"{sorted(recording.channels)}, simulated: {sorted(sim)})"
             )
@@ -445,7 +446,9 @@ def residual_analysis(
         for name in names:
             if name not in recording.channels or name not in sim:
                 missing = "recorded" if name not in recording.channels else "simulated"
-                raise ValueError(f"{where}: channel {name!r}: expected it {missing}, found none")
+                raise PneumafitInputError(
+                    f"{where}: channel {name!r}: expected it {missing}, found none"
+                )
     rules = phase_rules if phase_rules is not None else PhaseRules()
     labels = label_phases(recording, rules)
     results = {
@@ -604,7 +607,7 @@ def plot_residuals(
     names = list(channels) if channels is not None else list(report.channels)
     unknown = [c for c in names if c not in report.channels]
     if unknown or not names:
-        raise ValueError(
+        raise PneumafitInputError(
             f"plot_residuals: channels: expected some of {list(report.channels)}, found {names}"
         )
     target = Path(path)

@@ -81,8 +81,8 @@ from typing import Any
 
 import numpy as np
 
-from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
+from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.identification.parameters import Parameter, ParameterSet
 from pneumafit.identification.staged import (
@@ -176,7 +176,7 @@ def fit_document(
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         No campaign or seed given and none in the result.
     """
     if campaign is not None:
@@ -184,10 +184,14 @@ def fit_document(
     elif result.campaign is not None:
         identity = result.campaign
     else:
-        raise ValueError("fit document: expected a campaign (the result does not record one)")
+        raise PneumafitInputError(
+            "fit document: expected a campaign (the result does not record one), found none"
+        )
     seed = result.seed if seed is None else seed
     if seed is None:
-        raise ValueError("fit document: expected a seed (the result does not record one)")
+        raise PneumafitInputError(
+            "fit document: expected a seed (the result does not record one), found none"
+        )
     if options is _RESULT_OPTIONS:
         options = result.options
     friction_test = result.model == "friction"

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.noise import correlation_time
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import Prediction, Problem
@@ -64,14 +65,14 @@ class LogLikelihood:
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         A nuisance parameter of the problem is missing from ``parameters``.
     """
 
     def __init__(self, problem: Problem, parameters: ParameterSet) -> None:
         missing = [n for n in problem.lag_names if n not in parameters]
         if missing:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"likelihood: the problem uses nuisance parameters {missing}, "
                 "expected them in the parameter set, found none"
             )

@@ -37,6 +37,8 @@ from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import gammaln
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = [
     "AR1",
     "Gaussian",
@@ -131,7 +133,7 @@ class StudentT(NoiseModel):
 
     def __post_init__(self) -> None:
         if not self.nu > 0.0:
-            raise ValueError(f"student-t noise: nu: expected a value > 0, found {self.nu}")
+            raise PneumafitInputError(f"student-t noise: nu: expected a value > 0, found {self.nu}")
 
     def estimate(
         self, r: NDArray[np.float64], floor: float = 0.0
@@ -291,7 +293,7 @@ class Quantized(NoiseModel):
 
     def __post_init__(self) -> None:
         if not self.resolution > 0.0:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"quantized noise: resolution: expected a value > 0, found {self.resolution}"
             )
 
@@ -414,7 +416,7 @@ def noise_model(spec: str | NoiseModel) -> NoiseModel:
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         Unknown name.
     """
     if isinstance(spec, NoiseModel):
@@ -422,6 +424,6 @@ def noise_model(spec: str | NoiseModel) -> NoiseModel:
     try:
         return _BY_NAME[spec]()
     except KeyError:
-        raise ValueError(
+        raise PneumafitInputError(
             f"noise model: expected one of {', '.join(_BY_NAME)}, found {spec!r}"
         ) from None

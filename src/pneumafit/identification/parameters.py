@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pneumafit.campaign.errors import PneumafitInputError
+from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import PARAMETER_NAMES, SPECS
 from pneumafit.models.structure import FRICTION_PARAMETERS, ModelStructure, get_structure
@@ -125,7 +125,7 @@ class LogUniform(Prior):
 
     def __post_init__(self) -> None:
         if not (self.lower > 0.0 and self.upper > self.lower):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"log-uniform prior: expected 0 < lower < upper, found [{self.lower}, {self.upper}]"
             )
 
@@ -150,7 +150,7 @@ class Normal(Prior):
 
     def __post_init__(self) -> None:
         if not self.std > 0.0:
-            raise ValueError(f"normal prior: expected std > 0, found {self.std}")
+            raise PneumafitInputError(f"normal prior: expected std > 0, found {self.std}")
 
     def logpdf(self, value: NDArray[np.float64]) -> NDArray[np.float64]:
         z = (np.asarray(value, dtype=float) - self.mean) / self.std
@@ -173,7 +173,7 @@ class LogNormal(Prior):
 
     def __post_init__(self) -> None:
         if not (self.median > 0.0 and self.sigma > 0.0):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"log-normal prior: expected median > 0 and sigma > 0, found "
                 f"{self.median}, {self.sigma}"
             )
@@ -308,21 +308,27 @@ class Parameter:
     def __post_init__(self) -> None:
         where = f"parameter {self.name!r}"
         if not isinstance(self.name, str) or not self.name:
-            raise ValueError(f"parameter: name: expected a non-empty string, found {self.name!r}")
+            raise PneumafitInputError(
+                f"parameter: name: expected a non-empty string, found {self.name!r}"
+            )
         if self.scale not in SCALES:
-            raise ValueError(f"{where}: scale: expected one of {SCALES}, found {self.scale!r}")
+            raise PneumafitInputError(
+                f"{where}: scale: expected one of {SCALES}, found {self.scale!r}"
+            )
         if not self.lower <= self.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: bounds: expected lower <= upper, found [{self.lower}, {self.upper}]"
             )
         if self.scale == "log" and not self.lower > 0.0:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: scale 'log': expected a lower bound > 0, found {self.lower:g}"
             )
         if not math.isfinite(self.value):
-            raise ValueError(f"{where}: value: expected a finite number, found {self.value}")
+            raise PneumafitInputError(
+                f"{where}: value: expected a finite number, found {self.value}"
+            )
         if not self.lower <= self.value <= self.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: value: expected a value in [{self.lower:g}, {self.upper:g}] "
                 f"{self.unit}, found {self.value:g}"
             )
@@ -461,16 +467,17 @@ class ParameterSet:
         names = [p.name for p in self.parameters]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
-            raise ValueError(f"parameter set: expected unique names, found {dupes} repeated")
+            raise PneumafitInputError(
+                f"parameter set: expected unique names, found {dupes} repeated"
+            )
 
     def __repr__(self) -> str:
         """One short line: counts and the first free parameters (see :meth:`summary`)."""
         free = self.free
         shown = ", ".join(f"{p.name}={p.value:.4g}" for p in free[:4])
         more = f", ... ({len(free) - 4} more)" if len(free) > 4 else ""
-        return (
-            f"ParameterSet({len(self.parameters)} parameters, {len(free)} free"
-            + (f": {shown}{more})" if free else ")")
+        return f"ParameterSet({len(self.parameters)} parameters, {len(free)} free" + (
+            f": {shown}{more})" if free else ")"
         )
 
     def summary(self, *, free_only: bool = True) -> str:
@@ -634,7 +641,7 @@ class ParameterSet:
         """
         zz = np.atleast_2d(np.asarray(z, dtype=float))
         if zz.shape[1] != self.n_free:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"parameter set: expected internal vectors of length {self.n_free}, "
                 f"found shape {np.shape(z)}"
             )

@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.campaign.model import Recording
+from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.noise import (
     AR1,
     Gaussian,
@@ -351,7 +352,7 @@ class Problem:
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         No recording, an unknown channel, or no compared data at all.
     """
 
@@ -375,12 +376,12 @@ class Problem:
     ) -> None:
         recs = list(recordings)
         if not recs:
-            raise ValueError("problem: expected at least one recording, found none")
+            raise PneumafitInputError("problem: expected at least one recording, found none")
         self.structure = get_structure(model)
         chans = tuple(channels) if channels is not None else COMPARABLE_CHANNELS
         unknown = [c for c in chans if c not in QUANTITIES]
         if unknown:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"problem: channels: expected names in {COMPARABLE_CHANNELS}, found {unknown}"
             )
         if self.structure.heat == "polytropic":
@@ -403,7 +404,7 @@ class Problem:
         self._tableau = Simulator(self.structure).tableau
         bad = [q for q in offsets if q not in set(QUANTITIES.values())]
         if bad:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"problem: offsets: expected quantities in {sorted(set(QUANTITIES.values()))}, "
                 f"found {bad}"
             )
@@ -459,8 +460,9 @@ class Problem:
             steps.append(lay.step)
             rest_steps.append(lay.nsub)
         if not observations:
-            raise ValueError(
-                f"problem: none of the recordings measured a compared channel ({', '.join(chans)})"
+            raise PneumafitInputError(
+                f"problem: recordings: expected one that measures a compared channel "
+                f"({', '.join(chans)}), found none"
             )
         # recordings without a surviving observation are still simulated: drop them
         keep_idx = sorted({o.index for o in observations})
@@ -503,7 +505,7 @@ class Problem:
         if chosen == "quantized":
             q = detect_resolution(values)
             if q is None:
-                raise ValueError(
+                raise PneumafitInputError(
                     f"problem: noise model 'quantized' for {channel}: expected readings on a "
                     "grid, found values that are not"
                 )

@@ -38,6 +38,7 @@ import emcee
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.identification.optimise import equilibrated_pinv
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.progress import Progress
@@ -221,7 +222,7 @@ def _initial_walkers(
         if filled >= n_walkers:
             return walkers
         shrink *= 0.5
-    raise RuntimeError(
+    raise PneumafitComputationError(
         "mcmc: could not place the walkers: the log posterior is -inf around the point estimate"
     )
 
@@ -311,17 +312,20 @@ def run_mcmc(
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         Too few walkers or steps.
+    PneumafitComputationError
+        The walkers cannot be placed (the log posterior is -inf around the
+        point estimate).
     """
     n_free = parameters.n_free
     if n_walkers < 2 * n_free or n_walkers < 4:
-        raise ValueError(
+        raise PneumafitInputError(
             f"mcmc {name}: walkers: expected at least {max(2 * n_free, 4)} walkers "
             f"for {n_free} parameters, found {n_walkers}"
         )
     if n_steps < 1:
-        raise ValueError(f"mcmc {name}: steps: expected at least 1, found {n_steps}")
+        raise PneumafitInputError(f"mcmc {name}: steps: expected at least 1, found {n_steps}")
     path = Path(backend) if backend is not None else None
     store = _backend(path, name)
     done = 0

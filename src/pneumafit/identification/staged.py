@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
-from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign, Recording
+from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.identification.coverage import (
     centre_measured,
     shape_informed,
@@ -594,7 +594,7 @@ class FitResult:
 
         Raises
         ------
-        ValueError
+        PneumafitInputError
             A result without :attr:`campaign` or :attr:`seed` (not made by
             :func:`identify`): use ``fit_document(result, campaign, seed=...)``.
         """
@@ -857,7 +857,7 @@ def identify(
     ------
     PneumafitInputError
         The campaign has no ``fit`` recording.
-    RuntimeError
+    PneumafitComputationError
         Every simulation failed at the staged estimates.
     """
     opts = options or FitOptions()
@@ -866,12 +866,12 @@ def identify(
     t_start = time.perf_counter()
     name = model if isinstance(model, str) else model.name
     if opts.friction not in (*FRICTION_LAWS, "auto"):
-        raise ValueError(
+        raise PneumafitInputError(
             f"friction: expected one of {', '.join((*FRICTION_LAWS, 'auto'))}, "
             f"found {opts.friction!r}"
         )
     if opts.seal not in ("auto", "on", "off"):
-        raise ValueError(f"seal: expected one of auto, on, off, found {opts.seal!r}")
+        raise PneumafitInputError(f"seal: expected one of auto, on, off, found {opts.seal!r}")
     law = "switch" if opts.friction == "auto" else opts.friction
     structure = fit_structure(model, opts.air_properties, opts.valve, law)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
@@ -1222,7 +1222,7 @@ def identify(
         stage.seconds += time.perf_counter() - t0
         say(f"joint: solver correction up to {worst:.2g} residual sigma")
     if est is None or not math.isfinite(est.log_likelihood):
-        raise RuntimeError(
+        raise PneumafitComputationError(
             "joint refinement: every simulation failed at the staged estimates; "
             "check the campaign's rig parameters"
         )

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pneumafit.errors import PneumafitComputationError
+
 #: Flags of the build: ISO C99 (which also turns off fused multiply-add
 #: contraction in GCC, so the arithmetic is the Python law's), warnings as errors.
 C_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")
@@ -42,17 +44,17 @@ def compile_controller(source: str | os.PathLike[str], library: str | os.PathLik
 
     Raises
     ------
-    RuntimeError
+    PneumafitComputationError
         No C compiler, or the compilation failed (its messages included).
     """
     cc = compiler or find_compiler()
     if cc is None:
-        raise RuntimeError("no C compiler found (set CC, or install cc/gcc/clang)")
+        raise PneumafitComputationError("no C compiler found (set CC, or install cc/gcc/clang)")
     src, lib = Path(source).resolve(), Path(library).resolve()
     cmd = [cc, *C_FLAGS, "-o", str(lib), str(src), "-lm"]
     res = subprocess.run(cmd, capture_output=True, text=True, cwd=src.parent)
     if res.returncode != 0:
-        raise RuntimeError(f"compiling {src} failed ({' '.join(cmd)}):\n{res.stderr}")
+        raise PneumafitComputationError(f"compiling {src} failed ({' '.join(cmd)}):\n{res.stderr}")
     return lib
 
 
@@ -131,7 +133,7 @@ def software_in_the_loop(
 
     Raises
     ------
-    RuntimeError
+    PneumafitComputationError
         No C compiler, or the code does not compile.
     """
     from pneumafit.analysis.controller import ScheduledController, metrics_document, run_sampled
@@ -144,7 +146,7 @@ def software_in_the_loop(
                "T_P": grid["T_e"][k], "T_N": grid["T_e"][k]}  # fmt: skip
     cc = compiler or find_compiler()
     if cc is None:
-        raise RuntimeError("no C compiler found (set CC, or install cc/gcc/clang)")
+        raise PneumafitComputationError("no C compiler found (set CC, or install cc/gcc/clang)")
     kwargs = dict(y_mid=y_mid, steps=steps, hold=hold, plant=plant, initial=initial,
                   umax=law.umax, period=law.period)  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="pneumafit-sil-") as tmp:

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from pneumafit.analysis.controller import design_schedule
+from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import atomic_path, write_text_atomic
 from pneumafit.models.layout import PARAMETER_NAMES, SPECS
 from pneumafit.models.parameters import parameter_dict, parameter_vector
@@ -254,7 +255,6 @@ def export_document(
         Bad option values or an unreadable closed_loop.json.
     """
     from pneumafit.analysis.closed_loop import PLACEMENTS, largest_w0
-    from pneumafit.campaign.errors import PneumafitInputError
     from pneumafit.models.layout import P
     from pneumafit.parameters_io import read_parameter_details, read_valve_law
 
@@ -561,10 +561,14 @@ def write_export(doc: dict, path: str | os.PathLike[str], fmt: str) -> Path:
     """
     target = Path(path)
     if fmt not in FORMATS:
-        raise ValueError(f"export: format: expected one of {', '.join(FORMATS)}, found {fmt!r}")
+        raise PneumafitInputError(
+            f"export: format: expected one of {', '.join(FORMATS)}, found {fmt!r}"
+        )
     if fmt in ("c", "mat", "csv") and doc.get("version") != VERSION:
-        raise ValueError(f"export: format {fmt}: expected a version-{VERSION} document, found "
-                         f"version {doc.get('version')}")  # fmt: skip
+        raise PneumafitInputError(
+            f"export: format {fmt}: expected a version-{VERSION} document, found "
+            f"version {doc.get('version')}"
+        )
     if fmt == "json":
         write_text_atomic(target, json.dumps(doc, indent=2) + "\n")
     elif fmt == "yaml":
@@ -573,8 +577,6 @@ def write_export(doc: dict, path: str | os.PathLike[str], fmt: str) -> Path:
         write_text_atomic(target, yaml.safe_dump(doc, sort_keys=False))
     elif fmt == "c":
         if target.suffix == ".c":
-            from pneumafit.campaign.errors import PneumafitInputError
-
             raise PneumafitInputError(
                 f"export: --out {target}: --format c writes a header and the controller source "
                 f"beside it; expected the header's name (e.g. {target.with_suffix('.h').name})"
@@ -598,7 +600,7 @@ def read_export(path: str | os.PathLike[str]) -> dict:
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         A file that is not a controller export, or of a newer version.
     """
     file = Path(path)
@@ -611,11 +613,13 @@ def read_export(path: str | os.PathLike[str]) -> dict:
         doc = json.loads(text)
     found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
     if found != "pneumafit-controller-export":
-        raise ValueError(f"{file}: format: expected 'pneumafit-controller-export', found "
-                         f"{found!r}")  # fmt: skip
+        raise PneumafitInputError(
+            f"{file}: format: expected 'pneumafit-controller-export', found {found!r}"
+        )
     if doc.get("version") not in READABLE_VERSIONS:
-        raise ValueError(f"{file}: version: expected one of {READABLE_VERSIONS}, found "
-                         f"{doc.get('version')!r}")  # fmt: skip
+        raise PneumafitInputError(
+            f"{file}: version: expected one of {READABLE_VERSIONS}, found {doc.get('version')!r}"
+        )
     return doc
 
 

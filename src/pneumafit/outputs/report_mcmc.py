@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.outputs.report_html import embed_figure, esc, fmt, note, table
 
 __all__ = ["MAX_CORNER_SAMPLES", "read_stage_chain", "render_chains"]
@@ -66,7 +67,7 @@ def read_stage_chain(
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         A group that is missing or whose width is not ``len(names)``.
     """
     import emcee
@@ -76,9 +77,11 @@ def read_stage_chain(
         iterations = int(backend.iteration)
         chain = np.asarray(backend.get_chain(), dtype=float)
     except (OSError, KeyError, AttributeError) as exc:
-        raise ValueError(f"{chains}: group {stage!r}: could not be read ({exc})") from None
+        raise PneumafitInputError(
+            f"{chains}: group {stage!r}: expected a readable chain, found {exc}"
+        ) from None
     if chain.ndim != 3 or chain.shape[2] != len(names):
-        raise ValueError(
+        raise PneumafitInputError(
             f"{chains}: group {stage!r}: expected a chain of {len(names)} parameters "
             f"({', '.join(names)}), found shape {chain.shape}"
         )

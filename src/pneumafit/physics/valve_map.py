@@ -71,6 +71,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.physics.air import RHO0
 from pneumafit.physics.friction import FASTMATH
 from pneumafit.physics.valve import (
@@ -385,12 +386,12 @@ def map_from_iso(values: Mapping[str, float]) -> dict[str, float]:
 
     Raises
     ------
-    ValueError
+    PneumafitInputError
         When one of the ISO names is missing.
     """
     missing = [k for k in _ISO_KEYS if k not in values]
     if missing:
-        raise ValueError(
+        raise PneumafitInputError(
             f"map_from_iso: expected the ISO valve parameters {list(_ISO_KEYS)}, "
             f"found none for {missing}"
         )

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models.layout import (
     CTRL_DB_AMPLITUDE,
     CTRL_DB_WIDTH,
@@ -86,13 +87,13 @@ class StateFeedback:
         gain = tuple(float(v) for v in np.ravel(self.gain))
         x_e = tuple(float(v) for v in np.ravel(self.x_e))
         if len(gain) not in (4, 6) or len(x_e) != 6:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"state feedback: expected 4 or 6 gains and 6 equilibrium states, found "
                 f"{len(gain)} and {len(x_e)}"
             )
         gain = gain + (0.0,) * (6 - len(gain))  # a 4-state gain ignores temperatures
         if not (self.deadband >= 0.0 and self.deadband_width >= 0.0):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"state feedback: dead-band compensation: expected a >= 0 and w >= 0 V, "
                 f"found {self.deadband} and {self.deadband_width}"
             )
@@ -164,38 +165,54 @@ class Experiment:
         object.__setattr__(self, "time", t)
         where = f"experiment {self.name!r}"
         if self.kind not in KINDS:
-            raise ValueError(f"{where}: kind: expected one of {KINDS}, found {self.kind!r}")
+            raise PneumafitInputError(
+                f"{where}: kind: expected one of {KINDS}, found {self.kind!r}"
+            )
         if t.ndim != 1 or t.size < 2:
-            raise ValueError(f"{where}: time: expected at least 2 samples, found {t.size}")
-        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-            raise ValueError(f"{where}: time: expected strictly increasing finite samples")
+            raise PneumafitInputError(f"{where}: time: expected at least 2 samples, found {t.size}")
+        if not np.all(np.isfinite(t)):
+            raise PneumafitInputError(f"{where}: time: expected finite samples, found NaN/inf")
+        if np.any(np.diff(t) <= 0):
+            i = int(np.argmax(np.diff(t) <= 0))
+            raise PneumafitInputError(
+                f"{where}: time: expected strictly increasing samples, found "
+                f"{t[i]:g} s followed by {t[i + 1]:g} s (samples {i} and {i + 1})"
+            )
         for name in ("u_P", "u_N", "y_ref", "p_chamber"):
             arr = getattr(self, name)
             if arr is None:
                 continue
             arr = np.asarray(arr, dtype=float)
             if arr.shape != t.shape:
-                raise ValueError(
+                raise PneumafitInputError(
                     f"{where}: {name}: expected {t.size} samples like time, found {arr.size}"
                 )
             if not np.all(np.isfinite(arr)):
-                raise ValueError(f"{where}: {name}: expected finite samples, found NaN/inf")
+                raise PneumafitInputError(
+                    f"{where}: {name}: expected finite samples, found NaN/inf"
+                )
             object.__setattr__(self, name, arr)
         if self.kind in ("charge", "discharge", "flow") and self.chamber not in ("P", "N"):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: chamber: expected 'P' or 'N' for a {self.kind} test, "
                 f"found {self.chamber!r}"
             )
         if self.kind == "flow" and self.p_chamber is None:
-            raise ValueError(f"{where}: p_{self.chamber}: a flow test needs the held pressure")
+            raise PneumafitInputError(
+                f"{where}: p_{self.chamber}: expected the held pressure of a flow test, found none"
+            )
         if self.closed_loop and self.y_ref is None:
-            raise ValueError(f"{where}: y_ref: a closed-loop test needs the reference position")
+            raise PneumafitInputError(
+                f"{where}: y_ref: expected the reference position of a closed-loop test, found none"
+            )
         if not self.closed_loop and self.kind != "flow":
             needed = "u_" + self.chamber if self.blocked else "u_P"
             if (self.u_P is None and self.u_N is None) or (
                 self.blocked and getattr(self, needed) is None
             ):
-                raise ValueError(f"{where}: {needed}: an open-loop test needs its commands")
+                raise PneumafitInputError(
+                    f"{where}: {needed}: expected the commands of an open-loop test, found none"
+                )
 
     @property
     def blocked(self) -> bool:

@@ -31,6 +31,7 @@ from numba import njit
 from numba.core.dispatcher import Dispatcher
 from scipy.integrate import solve_ivp
 
+from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
@@ -127,6 +128,13 @@ def solve_reference(
     dict of str to ndarray
         y, v, p_N, p_P, T_N, T_P, m_supply, m_exhaust and the LuGre bristle
         deflection z_f (0 for the switch model) at the sample times.
+
+    Raises
+    ------
+    PneumafitInputError
+        A flow test (static: nothing to integrate).
+    PneumafitComputationError
+        The integrator failed.
     """
     structure = get_structure(model)
     p = (
@@ -135,7 +143,10 @@ def solve_reference(
         else parameter_vector(parameters)
     )
     if experiment.kind == "flow":
-        raise ValueError("solve_reference: flow tests are static; nothing to integrate")
+        raise PneumafitInputError(
+            f"solve_reference: experiment {experiment.name!r}: kind: expected a dynamic test "
+            "(flow tests are static; nothing to integrate), found 'flow'"
+        )
     rhs = kernel.rhs if compiled else pure_python(kernel.rhs)
     commands = kernel.commands if compiled else pure_python(kernel.commands)
     law = experiment.controller.law if experiment.closed_loop else 0
@@ -225,7 +236,7 @@ def solve_reference(
                 events=events or None, dense_output=True,
             )  # fmt: skip
             if sol.status == -1:
-                raise RuntimeError(f"solve_reference: {method} failed: {sol.message}")
+                raise PneumafitComputationError(f"solve_reference: {method} failed: {sol.message}")
             t_stop = sol.t[-1]
             sel = mask & (t <= t_stop)
             if np.any(sel):

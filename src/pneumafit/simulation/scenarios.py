@@ -9,6 +9,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure
@@ -51,7 +52,9 @@ def blocked_test(
         Sample rate (Hz).
     """
     if kind not in ("charge", "discharge"):
-        raise ValueError(f"blocked test: kind: expected 'charge' or 'discharge', found {kind!r}")
+        raise PneumafitInputError(
+            f"blocked test: kind: expected 'charge' or 'discharge', found {kind!r}"
+        )
     vec = parameter_vector(parameters)
     t = np.arange(0.0, duration + 0.5 / rate, 1.0 / rate)
     sign = 1.0 if kind == "charge" else -1.0
@@ -87,6 +90,11 @@ def step_test(
     ``model`` is a model name or a structure (the settling uses its laws; with
     LuGre friction the test starts from bristle equilibrium at the settled
     state, the deflection the settled piston holds).
+
+    Raises
+    ------
+    PneumafitComputationError
+        The settling simulation failed.
     """
     vec = parameter_vector(parameters)
     controller = PD(kp=kp, kd=kd, u0=u0, umax=umax)
@@ -99,7 +107,9 @@ def step_test(
         sim = Simulator(model, channels=["y", "p_P", "p_N", "T_P", "T_N"])
         r = sim.simulate(vec, pre)
         if not r.ok:
-            raise ValueError(f"step test: settling before the step failed: {r.message}")
+            raise PneumafitComputationError(
+                f"step test: settling before the step failed: {r.message}"
+            )
         initial = {name: float(r[name][-1]) for name in ("y", "p_P", "p_N", "T_P", "T_N")}
     t = np.arange(0.0, duration + 0.5 / rate, 1.0 / rate)
     ref = np.where(t < step_time, y0, y_ref)

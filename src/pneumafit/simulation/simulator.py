@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import (
     CHANNEL_UNITS,
@@ -172,15 +173,22 @@ class Simulator:
     ) -> None:
         self.structure = get_structure(model)
         if not step > 0:
-            raise ValueError(f"simulator: step: expected a positive step in s, found {step}")
+            raise PneumafitInputError(
+                f"simulator: step: expected a positive step in s, found {step}"
+            )
         self.step = float(step)
         self.tableau = TABLEAUS[method] if isinstance(method, str) else method
         if self.tableau.c[-1] != 1.0:
-            raise ValueError("simulator: method: the last stage must sit at the step's end (c = 1)")
+            raise PneumafitInputError(
+                "simulator: method: expected a method whose last stage sits at the step's end "
+                f"(c = 1), found c = {self.tableau.c[-1]:g}"
+            )
         names = tuple(channels) if channels is not None else CHANNELS
         unknown = [c for c in names if c not in CHANNELS]
         if unknown:
-            raise ValueError(f"simulator: channels: expected names in {CHANNELS}, found {unknown}")
+            raise PneumafitInputError(
+                f"simulator: channels: expected names in {CHANNELS}, found {unknown}"
+            )
         self.channels = names
         self._ch_sel = np.array([CHANNELS.index(c) for c in names], dtype=np.int64)
 
@@ -201,11 +209,11 @@ class Simulator:
         """
         exps = tuple(experiments)
         if not exps:
-            raise ValueError("simulator: expected at least one experiment, found none")
+            raise PneumafitInputError("simulator: expected at least one experiment, found none")
         if steps is None:
             steps = [self.step] * len(exps)
         if len(steps) != len(exps) or not all(s > 0 for s in steps):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"simulator: steps: expected {len(exps)} positive steps, found {list(steps)}"
             )
         n_rec = len(exps)
@@ -270,7 +278,7 @@ class Simulator:
         # type, so a read-only input would compile the integrator a second time
         params = np.require(np.atleast_2d(parameter_sets), dtype=float, requirements="CW")
         if params.shape[1] != NP:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"simulator: parameter sets: expected shape (n, {NP}), found {params.shape}"
             )
         n_sets = params.shape[0]
@@ -283,7 +291,7 @@ class Simulator:
         else:
             x0s = np.require(initial_states, dtype=float, requirements="CW")
             if x0s.shape != (n_sets, n_exp, NX):
-                raise ValueError(
+                raise PneumafitInputError(
                     f"simulator: initial_states: expected shape {(n_sets, n_exp, NX)}, "
                     f"found {x0s.shape}"
                 )
@@ -394,11 +402,13 @@ def choose_step(
         adds its bristle mode (stiffness and damping over the moving mass).
     """
     if valve not in VALVE_LAWS:
-        raise ValueError(f"choose_step: valve: expected one of {sorted(VALVE_LAWS)}, "
-                         f"found {valve!r}")  # fmt: skip
+        raise PneumafitInputError(
+            f"choose_step: valve: expected one of {sorted(VALVE_LAWS)}, found {valve!r}"
+        )
     if friction not in FRICTION_LAWS:
-        raise ValueError(f"choose_step: friction: expected one of {sorted(FRICTION_LAWS)}, "
-                         f"found {friction!r}")  # fmt: skip
+        raise PneumafitInputError(
+            f"choose_step: friction: expected one of {sorted(FRICTION_LAWS)}, found {friction!r}"
+        )
     tableau = TABLEAUS[method] if isinstance(method, str) else method
     vec = (
         np.asarray(parameters, dtype=float)

@@ -470,7 +470,7 @@ class DistributedLogProb:
         chunks: int | None = None,
     ) -> None:
         if chunks is not None and chunks < 1:
-            raise ValueError(f"chunks: expected an integer >= 1, found {chunks!r}")
+            raise PneumafitInputError(f"chunks: expected an integer >= 1, found {chunks!r}")
         self.client = client
         self.chunks = chunks or max(1, len(client.scheduler_info().get("workers", {})))
         self._remote = client.scatter(log_prob, broadcast=True, hash=False)

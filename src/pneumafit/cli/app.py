@@ -36,6 +36,7 @@ from pneumafit.cli.console import (
     make_console,
     release_output,
 )
+from pneumafit.errors import PneumafitComputationError
 from pneumafit.models.parts import Friction, Model, Valve
 
 if TYPE_CHECKING:
@@ -845,6 +846,11 @@ def main() -> None:
             raise
         err_console.print(f"[bold red]error:[/bold red] {escape(str(exc))}")
         sys.exit(EXIT_BAD_INPUT)
+    except PneumafitComputationError as exc:  # the work failed on valid input: not a bug
+        if debug:
+            raise
+        err_console.print(f"[bold red]failed:[/bold red] {escape(str(exc))}")
+        sys.exit(EXIT_FAILED)
     except OSError as exc:
         if debug or exc.errno not in _ENVIRONMENT_ERRNOS:
             _internal_error(exc, debug)

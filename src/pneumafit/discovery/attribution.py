@@ -74,6 +74,7 @@ from scipy.signal import savgol_filter
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.discovery.catalog import EFFECTS, get_effect
 from pneumafit.discovery.phases import PHASES, label_phases, window_samples
+from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.replay import replay
 from pneumafit.models import kernel, layout, parts
 from pneumafit.models.parts import RegistryView
@@ -736,7 +737,7 @@ def build_rows(
                     nuis.setdefault(name, []).append(nuis_m[name])
                 tag(keep, t, labels, f"{rec.file}:v", "motion")
     if not rates:
-        raise ValueError(
+        raise PneumafitInputError(
             f"campaign {campaign.name!r}: attribution: expected {role or 'any'} charge, discharge "
             "or step recordings with pressures, found none"
         )

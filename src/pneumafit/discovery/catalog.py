@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.discovery.phases import PHASES
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models import parts
 from pneumafit.models.layout import SPECS
 from pneumafit.models.parts import SignatureTerm
@@ -95,19 +96,19 @@ class EffectPrior:
     def __post_init__(self) -> None:
         where = f"effect prior {self.kind!r}"
         if self.kind not in PRIOR_KINDS:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"effect prior: kind: expected one of {PRIOR_KINDS}, found {self.kind!r}"
             )
         if self.kind == "half-normal":
             if not (math.isfinite(self.scale) and self.scale > 0.0):
-                raise ValueError(
+                raise PneumafitInputError(
                     f"{where}: scale: expected a finite number > 0, found {self.scale}"
                 )
             return
         low_ok = self.lower > 0.0 if self.kind == "log-uniform" else math.isfinite(self.lower)
         if not (low_ok and math.isfinite(self.upper) and self.upper > self.lower):
             need = "0 < lower < upper" if self.kind == "log-uniform" else "lower < upper"
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: expected finite bounds with {need}, found [{self.lower}, {self.upper}]"
             )
 
@@ -202,17 +203,17 @@ class EffectParameter:
     def __post_init__(self) -> None:
         where = f"effect parameter {self.name!r}"
         if self.neutral is not None and not self.lower < self.neutral < self.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: neutral: expected a value strictly inside [{self.lower:g}, "
                 f"{self.upper:g}], found {self.neutral:g}"
             )
         if not self.lower <= self.typical <= self.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: expected lower <= typical <= upper, found "
                 f"{self.lower:g} <= {self.typical:g} <= {self.upper:g}"
             )
         if not np.isfinite(self.prior.logpdf(self.typical)):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: typical value {self.typical:g} {self.unit} lies outside its prior's "
                 f"support {self.prior.support}"
             )
@@ -258,35 +259,37 @@ class Effect:
     def __post_init__(self) -> None:
         where = f"effect {self.name!r}"
         if not self.name.isidentifier():
-            raise ValueError(f"effect: name: expected an identifier, found {self.name!r}")
+            raise PneumafitInputError(f"effect: name: expected an identifier, found {self.name!r}")
         if not self.parameters:
-            raise ValueError(f"{where}: parameters: expected at least one, found none")
+            raise PneumafitInputError(f"{where}: parameters: expected at least one, found none")
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
-            raise ValueError(f"{where}: parameters: expected distinct names, found {names}")
+            raise PneumafitInputError(
+                f"{where}: parameters: expected distinct names, found {names}"
+            )
         options = dict(self.option_parameters) or {self.option: tuple(names)}
         if self.option not in options or any(v < 1 for v in options):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: option: expected {self.option} >= 1 among the option values "
                 f"{sorted(options)}"
             )
         for value, used in options.items():
             extra = sorted(set(used) - set(names))
             if extra:
-                raise ValueError(
+                raise PneumafitInputError(
                     f"{where}: option {value}: expected parameters of the effect, found {extra}"
                 )
         object.__setattr__(self, "option_parameters", MappingProxyType(options))
         bad = [p for p in self.phases if p not in PHASES]
         if bad:
-            raise ValueError(f"{where}: phases: expected some of {PHASES}, found {bad}")
+            raise PneumafitInputError(f"{where}: phases: expected some of {PHASES}, found {bad}")
 
     def parameter(self, name: str) -> EffectParameter:
         """The parameter called ``name``."""
         for p in self.parameters:
             if p.name == name:
                 return p
-        raise ValueError(
+        raise PneumafitInputError(
             f"effect {self.name!r}: parameter: expected one of "
             f"{[p.name for p in self.parameters]}, found {name!r}"
         )
@@ -294,7 +297,7 @@ class Effect:
     def _option(self, option: int | None) -> int:
         value = self.option if option is None else int(option)
         if value not in self.option_parameters:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"effect {self.name!r}: option: expected one of {sorted(self.option_parameters)}, "
                 f"found {option!r}"
             )
@@ -348,9 +351,11 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
     """
     where = f"register_effect({effect.name!r})"
     if effect.name in _EFFECTS and not replace:
-        raise ValueError(f"{where}: an effect of this name is registered; pass replace=True")
+        raise PneumafitInputError(
+            f"{where}: an effect of this name is registered; pass replace=True"
+        )
     if effect.name not in EFFECT_SLOTS:
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: expected an effect in pneumafit.models.EFFECT_SLOTS, found none: "
             "register its part first (pneumafit.models.parts.register_effect; a law the "
             "kernel simulates needs a slot and parameters in models/layout.py and its lines "
@@ -359,18 +364,18 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
     for p in effect.parameters:
         spec = SPECS.get(p.name)
         if spec is None:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: parameter {p.name!r}: expected a ParameterSpec in "
                 "models/layout.PARAMETER_SPECS, found none"
             )
         if spec.unit != p.unit:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: parameter {p.name!r}: expected unit {spec.unit!r} (the parameter "
                 f"table's), found {p.unit!r}"
             )
         lo, hi = p.prior.support
         if not (spec.lower <= p.lower and p.upper <= spec.upper and spec.lower <= lo):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: parameter {p.name!r}: expected bounds [{p.lower:g}, {p.upper:g}] and "
                 f"prior support [{lo:g}, {hi:g}] within the physical bounds "
                 f"[{spec.lower:g}, {spec.upper:g}] {spec.unit}"
@@ -379,12 +384,12 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
         try:
             structure = ModelStructure("constant-lambda", effects={effect.name: value})
         except ValueError as exc:
-            raise ValueError(f"{where}: option {value}: {exc}") from None
+            raise PneumafitInputError(f"{where}: option {value}: {exc}") from None
         switched = set(structure.parameter_names) - set(
             ModelStructure("constant-lambda").parameter_names
         )
         if switched != set(used):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: option {value}: expected the parameters the structure switches on, "
                 f"{sorted(switched)}, found {sorted(used)}"
             )
@@ -403,13 +408,15 @@ def get_effect(name: str) -> Effect:
     try:
         return _EFFECTS[name]
     except KeyError:
-        raise ValueError(f"effect: expected one of {sorted(_EFFECTS)}, found {name!r}") from None
+        raise PneumafitInputError(
+            f"effect: expected one of {sorted(_EFFECTS)}, found {name!r}"
+        ) from None
 
 
 def effects_for_phase(phase: str) -> tuple[Effect, ...]:
     """Registered effects whose missing term shows most in ``phase``."""
     if phase not in PHASES:
-        raise ValueError(f"phase: expected one of {PHASES}, found {phase!r}")
+        raise PneumafitInputError(f"phase: expected one of {PHASES}, found {phase!r}")
     return tuple(e for e in _EFFECTS.values() if phase in e.phases)
 
 

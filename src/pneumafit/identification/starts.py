@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Recording
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.physics.air import G0, RHO0, T_REF
 from pneumafit.physics.geometry import piston_areas
@@ -77,7 +78,7 @@ def heat_starts(heat: str) -> list[dict[str, float]]:
     """
     law = HEAT_LAWS.get(heat)
     if law is None:
-        raise ValueError(f"heat law: expected one of {sorted(HEAT_LAWS)}, found {heat!r}")
+        raise PneumafitInputError(f"heat law: expected one of {sorted(HEAT_LAWS)}, found {heat!r}")
     return [dict(start) for start in law.starts]
 
 

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models.layout import NP, PARAMETER_NAMES, SPECS, P
 
 
@@ -51,16 +52,16 @@ def parameter_vector(
             values["characteristic_length"] = values["bore"]
     for name, value in values.items():
         if name not in P:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"parameter {name!r}: expected one of the model parameters "
                 f"({', '.join(PARAMETER_NAMES)}), found an unknown name"
             )
         value = float(value)
         spec = SPECS[name]
         if not math.isfinite(value) and not (spec.lower == -math.inf):
-            raise ValueError(f"parameter {name!r}: expected a finite value, found {value}")
+            raise PneumafitInputError(f"parameter {name!r}: expected a finite value, found {value}")
         if not spec.lower <= value <= spec.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"parameter {name!r}: expected a value in [{spec.lower:g}, {spec.upper:g}] "
                 f"{spec.unit}, found {value:g}"
             )
@@ -72,5 +73,5 @@ def parameter_dict(vector: np.ndarray) -> dict[str, float]:
     """Inverse of :func:`parameter_vector`: name -> value (SI)."""
     vector = np.asarray(vector, dtype=float)
     if vector.shape != (NP,):
-        raise ValueError(f"parameter vector: expected shape ({NP},), found {vector.shape}")
+        raise PneumafitInputError(f"parameter vector: expected shape ({NP},), found {vector.shape}")
     return {name: float(vector[i]) for i, name in enumerate(PARAMETER_NAMES)}

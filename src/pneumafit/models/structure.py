@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models import parts
 from pneumafit.models.layout import (
     C_AIRPROPS,
@@ -99,34 +100,34 @@ class ModelStructure:
 
     def __post_init__(self) -> None:
         if self.heat not in HEAT_LAWS:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"model structure: heat law: expected one of {sorted(HEAT_LAWS)}, "
                 f"found {self.heat!r}"
             )
         if self.air_properties not in ("constant", "sutherland"):
-            raise ValueError(
+            raise PneumafitInputError(
                 "model structure: air_properties: expected 'constant' or 'sutherland', "
                 f"found {self.air_properties!r}"
             )
         if self.valve not in VALVE_LAWS:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"model structure: valve: expected one of {sorted(VALVE_LAWS)}, "
                 f"found {self.valve!r}"
             )
         if self.friction not in FRICTION_LAWS:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"model structure: friction: expected one of {sorted(FRICTION_LAWS)}, "
                 f"found {self.friction!r}"
             )
         for name, value in self.effects.items():
             if name not in EFFECT_SLOTS:
-                raise ValueError(
+                raise PneumafitInputError(
                     f"model structure: effect: expected one of {sorted(EFFECT_SLOTS)}, "
                     f"found {name!r}"
                 )
             allowed = parts.EFFECTS[name].option_values
             if int(value) not in allowed:
-                raise ValueError(
+                raise PneumafitInputError(
                     f"model structure: effect {name}: expected a value in {allowed}, "
                     f"found {value!r}"
                 )
@@ -209,7 +210,7 @@ class ModelStructure:
         for name, value in self.effects.items():
             slot = EFFECT_SLOTS[name][0]
             if slot is None:
-                raise ValueError(
+                raise PneumafitInputError(
                     f"model structure {self.name}: effect {name}: expected an effect the compiled "
                     "kernel implements (a configuration slot), found one registered without a "
                     "slot (pneumafit.models.parts: parts defined outside the package have no "
@@ -245,4 +246,6 @@ def get_structure(model: str | ModelStructure) -> ModelStructure:
     try:
         return MODELS[model]
     except KeyError:
-        raise ValueError(f"model: expected one of {sorted(MODELS)}, found {model!r}") from None
+        raise PneumafitInputError(
+            f"model: expected one of {sorted(MODELS)}, found {model!r}"
+        ) from None

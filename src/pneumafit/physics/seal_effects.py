@@ -54,6 +54,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = ["SEAL_EFFECTS", "SealEffect", "seal_effect"]
 
 
@@ -188,4 +190,6 @@ def seal_effect(name: str) -> SealEffect:
     for e in SEAL_EFFECTS.values():
         if name in (e.name, e.bench_name, e.parameter):
             return e
-    raise ValueError(f"seal effect: expected one of {sorted(SEAL_EFFECTS)}, found {name!r}")
+    raise PneumafitInputError(
+        f"seal effect: expected one of {sorted(SEAL_EFFECTS)}, found {name!r}"
+    )

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import PurePosixPath
 from types import MappingProxyType
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = [
     "PROTOCOLS",
     "BlockedTest",
@@ -82,24 +84,28 @@ class _Test:
         object.__setattr__(self, "columns", _frozen(self.columns))
         where = f"test {self.file!r}"
         if PurePosixPath(self.file).suffix.lower() not in _SUFFIXES or "/" in self.file:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: file: expected a plain .h5 or .csv file name, found {self.file!r}"
             )
         if self.role not in _ROLES:
-            raise ValueError(f"{where}: role: expected one of {_ROLES}, found {self.role!r}")
+            raise PneumafitInputError(
+                f"{where}: role: expected one of {_ROLES}, found {self.role!r}"
+            )
         _positive(where, "sample_rate", self.sample_rate)
         if self.columns and not self.file.lower().endswith(".csv"):
-            raise ValueError(f"{where}: columns: expected only on a .csv file, found {self.file!r}")
+            raise PneumafitInputError(
+                f"{where}: columns: expected only on a .csv file, found {self.file!r}"
+            )
 
 
 def _positive(where: str, name: str, value: float) -> None:
     if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{where}: {name}: expected a finite value > 0, found {value!r}")
+        raise PneumafitInputError(f"{where}: {name}: expected a finite value > 0, found {value!r}")
 
 
 def _chamber(where: str, chamber: str) -> None:
     if chamber not in ("P", "N"):
-        raise ValueError(f"{where}: chamber: expected 'P' or 'N', found {chamber!r}")
+        raise PneumafitInputError(f"{where}: chamber: expected 'P' or 'N', found {chamber!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,12 +142,12 @@ class FlowTest(_Test):
         _chamber(where, self.chamber)
         _positive(where, "dwell", self.dwell)
         if not self.commands or not self.pressures:
-            raise ValueError(f"{where}: expected at least one command and one pressure")
+            raise PneumafitInputError(f"{where}: expected at least one command and one pressure")
         for p in self.pressures:
             _positive(where, "pressures", p)
         ratio = FLOW_COMPUTE_RATE / self.sample_rate
         if abs(ratio - round(ratio)) > 1e-9 or round(self.dwell * self.sample_rate) < 1:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: sample_rate: expected a divisor of {FLOW_COMPUTE_RATE:g} Hz with at "
                 f"least one sample per dwell, found {self.sample_rate:g} Hz"
             )
@@ -201,16 +207,18 @@ class BlockedTest(_Test):
         super().__post_init__()
         where = f"test {self.file!r}"
         if self.kind not in ("charge", "discharge"):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: kind: expected 'charge' or 'discharge', found {self.kind!r}"
             )
         _chamber(where, self.chamber)
         for name in ("amplitude", "opening_time", "duration"):
             _positive(where, name, getattr(self, name))
         if not (math.isfinite(self.position) and self.position >= 0.0):
-            raise ValueError(f"{where}: position: expected a value >= 0 m, found {self.position!r}")
+            raise PneumafitInputError(
+                f"{where}: position: expected a value >= 0 m, found {self.position!r}"
+            )
         if not (self.delay >= 0.0 and self.delay + self.opening_time < self.duration):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: expected delay + opening_time < duration, found "
                 f"{self.delay:g} + {self.opening_time:g} >= {self.duration:g} s"
             )
@@ -262,10 +270,10 @@ class StepTest(_Test):
             _positive(where, name, getattr(self, name))
         for name in ("start", "kp", "kd", "u0"):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{where}: {name}: expected a finite value")
+                raise PneumafitInputError(f"{where}: {name}: expected a finite value")
         for when, pos in self.steps:
             if not (0.0 <= when < self.duration and math.isfinite(pos)):
-                raise ValueError(
+                raise PneumafitInputError(
                     f"{where}: steps: expected (time in [0, duration), position), "
                     f"found ({when!r}, {pos!r})"
                 )
@@ -298,11 +306,13 @@ class Protocol:
 
     def __post_init__(self) -> None:
         if not self.tests:
-            raise ValueError(f"protocol {self.name!r}: expected at least one test")
+            raise PneumafitInputError(f"protocol {self.name!r}: expected at least one test")
         seen: set[str] = set()
         for test in self.tests:
             if test.file.lower() in seen:
-                raise ValueError(f"protocol {self.name!r}: file {test.file!r} is used twice")
+                raise PneumafitInputError(
+                    f"protocol {self.name!r}: file {test.file!r} is used twice"
+                )
             seen.add(test.file.lower())
 
 
@@ -520,6 +530,6 @@ def get_protocol(protocol: str | Protocol) -> Protocol:
     try:
         return PROTOCOLS[protocol]()
     except KeyError:
-        raise ValueError(
+        raise PneumafitInputError(
             f"protocol: expected one of {', '.join(PROTOCOLS)}, found {protocol!r}"
         ) from None

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.simulation.sensor import first_order_lag
 
 __all__ = ["SensorModel"]
@@ -64,7 +65,7 @@ class SensorModel:
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(
+                raise PneumafitInputError(
                     f"sensor model: {name}: expected a finite value >= 0, found {value!r}"
                 )
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Generic, TypeVar
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models.layout import (
     C_AIRPROPS,
     C_BLOCKED,
@@ -78,10 +79,12 @@ _RESERVED_SLOTS = {
 def _check_parameters(where: str, names: Sequence[str]) -> None:
     """Every name is in the parameter table, once."""
     if len(set(names)) != len(names):
-        raise ValueError(f"{where}: parameters: expected distinct names, found {list(names)}")
+        raise PneumafitInputError(
+            f"{where}: parameters: expected distinct names, found {list(names)}"
+        )
     unknown = [n for n in names if n not in SPECS]
     if unknown:
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: parameters: expected names in pneumafit.models.PARAMETER_SPECS "
             f"(models/layout.py), found unknown {unknown}"
         )
@@ -91,12 +94,12 @@ def _check_values(where: str, values: Mapping[str, float], allowed: Sequence[str
     """Starting values: parameters of the part, inside the table's bounds."""
     for name, value in values.items():
         if name not in allowed:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: start: expected parameters of the part {list(allowed)}, found {name!r}"
             )
         spec = SPECS[name]
         if not spec.lower <= float(value) <= spec.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: start {name}: expected a value in [{spec.lower:g}, {spec.upper:g}] "
                 f"{spec.unit}, found {value!r}"
             )
@@ -320,7 +323,7 @@ class Effect:
         for r in self.fit:
             if r.parameter == name:
                 return r
-        raise ValueError(f"effect {self.name!r}: fit range: expected one of "
+        raise PneumafitInputError(f"effect {self.name!r}: fit range: expected one of "
                          f"{list(self.parameters)}, found {name!r}")  # fmt: skip
 
 
@@ -382,7 +385,7 @@ def _remove(registry: dict[str, Any], kind: str, name: str) -> Any:
     try:
         part = registry.pop(name)
     except KeyError:
-        raise ValueError(f"unregister {kind}: expected one of {sorted(registry)}, "
+        raise PneumafitInputError(f"unregister {kind}: expected one of {sorted(registry)}, "
                          f"found {name!r}") from None  # fmt: skip
     for listener in list(_LISTENERS):
         listener("unregister", part)
@@ -392,14 +395,18 @@ def _remove(registry: dict[str, Any], kind: str, name: str) -> Any:
 def _check_law(registry: Mapping[str, Any], part: Any, kind: str, replace: bool) -> str:
     where = f"register {kind} {part.name!r}"
     if not part.name or not isinstance(part.name, str):
-        raise ValueError(f"register {kind}: name: expected a non-empty str, found {part.name!r}")
+        raise PneumafitInputError(
+            f"register {kind}: name: expected a non-empty str, found {part.name!r}"
+        )
     if part.name in registry and not replace:
-        raise ValueError(f"{where}: a {kind} of this name is registered; pass replace=True")
+        raise PneumafitInputError(
+            f"{where}: a {kind} of this name is registered; pass replace=True"
+        )
     if not isinstance(part.code, int) or part.code < 0:
-        raise ValueError(f"{where}: code: expected an int >= 0, found {part.code!r}")
+        raise PneumafitInputError(f"{where}: code: expected an int >= 0, found {part.code!r}")
     taken = {p.code: p.name for p in registry.values() if p.name != part.name}
     if part.code in taken:
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: code {part.code}: expected a code no other {kind} has, found it "
             f"taken by {taken[part.code]!r}"
         )
@@ -466,69 +473,73 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
     """
     where = f"register effect {effect.name!r}"
     if not effect.name.isidentifier():
-        raise ValueError(f"register effect: name: expected an identifier, found {effect.name!r}")
+        raise PneumafitInputError(
+            f"register effect: name: expected an identifier, found {effect.name!r}"
+        )
     if effect.name in _EFFECTS and not replace:
-        raise ValueError(f"{where}: an effect of this name is registered; pass replace=True")
+        raise PneumafitInputError(
+            f"{where}: an effect of this name is registered; pass replace=True"
+        )
     if effect.slot is not None:
         if not isinstance(effect.slot, int) or not 0 <= effect.slot < NCFG:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: slot: expected a configuration slot in [0, {NCFG}) (models/layout.py "
                 f"C_*) or None, found {effect.slot!r}"
             )
         if effect.slot in _RESERVED_SLOTS:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: slot {effect.slot}: expected an effect's slot, found the "
                 f"{_RESERVED_SLOTS[effect.slot]}'s"
             )
         taken = {e.slot: e.name for e in _EFFECTS.values() if e.name != effect.name}
         if effect.slot in taken:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: slot {effect.slot}: expected a slot no other effect has, found it "
                 f"taken by {taken[effect.slot]!r}"
             )
     if not effect.parameters:
-        raise ValueError(f"{where}: parameters: expected at least one, found none")
+        raise PneumafitInputError(f"{where}: parameters: expected at least one, found none")
     _check_parameters(where, effect.parameters)
     used: set[str] = set()
     for value, names in effect.options.items():
         extra = sorted(set(names) - set(effect.parameters))
         if value < 1 or extra:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: option {value}: expected a value >= 1 using parameters of the effect, "
                 f"found {'value < 1' if value < 1 else extra}"
             )
         used |= set(names)
     if used != set(effect.parameters):
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: options: expected every parameter used by some option, found "
             f"{sorted(set(effect.parameters) - used)} unused"
         )
     if effect.principal not in effect.parameters:
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: principal: expected one of {list(effect.parameters)}, "
             f"found {effect.principal!r}"
         )
     spec = SPECS[effect.principal]
     if not spec.lower <= effect.rig_default <= spec.upper:
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: rig_default: expected a value in [{spec.lower:g}, {spec.upper:g}] "
             f"{spec.unit}, found {effect.rig_default!r}"
         )
     ranges = [r.parameter for r in effect.fit]
     if sorted(ranges) != sorted(effect.parameters):
-        raise ValueError(
+        raise PneumafitInputError(
             f"{where}: fit: expected one FitRange per parameter {list(effect.parameters)}, "
             f"found {ranges}"
         )
     for r in effect.fit:
         spec = SPECS[r.parameter]
         if r.prior not in PRIOR_KINDS:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: fit {r.parameter}: prior: expected one of {PRIOR_KINDS}, "
                 f"found {r.prior!r}"
             )
         if not spec.lower <= r.lower < r.upper <= spec.upper:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{where}: fit {r.parameter}: expected bounds [{r.lower:g}, {r.upper:g}] within "
                 f"the physical bounds [{spec.lower:g}, {spec.upper:g}] {spec.unit}"
             )

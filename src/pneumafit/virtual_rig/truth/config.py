@@ -104,7 +104,9 @@ class Barrel:
 
     def __post_init__(self) -> None:
         if self.bore is not None and not (math.isfinite(self.bore) and self.bore > 0.0):
-            raise ValueError(f"barrel: bore: expected a diameter > 0 m, found {self.bore!r}")
+            raise PneumafitInputError(
+                f"barrel: bore: expected a diameter > 0 m, found {self.bore!r}"
+            )
 
 
 def _init_fields(cls: type) -> dict[str, Any]:

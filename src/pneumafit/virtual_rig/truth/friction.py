@@ -25,6 +25,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = ["FRICTION_MODELS", "DahlFriction", "EndStops", "LuGreFriction"]
 
 _SEAL_MODES = ("none", "multiplicative", "additive")
@@ -32,7 +34,7 @@ _SEAL_MODES = ("none", "multiplicative", "additive")
 
 def _need(where: str, ok: bool, what: str, found: object) -> None:
     if not ok:
-        raise ValueError(f"{where}: expected {what}, found {found!r}")
+        raise PneumafitInputError(f"{where}: expected {what}, found {found!r}")
 
 
 @dataclass(frozen=True, kw_only=True)

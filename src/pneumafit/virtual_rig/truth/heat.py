@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.virtual_rig.truth.constants import GRAVITY, R_GAS, air_conductivity, air_viscosity
 
 __all__ = ["AREA_CONVENTIONS", "HEAT_MODELS", "NusseltConvection", "exchange_area"]
@@ -82,20 +83,28 @@ class NusseltConvection:
     def __post_init__(self) -> None:
         w = "heat 'nusselt'"
         if not (math.isfinite(self.xi) and self.xi >= 0.0):
-            raise ValueError(f"{w}: xi: expected a value >= 0, found {self.xi!r}")
+            raise PneumafitInputError(f"{w}: xi: expected a value >= 0, found {self.xi!r}")
         if not 0.05 <= self.beta <= 0.6:
-            raise ValueError(f"{w}: beta: expected an exponent in [0.05, 0.6], found {self.beta!r}")
+            raise PneumafitInputError(
+                f"{w}: beta: expected an exponent in [0.05, 0.6], found {self.beta!r}"
+            )
         if self.area not in AREA_CONVENTIONS:
-            raise ValueError(f"{w}: area: expected one of {AREA_CONVENTIONS}, found {self.area!r}")
+            raise PneumafitInputError(
+                f"{w}: area: expected one of {AREA_CONVENTIONS}, found {self.area!r}"
+            )
         if self.air not in ("sutherland", "constant"):
-            raise ValueError(f"{w}: air: expected 'sutherland' or 'constant', found {self.air!r}")
+            raise PneumafitInputError(
+                f"{w}: air: expected 'sutherland' or 'constant', found {self.air!r}"
+            )
         if self.wall_temperature is not None and not 150.0 <= self.wall_temperature <= 600.0:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"{w}: wall_temperature: expected a temperature in [150, 600] K, found "
                 f"{self.wall_temperature!r}"
             )
         if self.length is not None and not self.length > 0.0:
-            raise ValueError(f"{w}: length: expected a length > 0 m, found {self.length!r}")
+            raise PneumafitInputError(
+                f"{w}: length: expected a length > 0 m, found {self.length!r}"
+            )
 
     def coefficient(self, pressure: float, temperature: float, wall: float, length: float) -> float:
         """lambda (W/m^2/K) at P (Pa), gas T (K), wall T_w (K), length D (m)."""

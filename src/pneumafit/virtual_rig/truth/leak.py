@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.virtual_rig.truth.valve import restriction_flow
 
 __all__ = ["EXTERNAL_LEAKS", "NoExternalLeak", "OrificeLeak"]
@@ -70,15 +71,15 @@ class OrificeLeak:
         for key in ("C_P", "C_N"):
             value = getattr(self, key)
             if not (math.isfinite(value) and 0.0 <= value < 1e-8):
-                raise ValueError(
+                raise PneumafitInputError(
                     f"external leak 'orifice': {key}: expected a conductance in [0, 1e-8) "
                     f"m^3/s/Pa (1e-8 is a fully open valve, not a leak), found {value!r}"
                 )
         if not (math.isfinite(self.b) and 0.0 <= self.b < 1.0):
-            raise ValueError(f"external leak 'orifice': b: expected a ratio in [0, 1), "
+            raise PneumafitInputError(f"external leak 'orifice': b: expected a ratio in [0, 1), "
                              f"found {self.b!r}")  # fmt: skip
         if not (math.isfinite(self.m) and 0.2 <= self.m <= 1.0):
-            raise ValueError(f"external leak 'orifice': m: expected an index in [0.2, 1], "
+            raise PneumafitInputError(f"external leak 'orifice': m: expected an index in [0.2, 1], "
                              f"found {self.m!r}")  # fmt: skip
 
     def flow(self, chamber: str, pressure: float, temperature: float, p_atm: float,

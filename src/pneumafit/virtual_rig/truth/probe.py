@@ -22,6 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import lfilter
 
+from pneumafit.errors import PneumafitInputError
+
 __all__ = ["PROBE_MODELS", "LaggedProbe"]
 
 
@@ -60,9 +62,11 @@ class LaggedProbe:
         for key in ("time_constant", "second_time_constant", "noise"):
             value = getattr(self, key)
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"probe 'lagged': {key}: expected a value >= 0, found {value!r}")
+                raise PneumafitInputError(
+                    f"probe 'lagged': {key}: expected a value >= 0, found {value!r}"
+                )
         if not (math.isfinite(self.offset) and abs(self.offset) < 50.0):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"probe 'lagged': offset: expected |offset| < 50 K, found {self.offset!r}"
             )
 

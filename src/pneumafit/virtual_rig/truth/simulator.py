@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.simulation import Experiment
 from pneumafit.virtual_rig.truth.constants import CV, GAMMA, GRAVITY, R_GAS
 from pneumafit.virtual_rig.truth.heat import exchange_area
@@ -253,11 +254,11 @@ class TruthSimulator:
 
     def __init__(self, config: TruthConfig, rtol: float = 1e-8, method: str = "LSODA") -> None:
         if method not in ("LSODA", "Radau", "BDF"):
-            raise ValueError(
+            raise PneumafitInputError(
                 f"truth simulator: method: expected LSODA, Radau or BDF, found {method!r}"
             )
         if not 1e-13 <= rtol <= 1e-3:
-            raise ValueError(
+            raise PneumafitInputError(
                 f"truth simulator: rtol: expected a value in [1e-13, 1e-3], found {rtol!r}"
             )
         self.config = config

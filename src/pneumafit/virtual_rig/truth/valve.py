@@ -39,6 +39,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.virtual_rig.truth.constants import RHO_REF, T_REF
 
 __all__ = [
@@ -124,7 +125,7 @@ def restriction_flow(
 
 def _need(where: str, ok: bool, what: str, found: object) -> None:
     if not ok:
-        raise ValueError(f"{where}: expected {what}, found {found!r}")
+        raise PneumafitInputError(f"{where}: expected {what}, found {found!r}")
 
 
 # ----------------------------------------------------------------------------

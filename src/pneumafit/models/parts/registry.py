@@ -147,17 +147,17 @@ class HeatLaw:
 
 
 @dataclass(frozen=True)
-class ValveLaw:
-    """A servo-valve law (configuration slot ``C_VALVE_LAW``).
+class _Law:
+    """What every law of a configuration slot holds (see the subclasses).
 
     Attributes
     ----------
     name : str
-        Name (``ModelStructure.valve``).
+        Name (the ``ModelStructure`` field's value).
     code : int
-        Value of ``C_VALVE_LAW`` (``kernel.VALVE_*``).
+        Value of the law's configuration slot (``kernel.*`` codes).
     parameters : tuple of str
-        Valve parameters the law uses, names in ``PARAMETER_SPECS``.
+        Parameters the law uses, names in ``PARAMETER_SPECS``.
     description : str
         One line.
     """
@@ -169,25 +169,16 @@ class ValveLaw:
 
 
 @dataclass(frozen=True)
-class FrictionLaw:
-    """A friction law of the piston (configuration slot ``C_FRICTION_LAW``).
+class ValveLaw(_Law):
+    """A servo-valve law (configuration slot ``C_VALVE_LAW``, ``kernel.VALVE_*``;
+    ``ModelStructure.valve``); the attributes of every law."""
 
-    Attributes
-    ----------
-    name : str
-        Name (``ModelStructure.friction``).
-    code : int
-        Value of ``C_FRICTION_LAW`` (``kernel.FRICTION_*``).
-    parameters : tuple of str
-        Friction parameters the law uses, names in ``PARAMETER_SPECS``.
-    description : str
-        One line.
-    """
 
-    name: str
-    code: int
-    parameters: tuple[str, ...]
-    description: str
+@dataclass(frozen=True)
+class FrictionLaw(_Law):
+    """A friction law of the piston (configuration slot ``C_FRICTION_LAW``,
+    ``kernel.FRICTION_*``; ``ModelStructure.friction``); the attributes of
+    every law."""
 
 
 # ----------------------------------------------------------------- effects

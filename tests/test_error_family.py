@@ -165,3 +165,15 @@ def test_the_family_is_caught_as_one() -> None:
         whiteness_band(100, alpha=2.0)
     with pytest.raises(ValueError, match="alpha"):  # callers that catch ValueError still do
         whiteness_band(100, alpha=2.0)
+
+
+@pytest.mark.parametrize(("name", "text"), [("c.json", "{not json"), ("c.yaml", "a: [1, 2")])
+def test_a_controller_export_that_does_not_parse_is_bad_input(
+    tmp_path: Path, name: str, text: str
+) -> None:
+    """Plumbing: a syntax error in a controller export names the file (bad input, not a bug)."""
+    from pneumafit.outputs.export import read_export
+
+    (tmp_path / name).write_text(text)
+    with pytest.raises(PneumafitInputError, match=name):
+        read_export(tmp_path / name)

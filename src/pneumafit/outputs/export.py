@@ -608,9 +608,15 @@ def read_export(path: str | os.PathLike[str]) -> dict:
     if str(path).endswith((".yaml", ".yml")):
         import yaml
 
-        doc = yaml.safe_load(text)
+        try:
+            doc = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise PneumafitInputError(f"{file}: expected a YAML document, found: {exc}") from None
     else:
-        doc = json.loads(text)
+        try:
+            doc = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise PneumafitInputError(f"{file}: expected a JSON document, found: {exc}") from None
     found = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
     if found != "pneumafit-controller-export":
         raise PneumafitInputError(

@@ -23,8 +23,7 @@ from pneumafit.discovery import (
     summarize,
     whiteness_band,
 )
-from pneumafit.simulation.sensor import first_order_lag
-from pneumafit.virtual_rig import RigRun, VirtualRig
+from pneumafit.virtual_rig import RigRun, VirtualRig, held_input_lag
 
 T = np.arange(0.0, 2.0005, 1e-3)
 NOISE = 400.0  # Pa
@@ -257,7 +256,7 @@ def test_temperature_residuals_show_the_sensor_lag(
     rec = next(r for r in clean_run.campaign.recordings if r.file == "charge_P.h5")
     gas = ch.residual + 0.0  # measured - simulated gas temperature
     simulated = rec.channels["T_P"] - gas
-    lagged = first_order_lag(simulated, rec.time, clean_rig.sensors.temperature_time_constant)
+    lagged = held_input_lag(simulated, 1e-3, clean_rig.sensors.temperature_time_constant)
     assert residual_analysis(rec, {"T_P": lagged}).channels["T_P"].white
 
 

@@ -13,7 +13,6 @@ from pneumafit.campaign import read_campaign, validate_campaign
 from pneumafit.cli.rig import run_rig
 from pneumafit.models import EFFECT_SLOTS
 from pneumafit.simulation import DEFAULT_STEP, Simulator
-from pneumafit.simulation.sensor import first_order_lag
 from pneumafit.virtual_rig import (
     DEMO_TRUTH,
     TRUTH_FILE,
@@ -21,6 +20,7 @@ from pneumafit.virtual_rig import (
     RigRun,
     SensorModel,
     VirtualRig,
+    held_input_lag,
     quick_protocol,
 )
 
@@ -128,9 +128,7 @@ def test_temperature_sensor_lags_the_gas(quick_run: RigRun) -> None:
     assert rec.time[np.argmax(measured)] > rec.time[np.argmax(true)] + 0.1
     assert measured.max() < true.max() - 5.0
     # and it is the declared first-order lag plus white noise
-    residual = measured - first_order_lag(
-        true, dt * np.arange(true.size), sensors.temperature_time_constant
-    )
+    residual = measured - held_input_lag(true, dt, sensors.temperature_time_constant)
     assert abs(np.std(residual) - sensors.temperature_noise) < 0.2 * sensors.temperature_noise
 
 

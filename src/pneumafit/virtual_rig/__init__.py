@@ -28,7 +28,7 @@ from pneumafit.virtual_rig.protocol import (
     sparse_protocol,
     tutorial_protocol,
 )
-from pneumafit.virtual_rig.sensors import SensorModel
+from pneumafit.virtual_rig.sensors import SensorModel, held_input_lag
 from pneumafit.virtual_rig.virtual import (
     DEMO_CLEAN_TRUTH_PRESET,
     DEMO_SEED,
@@ -75,6 +75,7 @@ __all__ = [
     "check_output_folder",
     "demo_protocol",
     "get_protocol",
+    "held_input_lag",
     "parse_effect_options",
     "quick_protocol",
     "resolve_effects",

@@ -12,19 +12,45 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import lfilter
 
 from pneumafit.errors import PneumafitInputError
-from pneumafit.simulation.sensor import first_order_lag
 
-__all__ = ["SensorModel"]
+__all__ = ["SensorModel", "held_input_lag"]
 
 
-def _lag(signal: NDArray[np.float64], dt: float, time_constant: float) -> NDArray[np.float64]:
-    """A uniformly sampled signal through the shared first-order sensor (s)."""
+def held_input_lag(
+    signal: NDArray[np.float64], dt: float, time_constant: float
+) -> NDArray[np.float64]:
+    """Reading of the rig's first-order sensors, tau dy/dt = x - y, settled at the start.
+
+    The virtual rig's own sensor law, on the truth's side of every recording:
+    discretised exactly for an input *held* over each sample interval,
+    y[k] = a y[k-1] + (1 - a) x[k] with a = exp(-dt / tau), y[0] = x[0]. The
+    fit's lag (:func:`pneumafit.simulation.sensor.first_order_lag`, exact for
+    an input linear between samples) differs from it by about half a sample
+    on purpose: the data are not made with the fitted model's code.
+
+    Parameters
+    ----------
+    signal : ndarray
+        True signal x, uniformly sampled.
+    dt : float
+        Sample interval (s).
+    time_constant : float
+        tau (s); 0 returns the signal unchanged.
+
+    Returns
+    -------
+    ndarray
+        The sensor's reading y, same shape as ``signal``.
+    """
     x = np.asarray(signal, dtype=float)
-    if x.size == 0:
+    if time_constant <= 0.0 or x.size == 0:
         return x.copy()
-    return first_order_lag(x, dt * np.arange(x.size), time_constant)
+    a = math.exp(-dt / time_constant)
+    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])
+    return np.asarray(y, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -94,7 +120,7 @@ class SensorModel:
         self, true: NDArray[np.float64], dt: float, rng: np.random.Generator
     ) -> NDArray[np.float64]:
         """Reading of the slow gas-temperature sensor (K): lag, then noise."""
-        lagged = _lag(true, dt, self.temperature_time_constant)
+        lagged = held_input_lag(true, dt, self.temperature_time_constant)
         return lagged + rng.normal(0.0, self.temperature_noise, size=true.shape)
 
     def flow(
@@ -112,5 +138,5 @@ class SensorModel:
         every : int
             Keep one sample in ``every`` (the recording's rate).
         """
-        lagged = _lag(true, dt, self.flow_time_constant)[::every]
+        lagged = held_input_lag(true, dt, self.flow_time_constant)[::every]
         return lagged + rng.normal(0.0, self.flow_noise, size=lagged.shape)

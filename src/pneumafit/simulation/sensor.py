@@ -1,9 +1,10 @@
-"""A first-order sensor: the one lag the fit, the comparison, the report and the virtual rig share.
+"""A first-order sensor: the one lag of the models' side (the fit, the replay, the report).
 
 tau dy/dt = x - y, settled at the start (y_0 = x_0), discretised exactly for
-an input linear between samples, so uneven grids are fine. The independent
-truth simulator (``virtual_rig.truth.probe``) keeps its own probe law on
-purpose: it must not share the fitted models' code.
+an input linear between samples, so uneven grids are fine. The virtual rig,
+the truth's side, keeps its own sensor laws on purpose
+(``virtual_rig.held_input_lag``, ``virtual_rig.truth.probe``): the data must
+not be made with the fitted models' code.
 """
 
 from __future__ import annotations

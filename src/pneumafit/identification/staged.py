@@ -124,13 +124,22 @@ DEFAULT_CHANNELS: tuple[str, ...] = ("p_P", "p_N", "y", "qm_P", "qm_N")
 #: from a wide start) on the demo, so these are 50 tau plus burn-in.
 DEFAULT_STEPS = {"valve": 2500, "heat": 1000, "friction": 2000}
 #: With ``FitOptions.early_stop``, a chain is checked every
-#: DEFAULT_STEPS / MCMC_CHECKS steps (heat 100, friction 200), also while it
-#: is extended, and stops at the first check where it is >= 50 tau long with
-#: every R-hat <= 1.01. On the demo (2026-11-25) the friction chain's tau was
-#: 15-23 steps and its walkers' mean log-probability settled within 50 steps
-#: of the start (so a start from the Laplace ellipse would save little): it
-#: needs ~1100-1300 steps, and a check every 500 steps overshoots by up to 499.
-MCMC_CHECKS = 10
+#: DEFAULT_STEPS / MCMC_CHECKS steps (heat 50, friction 100) after its
+#: adaptation phase (:data:`ADAPT_FRACTION`), also while it is extended, and
+#: stops at the first check where it is >= 50 tau long with every R-hat
+#: <= 1.01. R-hat over the walkers as chains is about sqrt(1 + 2 tau / N) for
+#: a well-mixed chain of N kept steps (split chains; Vats and Knudson 2021),
+#: so R-hat <= 1.01 asks for ~100 tau, twice the 50 tau: on the demo
+#: (2026-11-25, DE moves alone, tau 30-40) the friction chains reached 50 tau
+#: at ~2000 steps and R-hat 1.01 at 3200-3800; with the adapted independence
+#: proposal (tau ~3) both hold after a few hundred steps.
+MCMC_CHECKS = 20
+#: Share of a sampled stage's default length run with the DE moves before
+#: the independence proposal is fitted to the walkers (``run_mcmc(adapt=)``,
+#: module doc of :mod:`pneumafit.identification.sampling`): friction 300
+#: steps, heat 150. From the wide start the demo's friction walkers settle
+#: in 90-170 steps (DE alone), so the t is fitted to settled walkers.
+ADAPT_FRACTION = 0.15
 #: Stages sampled by default. The valve is not: its eight parameters need
 #: long chains on the charge/discharge tests (the flow tests alone leave the
 #: centre leakage, which the blocked tests measure, ten times less certain
@@ -1282,7 +1291,7 @@ def identify(
                     post, ps, ps.to_internal(), cov, n_walkers=n_walkers, n_steps=n_steps,
                     seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
                     max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
-                    min_steps=check, report=task,
+                    min_steps=check, report=task, adapt=int(ADAPT_FRACTION * n_steps),
                 )  # fmt: skip
             evaluations += res.evaluations
             stage_obj = next(s for s in stages if s.name == stage_name)

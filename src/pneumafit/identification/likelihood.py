@@ -147,6 +147,19 @@ class LogLikelihood:
             out[j] = correlation_time(obs.noise.whiten(r[0], **state))
         return out
 
+    def overcount(self, z: ArrayLike) -> float:
+        """By how much the iid log-likelihood overcounts the data's information.
+
+        sum(n) / sum(n / tau) over the blocks at ``z``, tau the correlation
+        time of each block's whitened residuals (:meth:`temper`): 1 for white
+        residuals, or when the simulation fails.
+        """
+        taus = self.correlation_times(z)
+        if not np.all(np.isfinite(taus)):
+            return 1.0
+        n = np.array([o.n for o in self.problem.observations], dtype=float)
+        return max(float(np.sum(n) / np.sum(n / taus)), 1.0)
+
     def temper(self, z: ArrayLike) -> NDArray[np.float64]:
         """Count each block's residuals as n / tau independent samples.
 

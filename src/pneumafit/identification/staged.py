@@ -49,8 +49,10 @@ from pneumafit.identification.coverage import (
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
 from pneumafit.identification.optimise import (
+    STALL_RULE,
     PointEstimate,
     fit_least_squares,
+    information_stall,
     laplace_covariance,
     laplace_summary,
 )
@@ -288,15 +290,8 @@ def _distinct_optima(
 #: was still gaining 330 in log-likelihood when stopped at 200 per round; the
 #: demo's fits converge in under 60.
 JOINT_NFEV = 500
-#: Stall rule of the joint stage (:func:`fit_least_squares`): stop a round
-#: when its log-likelihood gained less than 0.5 over the last 10 evaluated
-#: points (the gain scaled by the residuals' correlation, :func:`_joint_stall`).
-#: 0.5 is the gain of a one-sigma move of one parameter; a model
-#: that cannot follow its data creeps at such gains for hundreds of points:
-#: on a demo-plan campaign of an independently written rig (LuGre friction
-#: against the switch model) the joint stage took 1066 s and 78790
-#: simulations, most of them gaining less than that.
-JOINT_STALL = (10, 0.5)
+#: Stall rule of the joint stage (:data:`~pneumafit.identification.optimise.STALL_RULE`).
+JOINT_STALL = STALL_RULE
 
 
 def default_walkers(n_free: int) -> int:
@@ -726,19 +721,9 @@ def with_initial_states(
 def _joint_stall(
     problem: Problem, parameters: ParameterSet, start: Mapping[str, float], temper: bool
 ) -> tuple[int, float]:
-    """The joint stage's stall rule, in units of the data's effective information.
-
-    :data:`JOINT_STALL`'s gain is a one-sigma move of one parameter when
-    every sample is independent. With residuals correlated over tau samples
-    (a model that does not follow its data), the log-likelihood overcounts
-    the information by ~tau (see :meth:`LogLikelihood.temper`), and the
-    same move gains ~tau times more: the gain is scaled by sum(n) /
-    sum(n / tau) over the blocks, at the start. Unscaled when ``temper`` is
-    False or the residuals are white.
-    """
-    if not temper:
-        return JOINT_STALL
-    return JOINT_STALL[0], JOINT_STALL[1] * _overcount(problem, parameters, start)
+    """The joint stage's stall rule at ``start`` (:func:`information_stall`)."""
+    like = LogLikelihood(problem, parameters)
+    return information_stall(like, parameters.to_internal(dict(start)), scaled=temper)
 
 
 #: Valve stages of earlier fits in this process, by :func:`_valve_key`
@@ -792,18 +777,6 @@ def _pressure_rms(
         return None
     res = np.concatenate([r[0] for r in prob.residuals(pred)])
     return float(np.sqrt(np.mean(res * res))) if res.size else None
-
-
-def _overcount(problem: Problem, parameters: ParameterSet, start: Mapping[str, float]) -> float:
-    """sum(n) / sum(n / tau) over the blocks at ``start``: by how much the iid
-    log-likelihood overcounts the data's information (1 for white residuals,
-    or when the simulation fails); see :meth:`LogLikelihood.temper`."""
-    like = LogLikelihood(problem, parameters)
-    taus = like.correlation_times(parameters.to_internal(dict(start)))
-    if not np.all(np.isfinite(taus)):
-        return 1.0
-    n = np.array([o.n for o in problem.observations], dtype=float)
-    return max(float(np.sum(n) / np.sum(n / taus)), 1.0)
 
 
 def _least_squares(
@@ -1135,7 +1108,8 @@ def identify(
             trial, steps, names, [{**values, SEAL: c0}], seeds[2], label="friction (seal)"
         )
         gain = trial.estimate.log_likelihood - stage.estimate.log_likelihood
-        over = _overcount(prob, trial.estimate.parameters, trial.estimate.parameters.values())
+        est_ps = trial.estimate.parameters
+        over = LogLikelihood(prob, est_ps).overcount(est_ps.to_internal(est_ps.values()))
         penalty = 0.5 * math.log(max(prob.n_data / over, 2.0))
         held = [r for r in campaign.by_role("validate") if r.kind in ("step", "free")]
         rms_without = _pressure_rms(held, plain[0], before, opts)

@@ -67,6 +67,7 @@ from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares, information_stall
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import MAX_STEP, Problem
+from pneumafit.identification.quality import campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
 from pneumafit.identification.staged import (
     DEFAULT_CHANNELS,
@@ -568,52 +569,23 @@ def _effect_parameter_names(model: Model) -> list[str]:
 
 # ----------------------------------------------------------------- noise
 def pressure_noise(campaign: Campaign) -> float:
-    """Pressure sensor noise (Pa): robust sigma of second differences of the
-    charge/discharge/step pressures (MAD / sqrt(6), white noise on a smooth
-    signal), median over the channels."""
-    sig: list[float] = []
-    for rec in campaign.recordings:
-        if rec.kind not in ("charge", "discharge", "step"):
-            continue
-        for ch in PRESSURES:
-            x = rec.channels.get(ch)
-            if x is None or x.size < 10:
-                continue
-            d2 = np.diff(np.asarray(x, float), 2)
-            d2 = d2[np.isfinite(d2)]
-            if d2.size:
-                sig.append(1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0))
+    """Pressure sensor noise (Pa): the median of the charge/discharge/step
+    recordings' own pressure-noise estimates (quiet windows,
+    :func:`~pneumafit.identification.quality.noise_estimates`, the fit's
+    quality check's estimator); NaN without any."""
+    sig = [
+        s for (_f, ch), s in noise_estimates(campaign, ("charge", "discharge", "step")).items()
+        if ch in PRESSURES and s is not None
+    ]  # fmt: skip
     return float(np.median(sig)) if sig else math.nan
 
 
 # ----------------------------------------------------------------- the loop
 def channel_noise(campaign: Campaign) -> dict[str, float]:
-    """Sensor noise per measured channel (SI), from the data.
-
-    Robust sigma of the second differences (MAD / sqrt(6): white noise on a
-    signal smooth at the sampling rate), median over the recordings that
-    hold the channel (its sampled points only); channels whose second
-    differences are mostly zero (a quantised encoder at rest) get 0.
-
-    Returns
-    -------
-    dict of str to float
-        Channel -> noise standard deviation, in the channel's SI unit.
-    """
-    found: dict[str, list[float]] = {}
-    for rec in campaign.recordings:
-        for ch, x in rec.channels.items():
-            if ch in ("u_P", "u_N", "y_ref"):
-                continue
-            x = np.asarray(x, float)
-            x = x[np.isfinite(x)]
-            if x.size < 10:
-                continue
-            d2 = np.diff(x, 2)
-            found.setdefault(ch, []).append(
-                1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-            )
-    return {ch: float(np.median(v)) for ch, v in found.items()}
+    """Sensor noise per measured channel (SI), from the data: the fit's
+    quality estimator pooled over the recordings
+    (:func:`~pneumafit.identification.quality.campaign_noise`)."""
+    return campaign_noise(campaign)
 
 
 def channel_losses(

@@ -143,6 +143,45 @@ def estimate_noise(
     return sigma, len(var)
 
 
+def noise_estimates(
+    campaign: Campaign, kinds: Sequence[str] | None = None
+) -> dict[tuple[str, str], float | None]:
+    """Each recording's own sensor-noise estimate, per measured channel.
+
+    :func:`estimate_noise` on the recording's quiet windows (None with fewer
+    than three) for every channel but the commands (``u_P``, ``u_N``,
+    ``y_ref``), of the recordings of ``kinds`` (default: all). The one noise
+    estimator of the workbench: the fit's quality and discovery use it.
+
+    Returns
+    -------
+    dict of (recording file, channel) to float or None
+        Noise standard deviation in the channel's SI unit.
+    """
+    out: dict[tuple[str, str], float | None] = {}
+    for rec in campaign.recordings:
+        if kinds is not None and rec.kind not in kinds:
+            continue
+        windows = _quiet_windows(rec)
+        for ch in rec.channels:
+            if not ch.startswith("u_") and ch != "y_ref":
+                out[(rec.file, ch)] = estimate_noise(rec, ch, windows)[0]
+    return out
+
+
+def campaign_noise(campaign: Campaign, kinds: Sequence[str] | None = None) -> dict[str, float]:
+    """Sensor noise per channel: the median of the recordings' own estimates.
+
+    The pooled estimate of a sensor (:func:`noise_estimates`; recordings
+    without three quiet windows for it left out), in the channel's SI unit.
+    """
+    found: dict[str, list[float]] = {}
+    for (_file, ch), sigma in noise_estimates(campaign, kinds).items():
+        if sigma is not None:
+            found.setdefault(ch, []).append(sigma)
+    return {ch: float(np.median(v)) for ch, v in found.items()}
+
+
 def phases(rec: Recording) -> NDArray[np.str_]:
     """Phase of every sample: ``flow``, ``filling``/``rest`` or ``motion``/``rest``."""
     n = rec.n_samples
@@ -366,17 +405,8 @@ def assess_residuals(
     list of ChannelQuality
     """
     recs = {r.file: r for r in campaign.recordings}
-    own: dict[tuple[str, str], tuple[float | None, int]] = {}
-    windows = {f: _quiet_windows(r) for f, r in recs.items()}
-    for f, rec in recs.items():
-        for ch in rec.channels:
-            if not ch.startswith("u_") and ch != "y_ref":
-                own[(f, ch)] = estimate_noise(rec, ch, windows[f])
-    pooled: dict[str, float] = {}
-    for ch in {c for _f, c in own}:
-        sig = [s for (_f, c), (s, _n) in own.items() if c == ch and s is not None]
-        if sig:
-            pooled[ch] = float(np.median(sig))
+    own = noise_estimates(campaign)
+    pooled = campaign_noise(campaign)
     out = []
     for file, channel, idx, res in residuals:
         rec = recs[file]
@@ -385,7 +415,7 @@ def assess_residuals(
         if not np.any(good):
             continue
         idx, res = np.asarray(idx)[good], res[good]
-        sigma, _nw = own.get((file, channel), (None, 0))
+        sigma = own.get((file, channel))
         source = "rest" if rec.kind != "flow" else "levels"
         if sigma is None:
             sigma = pooled.get(channel)

@@ -75,6 +75,7 @@ from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.discovery.catalog import EFFECTS, get_effect
 from pneumafit.discovery.phases import PHASES, label_phases, window_samples
 from pneumafit.errors import PneumafitInputError
+from pneumafit.identification.quality import campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
 from pneumafit.models import kernel, layout, parts
 from pneumafit.models.parts import RegistryView
@@ -343,14 +344,13 @@ def _smooth_rate(values: NDArray[np.float64], width: int) -> NDArray[np.float64]
     return out
 
 
-def _rate_noise(values: NDArray[np.float64], width: int, dt: float) -> float:
+def _rate_noise(sigma: float, width: int, dt: float) -> float:
     """Standard deviation (Pa/s) of the Savitzky-Golay slope from white sensor noise.
 
-    The noise sigma comes from second differences (robust: MAD), the slope's
-    from its weights: sigma / (dt sqrt(sum k^2)).
+    ``sigma`` is the pressure sensor's noise (Pa; the workbench's one
+    estimator, :func:`~pneumafit.identification.quality.noise_estimates`),
+    the slope's follows from its weights: sigma / (dt sqrt(sum k^2)).
     """
-    d2 = np.diff(values, 2)
-    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
     m = width // 2
     return sigma / (dt * math.sqrt(m * (m + 1) * (2 * m + 1) / 3.0)) if m else sigma / dt
 
@@ -677,6 +677,8 @@ def build_rows(
 
     model = model_values(values)
     recordings = campaign.recordings if role is None else campaign.by_role(role)
+    own_noise = noise_estimates(campaign, ("charge", "discharge", "step"))
+    pooled_noise = campaign_noise(campaign)
     for rec in recordings:
         if rec.kind not in ("charge", "discharge", "step"):
             continue
@@ -707,7 +709,12 @@ def build_rows(
             keep = mask & np.isfinite(rate)
             sens = _smooth_max(np.abs(at[f"sens_{ch}"]), width)
             keep &= sens <= max_sensitivity
-            noise = _rate_noise(meas, width, dt)
+            sigma = own_noise.get((rec.file, name)) or pooled_noise.get(name, math.nan)
+            if not math.isfinite(sigma):
+                # no quiet window for this sensor in any recording: its noise,
+                # hence the weight of its rates, is unknown
+                continue
+            noise = _rate_noise(sigma, width, dt)
             weight = 1.0 / np.sqrt(noise**2 + (sens * PRESSURE_UNCERTAINTY) ** 2)
             keep &= np.arange(t.size) % max(int(decimate), 1) == 0
             smoothed = {k: _smooth_rate(v, width) for k, v in terms.items()}

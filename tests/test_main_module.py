@@ -28,3 +28,19 @@ def test_version_prints_the_installed_version() -> None:
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f"pneumafit {__version__}"
+
+
+def test_version_does_not_load_the_models() -> None:
+    """``--version`` is answered before the app is imported: neither numba nor
+    the model registry (which the app's choices come from) is loaded, so it
+    costs what the interpreter's start costs (it took 1.4 s with them)."""
+    code = (
+        "import sys; sys.argv = ['pneumafit', '--version']\n"
+        "from pneumafit.__main__ import main\n"
+        "main()\n"
+        "print(sorted(m for m in ('numba', 'pneumafit.models', 'pneumafit.cli.app') "
+        "if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "[]"

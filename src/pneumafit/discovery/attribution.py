@@ -709,7 +709,9 @@ def build_rows(
             keep = mask & np.isfinite(rate)
             sens = _smooth_max(np.abs(at[f"sens_{ch}"]), width)
             keep &= sens <= max_sensitivity
-            sigma = own_noise.get((rec.file, name)) or pooled_noise.get(name, math.nan)
+            sigma = own_noise.get((rec.file, name))
+            if sigma is None:
+                sigma = pooled_noise.get(name, math.nan)
             if not math.isfinite(sigma):
                 # no quiet window for this sensor in any recording: its noise,
                 # hence the weight of its rates, is unknown

@@ -290,9 +290,6 @@ def _distinct_optima(
 #: was still gaining 330 in log-likelihood when stopped at 200 per round; the
 #: demo's fits converge in under 60.
 JOINT_NFEV = 500
-#: Stall rule of the joint stage (:data:`~pneumafit.identification.optimise.STALL_RULE`).
-JOINT_STALL = STALL_RULE
-
 
 def default_walkers(n_free: int) -> int:
     """Walkers of a stage with ``n_free`` parameters: max(8, 3 n_free)."""
@@ -878,7 +875,7 @@ def identify(
         warns.append(line)
         say(f"warning: {line}")
 
-    joint_stall = JOINT_STALL
+    joint_stall = STALL_RULE
 
     def run_stage(
         stage: StageResult,
@@ -904,7 +901,7 @@ def identify(
         stall = None
         if explicit_initial:
             joint_stall = _joint_stall(prob, ps, starts[0] if starts else {}, opts.temper)
-            if joint_stall[1] > JOINT_STALL[1]:
+            if joint_stall[1] > STALL_RULE[1]:
                 say(
                     f"{stage.name}: residuals correlated at the start; a round stops when it "
                     f"gains less than {joint_stall[1]:.3g} in {joint_stall[0]} points"

@@ -118,7 +118,30 @@ def test_demo_is_what_the_rig_makes_today(
     assert run_rig(out, [], seed=DEMO_SEED, console=console, truth=preset) == 0
     assert (out / "campaign.toml").read_text() == (folder / "campaign.toml").read_text()
     fresh, committed = read_campaign(out), read_campaign(folder)
+    # The same seed gives the same noise draws; what may differ is the truth
+    # simulator's adaptive LSODA (rtol 1e-8), whose step choices follow the
+    # platform's last bits (libm, BLAS, CPU): a regeneration on another
+    # machine moved the pressures by up to 0.34 Pa (7e-7 relative) and
+    # flipped the encoder count of 2 of 4501 samples. Allowed: 1 % of each
+    # sensor's noise sigma (truth.json "sensors"), and for the quantised
+    # position one count on at most 0.1 % of the samples. A change of the
+    # physics, the preset, the protocol or the sensors moves whole records
+    # by more than that.
+    sensors = json.loads((folder / TRUTH_FILE).read_text())["sensors"]
+    sigma = {"p": sensors["pressure_noise"], "T": sensors["temperature_noise"],
+             "qm": sensors["flow_noise"]}  # fmt: skip
+    count = sensors["position_resolution"]
     for a, b in zip(fresh.recordings, committed.recordings, strict=True):
+        assert set(a.channels) == set(b.channels), a.file
         for name in a.channels:
-            # 1e-9 relative: file round trip and unit conversion, not physics
-            np.testing.assert_allclose(a.channels[name], b.channels[name], rtol=1e-9, err_msg=name)
+            diff = np.abs(a.channels[name] - b.channels[name])
+            where = f"{a.file} {name}"
+            if name == "y":
+                moved = diff > 1e-9 * count
+                assert np.all(diff <= count * (1.0 + 1e-6)), where
+                assert moved.sum() <= max(1, int(1e-3 * diff.size)), where
+            elif name.split("_")[0] in sigma:
+                assert diff.max() <= 0.01 * sigma[name.split("_")[0]], where
+            else:  # commands and references: the controller sees the same pressures
+                np.testing.assert_allclose(a.channels[name], b.channels[name], rtol=1e-5,
+                                           atol=1e-5, err_msg=where)  # fmt: skip

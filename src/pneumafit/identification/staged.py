@@ -291,6 +291,7 @@ def _distinct_optima(
 #: demo's fits converge in under 60.
 JOINT_NFEV = 500
 
+
 def default_walkers(n_free: int) -> int:
     """Walkers of a stage with ``n_free`` parameters: max(8, 3 n_free)."""
     return max(8, 3 * n_free)
@@ -785,12 +786,13 @@ def _least_squares(
     max_nfev: int = 60,
     stall: tuple[int, float] | None = None,
     progress: Progress | None = None,
+    max_reweight: int = 6,
 ) -> PointEstimate:
     """Multi-start least squares (see :func:`fit_least_squares`)."""
     like = LogLikelihood(problem, parameters)
     return fit_least_squares(
         like, starts=starts, n_random_starts=random_starts, seed=seed, max_nfev=max_nfev,
-        stall=stall, progress=progress,
+        stall=stall, progress=progress, max_reweight=max_reweight,
     )  # fmt: skip
 
 
@@ -1154,9 +1156,12 @@ def identify(
             params.with_values(values).only_free(joint_free), screen_prob, values, free=True
         )
         with reporter.task("joint (screening the heat-law starts)") as task:
+            # one round of JOINT_SCREEN_NFEV iterations per start (the noise
+            # weights of the start held): a screen, not a solve
             screen = _least_squares(
-                screen_prob, ps, joint_starts, seeds[3], 0, JOINT_SCREEN_NFEV, progress=task
-            )
+                screen_prob, ps, joint_starts, seeds[3], 0, JOINT_SCREEN_NFEV, progress=task,
+                max_reweight=1,
+            )  # fmt: skip
         evaluations += screen.n_evaluations
         ranked = sorted(
             (r for r in screen.starts if math.isfinite(r["log_likelihood"])),

@@ -287,7 +287,9 @@ def fit_least_squares(
         ``window`` evaluated points (the best point is kept; status
         :data:`STALLED`, counted as converged). A model that cannot follow
         its data creeps for thousands of iterations with such gains, which
-        move no estimate by a fraction of its uncertainty.
+        move no estimate by a fraction of its uncertainty. The reweighting
+        rounds stop by the same rule: after a round that gained less than
+        ``gain`` in all.
     progress : Progress or callable, optional
         Updated at every evaluated point with the start, the round, the
         points and simulations so far and the round's best log-likelihood
@@ -348,9 +350,19 @@ def fit_least_squares(
                     )
                 ll_new = wh.set_state(x_end)
                 improved = ll_new > ll + 1e-6 * max(1.0, abs(ll))
+                # the stall rule between rounds too: a whole round (noise
+                # weights re-estimated, >= 1 point) that gained less than
+                # the rule's gain moved no estimate by a fraction of its
+                # uncertainty, and neither would the next
+                settled = stall is not None and ll_new - ll < stall[1]
                 if ll_new >= ll or not math.isfinite(ll):
                     z, ll = x_end, ll_new
                 if not improved:
+                    break
+                if settled:
+                    message += (
+                        f"; reweighting stopped: round {i_round + 1} gained less than {stall[1]:g}"
+                    )
                     break
             wh.set_state(z)
         lp = ll + float(ps.log_prior(z)[0])

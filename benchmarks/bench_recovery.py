@@ -53,10 +53,17 @@ CASES: tuple[tuple[str, str], ...] = (
     ("dahl-bump-leak", "sparse"),
     ("mixed", "sparse"),
     ("mixed", "demo"),
+    ("demo-clean", "demo"),
     ("demo", "demo"),
 )
 #: The control case: truth laws the fit shares (not counted in the targets).
 CONTROL = "fit-laws"
+#: The bundled demo's truth: ``demo-clean`` plus an external leak that its
+#: campaign does not declare (docs/effects.md). The fitted models have no
+#: such leak, so their residual cannot reach the noise there: that is
+#: discovery's case (``pneumafit discover``), reported here but not counted
+#: in the targets of the fit, which ``demo-clean`` measures on the same rig.
+UNDECLARED = "demo"
 #: Targets of the issue.
 RATIO_TARGET = 3.0
 REL_TARGET = 0.25
@@ -206,7 +213,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{preset}/{protocol}/seed {seed}: p RMS/noise fit {fit_r:.1f}, "
                   f"held-out {val_r:.1f}; {row['fit_s']:.0f} s", file=sys.stderr)  # fmt: skip
     control = [r for r in rows if r["case"] == CONTROL]
-    rows_m = [r for r in rows if r["case"] != CONTROL]  # the targets are on mismatched truths
+    undeclared = [r for r in rows if r["case"] == UNDECLARED]
+    # the targets are on mismatched truths whose effects the models have
+    rows_m = [r for r in rows if r["case"] not in (CONTROL, UNDECLARED)]
     pairs = [v for r in rows_m for v in r["figures"].values()]
     ratios = [r[k] for r in rows_m for k in ("pressure_ratio_fit", "pressure_ratio_validate")
               if np.isfinite(r[k])]  # fmt: skip
@@ -231,6 +240,10 @@ def main(argv: list[str] | None = None) -> int:
         "control_pressure_ratio": max((r[k] for r in control for k in
                                        ("pressure_ratio_fit", "pressure_ratio_validate")),
                                       default=math.nan),
+        "undeclared_cases": len(undeclared),
+        "undeclared_pressure_ratio": max((r[k] for r in undeclared for k in
+                                          ("pressure_ratio_fit", "pressure_ratio_validate")),
+                                         default=math.nan),
     }  # fmt: skip
     if args.table is not None:
         args.table.write_text(table(rows))

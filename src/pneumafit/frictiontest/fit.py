@@ -77,7 +77,13 @@ from pneumafit.identification.quality import (
     interval_problems,
 )
 from pneumafit.identification.sampling import run_mcmc
-from pneumafit.identification.staged import FitResult, StageResult, campaign_identity
+from pneumafit.identification.staged import (
+    ADAPT_FRACTION,
+    MCMC_CHECKS,
+    FitResult,
+    StageResult,
+    campaign_identity,
+)
 from pneumafit.progress import Reporter
 
 __all__ = ["LAWS", "FrictionStructure", "FrictionTestProblem", "identify_friction"]
@@ -91,6 +97,10 @@ LAWS: dict[str, tuple[str, ...]] = {
         "friction_stiffness", "friction_damping",
     ),
 }  # fmt: skip
+#: Default MCMC length (steps, adaptation included): the chain stops earlier
+#: once converged (``run_mcmc(min_steps=)``) and is extended up to twice
+#: this while it is not.
+DEFAULT_FRICTION_STEPS = 3000
 #: Steady sliding: speed above this fraction of the recording's median speed.
 SLIDING_FRACTION = 0.6
 #: Stribeck velocity that hides the Stribeck drop (m/s): exp(-(v/v_st)^2) = 0
@@ -318,7 +328,10 @@ def identify_friction(
     mcmc : bool
         Sample the joint posterior with emcee after the least squares.
     walkers, steps : int, optional
-        Default 4 n_free (at least 16) and 3000.
+        Default 4 n_free (at least 16) and :data:`DEFAULT_FRICTION_STEPS`,
+        stopped at the first check (every 1 / ``MCMC_CHECKS`` of it) where
+        the chain is >= 50 tau long with every R-hat <= 1.01, extended up
+        to twice that while it is not; ``steps`` gives exactly that many.
     seed : int
     chains : path, optional
         emcee HDF5 backend (group ``friction``).
@@ -467,11 +480,18 @@ def identify_friction(
         n_free = parameters.n_free
         n_walkers = walkers or max(16, 4 * n_free)
         post = LogPosterior(like)
+        # as the chamber fits sample: a DE phase from the Laplace ellipse, then
+        # the Student-t proposal fitted to it; without ``steps``, checked
+        # every 1/MCMC_CHECKS of the default length and stopped at >= 50 tau
+        # with R-hat <= 1.01, extended up to twice the length while short
+        n_steps = steps or DEFAULT_FRICTION_STEPS
+        check = None if steps else n_steps // MCMC_CHECKS
         with (progress or Reporter(say)).task("mcmc friction") as task:
             run = run_mcmc(
                 post, parameters, est.z, est.covariance, n_walkers=n_walkers,
-                n_steps=steps or 3000, seed=seed,
-                backend=chains, name="friction", log=say, report=task,
+                n_steps=n_steps, seed=seed, backend=chains, name="friction", log=say,
+                report=task, adapt=int(ADAPT_FRACTION * n_steps), min_steps=check,
+                max_steps=None if steps else 2 * n_steps,
             )  # fmt: skip
         joint.mcmc = run
         joint.propagated = run.parameters

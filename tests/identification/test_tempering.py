@@ -142,3 +142,44 @@ def test_overcount_and_the_stall_rule_scale_with_the_correlation_time(phi: float
         assert like.overcount(z) < 1.5
     else:
         assert like.overcount(z) > 5.0
+
+
+class TwoBlockProblem(LineProblem):
+    """The line seen by two sensors of very different noise whose data
+    disagree (another slope in the second): the profile likelihood
+    reweights the blocks after every round, so the rounds keep gaining
+    less and less, which is where the round-level stall rule acts."""
+
+    def __init__(self, y1: np.ndarray, y2: np.ndarray) -> None:
+        super().__init__(y1)
+        self.y2 = y2
+        self.observations = [
+            SimpleNamespace(noise=Gaussian(), floor=0.0, weight=None, recording=r,
+                            channel="p_P", n=N)
+            for r in ("r1", "r2")
+        ]  # fmt: skip
+        self.tempering = np.ones(2)
+
+    def residuals(self, prediction: SimpleNamespace) -> list[np.ndarray]:
+        return [self.y[None, :] - prediction.model, self.y2[None, :] - prediction.model]
+
+
+def test_the_stall_rule_also_ends_the_reweighting_rounds() -> None:
+    """A round that gained less than the stall rule's gain ends the solve
+    (``fit_least_squares(stall=)``, between rounds as within them); without
+    that rule the same solve runs more rounds, each gaining less. Kind: a
+    check of the optimiser's control flow on a two-block stand-in problem."""
+    rng = np.random.default_rng(3)
+    y1 = A + B * (T - 0.5) + rng.normal(0.0, 0.05, N)
+    y2 = A + 1.5 * B * (T - 0.5) + rng.normal(0.0, 0.5, N)
+    start = [{"a": 0.0, "b": 0.0}]
+    # a gain no round reaches: the solve stops after its first round
+    like = LogLikelihood(TwoBlockProblem(y1, y2), _params())
+    first = fit_least_squares(like, starts=start, max_nfev=20, stall=(10, 1e12))
+    assert "reweighting stopped: round 1 gained less than" in first.message
+    # a gain every round reaches: the rounds go on until one gains nothing
+    like = LogLikelihood(TwoBlockProblem(y1, y2), _params())
+    full = fit_least_squares(like, starts=start, max_nfev=20, stall=(10, 1e-12))
+    assert "reweighting stopped" not in full.message
+    assert full.starts[0]["nfev"] > first.starts[0]["nfev"]
+    assert full.log_likelihood >= first.log_likelihood

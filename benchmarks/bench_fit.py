@@ -18,7 +18,10 @@ The goal on the 2-core reference machine: the convection fit with MCMC in
 at most 60 s with chains of at least 50 tau (the speed issue; it was 5
 minutes before). Within the main job of 2026-11-26 (68b3452, the valve stage
 shared with the earlier fits) it took 214 s, its chains 22 s (heat) and 49 s
-(friction). The last line printed is one JSON object.
+(friction). Alone, on another machine about twice as fast (2026-11-27,
+0e9f5ca): 90 s, of which least squares 35 s, the heat chain 14 s (103 tau)
+and the friction chain 27 s (116 tau); not met. The last line printed is one
+JSON object.
 
 Run: ``python benchmarks/bench_fit.py [--model convection] [--seed 0]
 [--steps N] [--walkers N] [--chains PATH]``
@@ -36,6 +39,8 @@ from pathlib import Path
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify
 
+#: The speed issue's goal for a convection fit with MCMC on the demo (s).
+GOAL_SECONDS = 60.0
 DEMO = Path(__file__).resolve().parent.parent / "data" / "demo"
 CHECKED = (
     "xi", "beta", "lambda", "k", "friction_static", "friction_coulomb", "friction_viscous",
@@ -129,8 +134,11 @@ def main() -> None:
               f"{'yes' if ok else 'no'} ({p.uncertainty})")  # fmt: skip
     for w in result.warnings:
         print(f"warning: {w}")
-    goal = wall < 300.0 and all(r["tau_multiple"] >= 50.0 for r in mcmc_report.values())
-    print(f"\ngoal (MCMC fit < 300 s, chains >= 50 tau): {'met' if goal else 'NOT met'}")
+    goal = wall <= GOAL_SECONDS and all(r["tau_multiple"] >= 50.0 for r in mcmc_report.values())
+    print(
+        f"\ngoal (MCMC fit <= {GOAL_SECONDS:.0f} s, chains >= 50 tau): "
+        f"{'met' if goal else 'NOT met'}"
+    )
     print(json.dumps({
         "model": args.model, "wall_seconds": wall, "least_squares_seconds": ls_time,
         "least_squares_evaluations_per_second": ls_evals / max(ls_time, 1e-9),

@@ -15,8 +15,9 @@ fit's ``mcmc`` block, and prints one JSON line:
   ``tau_multiple`` per fit and sampled stage;
 - ``reused``: stages that were reused (0 s), which a timing should not have.
 
-The run's own console output goes to ``OUT/run.log``. The main job takes about
-half an hour on the 2-core reference machine; ``--no-mcmc`` is far shorter.
+The run's own console output goes to ``OUT/run.log``. The main job took
+7.3 min from a fresh clone on the 2-core machine (2026-11-27, README); the
+speed issue's goal is 3 min. ``--no-mcmc`` is far shorter.
 
 Run: ``python benchmarks/bench_run.py [--out DIR] [--campaign DIR] [--seed N]
 [--no-mcmc] [--walkers N] [--steps N]``

@@ -346,3 +346,55 @@ def test_the_report_renders_in_headless_chromium(report: tuple[Path, str], tmp_p
         assert image.size == (1280, 2000)
         pixels = np.asarray(image.convert("L"))
     assert pixels.std() > 10.0
+
+
+def test_the_report_reads_the_saved_replays_and_simulates_nothing(
+    run_folder: tuple[Path, Path], report: tuple[Path, str], tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """With comparison/replays.npz holding these fits of this campaign, the
+    report reads the traces (the same RMSE as when it simulated them) and
+    simulates nothing; a fit the file does not hold (here: refitted, so its
+    fingerprint changed) is simulated, and the source line says which."""
+    from pneumafit.comparison import replays as replays_module
+    from pneumafit.identification.staged import campaign_identity
+
+    run, folder = run_folder
+    campaign = read_campaign(folder)
+    copy = tmp_path / "run"
+    shutil.copytree(run / "fits", copy / "fits")
+    saved = []
+    for model in ("convection", "polytropic"):
+        path = copy / "fits" / model / "fit.json"
+        doc = json.loads(path.read_text())
+        saved.append(replays_module.replay_model(campaign, doc, str(path), model))
+    replays_module.save_replays(
+        copy / "comparison" / replays_module.REPLAYS_FILE, saved, campaign_identity(campaign)
+    )
+
+    def no_simulation(*_args: object, **_kwargs: object) -> None:
+        raise AssertionError("the report simulated a fit whose replay was saved")
+
+    monkeypatch.setattr(replays_module, "replay_model", no_simulation)
+    console = Console(file=io.StringIO(), width=160)
+    html = write_report(copy, copy / "report.html", campaign=folder, console=console)
+    html = html.read_text(encoding="utf-8")
+    assert "report: simulated" not in console.file.getvalue()
+    measurement, first = _section_html(html, "measurement"), _section_html(report[1], "measurement")
+    assert "comparison/replays.npz</code> (" in measurement
+    rmse = re.compile(r"<td class=\"n\">([0-9.e+-]+&nbsp;[a-zA-Z/]+)</td>")
+    assert rmse.findall(measurement) == rmse.findall(first) and rmse.findall(first)
+    assert _sections(html)["residuals"] == "ok" and _sections(html)["air"] == "ok"
+
+    # the polytropic fit changed after the comparison: simulated here, and said
+    monkeypatch.undo()
+    path = copy / "fits" / "polytropic" / "fit.json"
+    doc = json.loads(path.read_text())
+    doc["parameters"]["k"]["value"] *= 0.99
+    path.write_text(json.dumps(doc))
+    console = Console(file=io.StringIO(), width=160)
+    html = write_report(copy, copy / "report.html", campaign=folder, console=console)
+    html = html.read_text(encoding="utf-8")
+    assert "simulated the campaign with the polytropic fit" in console.file.getvalue()
+    assert "simulated the campaign with the convection fit" not in console.file.getvalue()
+    assert "replays.npz</code> for convection; the other fits simulated here" in html

@@ -6,7 +6,8 @@ Stages, in order, each writing into ``OUT``:
 2. ``fits/<model>``: the staged fit with MCMC of the convection,
    constant-lambda and polytropic models (``pneumafit fit``).
 3. ``comparison``: the three fitted models on every recording
-   (``pneumafit compare`` with those fits).
+   (``pneumafit compare`` with those fits), and each fit's replay of every
+   recording saved for the report (``comparison/replays.npz``).
 4. ``discovery``: residual analysis of the convection fit, attribution to
    catalog effects, refits (``pneumafit discover``).
 5. ``linear``: equilibria, linear models, open-loop poles and both
@@ -24,7 +25,8 @@ Stages, in order, each writing into ``OUT``:
    export``); the C code, compiled, is run in the loop on the closed-loop
    stage's plant beside the Python law (``export/sil.json``); the fitted
    plant as an FMI 2.0 FMU (``export/plant.fmu``, where a C compiler is there).
-8. ``report.html``: the self-contained validation report.
+8. ``report.html``: the self-contained validation report, from the saved
+   results of the stages above (it simulates nothing).
 
 Re-running reuses what is finished. A fit is reused when its fit.json
 belongs to the same campaign (file hashes) and model; an interrupted MCMC
@@ -62,6 +64,7 @@ from pneumafit.cli.console import (
     folder_problem,
     report_problems,
 )
+from pneumafit.comparison.replays import REPLAYS_FILE
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
@@ -328,7 +331,9 @@ def _analyses(
         return compare_command(path, out / "comparison", [f.parent for f in all_fits],
                                seed=seed, console=console)  # fmt: skip
 
-    stage("comparison", all_fits, [out / "comparison" / COMPARISON_FILE], compare)
+    stage("comparison", all_fits,
+          [out / "comparison" / COMPARISON_FILE, out / "comparison" / REPLAYS_FILE],
+          compare)  # fmt: skip
 
     def discover() -> int:
         from pneumafit.cli.discover import discover_command
@@ -399,6 +404,7 @@ def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,
     report_inputs = [
         *(fits[m] for m in RUN_MODELS),
         out / "comparison" / COMPARISON_FILE,
+        out / "comparison" / REPLAYS_FILE,
         out / "discovery" / "discovery.json",
         out / "linear" / "linear.json",
         out / "closed_loop" / "closed_loop.json",

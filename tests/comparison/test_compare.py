@@ -21,6 +21,7 @@ from pneumafit.comparison import (
     channel_error,
     evaluate_fit,
 )
+from pneumafit.comparison.replays import REPLAYS_FILE, load_replays, replay_fingerprint
 
 MODELS = ("convection", "constant-lambda", "polytropic")
 
@@ -113,6 +114,15 @@ def test_cli_compare_writes_json_and_figures(
         assert pred["min"] <= pred["initial"] <= pred["max"]
     assert doc["convection"]["posterior"]["available"] is False
     assert "no MCMC" in doc["convection"]["posterior"]["reason"]
+    # every fit's replay of every recording, saved for the report
+    replays, identity = load_replays(out / REPLAYS_FILE)
+    assert identity["sha256"] == campaign.sha256
+    assert [r.model for r in replays] == list(MODELS)
+    for r in replays:  # constant-lambda was fitted by the command, the others given
+        fit_file = out / "fits" / r.model if r.model == "constant-lambda" else blocked_fits[r.model]
+        fit_file = fit_file / "fit.json" if fit_file.is_dir() else fit_file
+        assert r.fingerprint == replay_fingerprint(json.loads(fit_file.read_text()))
+        assert set(r.channels) == {x.file for x in campaign.recordings} and not r.failed
     post = doc["constant-lambda"]["posterior"]
     assert post["available"] is True, post
     # one sampled parameter (lambda): WAIC's effective parameter count is about
@@ -256,6 +266,8 @@ def test_report_from_python_reads_what_it_saved(
     assert disc["base_model"] == fits[0].model and disc["statement"] == found.statement
     text = html.read_text()
     assert "convection" in text and "constant-lambda" in text
+    # the report read the comparison's saved replays of these fits
+    assert "<code>comparison/replays.npz</code> (" in text
     with pytest.raises(PneumafitInputError, match="a second polytropic"):
         pf.report(tmp_path / "again", campaign, fits=[fits[2], fits[2]])
     with pytest.raises(PneumafitInputError, match=f"base fit \\(model {fits[0].model}\\)"):

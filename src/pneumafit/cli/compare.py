@@ -10,6 +10,7 @@ refitted.
 Output folder ``OUT``::
 
     OUT/comparison.json           format pneumafit-comparison (report.py)
+    OUT/replays.npz               every fit's replay of every recording, for the report
     OUT/figures/<recording>.png   measured vs the models, and residuals
     OUT/fits/<model>/fit.json     the fits made here (and chains.h5 with MCMC)
 

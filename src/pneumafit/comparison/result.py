@@ -23,7 +23,9 @@ from rich.console import Console
 from pneumafit.campaign.model import Campaign
 from pneumafit.comparison.evaluate import ModelEvaluation, evaluate_fit
 from pneumafit.comparison.information import DEFAULT_DRAWS, differences, posterior_criteria
+from pneumafit.comparison.replays import REPLAYS_FILE, ModelReplay, replay_model, save_replays
 from pneumafit.comparison.report import comparison_document, print_table
+from pneumafit.errors import PneumafitError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.identification.fitfile import SavedFit
 
@@ -45,10 +47,17 @@ class Comparison:
         (AIC, BIC, WAIC, LOO), per-recording errors, the best model per line.
     evaluations : list of ModelEvaluation
         Per model, the simulated traces of every recording (for figures).
+    replays : list of ModelReplay
+        Per model, every recording simulated for the validation report
+        (:mod:`pneumafit.comparison.replays`), saved beside comparison.json.
+    campaign : dict
+        The campaign's identity (name, path, file hashes) the replays belong to.
     """
 
     document: dict[str, Any]
     evaluations: list[ModelEvaluation] = field(default_factory=list, repr=False)
+    replays: list[ModelReplay] = field(default_factory=list, repr=False)
+    campaign: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @property
     def models(self) -> list[str]:
@@ -75,7 +84,11 @@ class Comparison:
         return pd.DataFrame(self.document["table"])
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write comparison.json atomically."""
+        """Write comparison.json atomically, after the replays beside it
+        (:data:`~pneumafit.comparison.replays.REPLAYS_FILE`; for a comparison
+        made by :func:`compare_fits`, also when no fit could be replayed)."""
+        if self.replays or self.campaign:
+            save_replays(Path(path).parent / REPLAYS_FILE, self.replays, self.campaign)
         text = json.dumps(self.document, indent=2, allow_nan=False) + "\n"
         write_text_atomic(Path(path), text)
         return Path(path)
@@ -113,9 +126,12 @@ def compare_fits(
     -------
     Comparison
     """
+    from pneumafit.identification.staged import campaign_identity
+
     say = log or (lambda _line: None)
     started = time.perf_counter()
     evaluations: list[ModelEvaluation] = []
+    replays: list[ModelReplay] = []
     posteriors: dict[str, dict[str, Any]] = {}
     for model, fit in fits.items():
         where = fit.source
@@ -123,6 +139,13 @@ def compare_fits(
         ev = evaluate_fit(campaign, fit.document, where=where)
         evaluations.append(ev)
         say(f"{model}: simulated {len(ev.traces)} recordings ({time.perf_counter() - t0:.1f} s)")
+        t0 = time.perf_counter()
+        try:
+            # the report's traces, every sample, saved so that it simulates nothing
+            replays.append(replay_model(campaign, fit.document, where, model))
+            say(f"{model}: replayed for the report ({time.perf_counter() - t0:.1f} s)")
+        except PneumafitError as exc:  # the report says what is missing
+            say(f"{model}: not replayed for the report: {exc}")
         t0 = time.perf_counter()
         posteriors[model] = posterior_criteria(
             campaign, fit.document, fit.chains_path, n_draws=draws, seed=seed, where=where
@@ -135,4 +158,4 @@ def compare_fits(
         campaign, evaluations, {m: f.document for m, f in fits.items()}, posteriors,
         sources=sources, seconds=time.perf_counter() - started,
     )  # fmt: skip
-    return Comparison(document, evaluations)
+    return Comparison(document, evaluations, replays, campaign_identity(campaign))

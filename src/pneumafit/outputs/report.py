@@ -12,6 +12,7 @@ Run folder layout read (all optional)::
     RUN/summary.json                      pneumafit run (campaign path, nominal replay)
     RUN/fits/<model>/fit.json, chains.h5  pneumafit fit, model in MODELS
     RUN/comparison/comparison.json, *.png model comparison
+    RUN/comparison/replays.npz            every fit's replay (the report's traces)
     RUN/linear/linear.json, design_4.json, design_6.json, *.png
     RUN/closed_loop/closed_loop.json, *.png
     RUN/discovery/discovery.json, discovery.md, *.png
@@ -219,6 +220,10 @@ class _Run:
         self.campaign_error: str | None = None
         self.replays: list[Any] = []
         self.replay_errors: dict[str, str] = {}
+        #: model -> "saved" (read from comparison/replays.npz) or "simulated"
+        self.replay_sources: dict[str, str] = {}
+        #: Why saved replays were not used (shown in the measurement section).
+        self.replay_notes: list[str] = []
         #: What makes the report untrue to its inputs (:meth:`disagreements`).
         self.problems: list[str] = []
 
@@ -298,21 +303,63 @@ class _Run:
             self.campaign_error = f"{self.campaign_path}: {exc}"
 
     def replay(self, console: Console | None) -> None:
-        from pneumafit.outputs.report_models import replay_fit
+        """The fits' replays: read from ``comparison/replays.npz`` (written by
+        the comparison stage) where it holds this fit of this campaign;
+        simulated here only for a fit it does not hold (a folder without a
+        comparison, or one made before the replays were saved)."""
+        from pneumafit.comparison.replays import (
+            REPLAYS_FILE,
+            load_replays,
+            replay_fingerprint,
+            replay_model,
+        )
 
         if self.campaign is None:
             return
-        for model, (doc, path) in self.fits.items():
+        saved: dict[str, Any] = {}
+        path = self.dir / "comparison" / REPLAYS_FILE
+        if path.is_file():
+            try:
+                replays, identity = load_replays(path)
+            except PneumafitInputError as exc:
+                self.replay_notes.append(f"{exc}; the fits were simulated here instead")
+            else:
+                if dict(identity.get("sha256") or {}) == dict(self.campaign.sha256):
+                    saved = {r.model: r for r in replays}
+                else:
+                    self.replay_notes.append(
+                        f"{path} was saved for other campaign files; the fits were "
+                        "simulated here instead"
+                    )
+        for model, (doc, fit_path) in self.fits.items():
+            found = saved.get(model)
+            if found is not None and found.fingerprint == replay_fingerprint(doc):
+                self.replays.append(found)
+                self.replay_sources[model] = "saved"
+                continue
             started = time.perf_counter()
             try:
-                self.replays.append(replay_fit(self.campaign, doc, path, model))
+                self.replays.append(replay_model(self.campaign, doc, str(fit_path), model))
+                self.replay_sources[model] = "simulated"
             except Exception as exc:  # a bad fit.json is reported in its section
-                self.replay_errors[model] = f"{path}: {exc}"
+                self.replay_errors[model] = f"{fit_path}: {exc}"
             if console is not None:
                 console.print(
                     f"report: simulated the campaign with the {model} fit "
-                    f"({time.perf_counter() - started:.1f} s)"
+                    f"({time.perf_counter() - started:.1f} s; no saved replay of this fit "
+                    f"in comparison/{REPLAYS_FILE})"
                 )
+
+    def replay_source(self, what: str) -> str:
+        """Where the section's simulated traces come from, for its source line."""
+        kinds = set(self.replay_sources.values())
+        if kinds == {"saved"}:
+            return f"<code>comparison/replays.npz</code> ({what}, saved by the comparison)"
+        if kinds == {"simulated"} or not kinds:
+            return f"{what}, simulated here (no saved replay of these fits)"
+        saved = ", ".join(m for m, k in self.replay_sources.items() if k == "saved")
+        return (f"<code>comparison/replays.npz</code> for {esc(saved)}; the other fits "
+                f"simulated here ({what})")  # fmt: skip
 
 
 # ------------------------------------------------------------------- sections
@@ -445,7 +492,7 @@ def _need_fits(run: _Run) -> str | None:
 def _measurement_section(run: _Run) -> tuple[str, str, str]:
     from pneumafit.outputs.report_models import render_measurement
 
-    source = "the campaign and <code>fits/&lt;model&gt;/fit.json</code> (simulated here)"
+    source = "the campaign and " + run.replay_source("<code>fits/&lt;model&gt;/fit.json</code>")
     missing = _need_fits(run)
     if missing:
         return missing, "not run", source
@@ -454,6 +501,7 @@ def _measurement_section(run: _Run) -> tuple[str, str, str]:
                     "notrun"), "not run", source  # fmt: skip
     parts = [note(f"{esc(m)}: could not simulate: {esc(e)}", "error")
              for m, e in run.replay_errors.items()]  # fmt: skip
+    parts += [note(esc(n), "warn") for n in run.replay_notes]
     absent = [m for m in FIT_MODELS if m not in run.fits]
     if absent:
         parts.append(note("not run for " + ", ".join(esc(m) for m in absent)
@@ -468,7 +516,7 @@ def _measurement_section(run: _Run) -> tuple[str, str, str]:
 def _residual_section(run: _Run) -> tuple[str, str, str]:
     from pneumafit.outputs.report_models import render_residuals
 
-    source = ("<code>fits/convection/fit.json</code>, simulated; "
+    source = (run.replay_source("<code>fits/convection/fit.json</code>") + "; "
               "<code>pneumafit.discovery.residual_analysis</code>")  # fmt: skip
     replay = next((r for r in run.replays if r.model == "convection"), None)
     if replay is None:
@@ -1091,7 +1139,7 @@ def _air_section(run: _Run) -> tuple[str, str, str]:
     replay's (summary.json); the closed-loop test's air is in its section."""
     from pneumafit.outputs.report_models import render_air
 
-    source = "the fits (simulated here); summary.json"
+    source = run.replay_source("the fits") + "; summary.json"
     parts = []
     have = False
     air_html = render_air(run.campaign, run.replays) if run.replays else ""

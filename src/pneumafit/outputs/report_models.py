@@ -1,14 +1,16 @@
 """Measurement against the fitted models, residual diagnostics and the air
 each model uses: the simulation part of the validation report.
 
-Every recording of the campaign is replayed with each fit by
-:func:`pneumafit.identification.replay.replay`, the replay that gives
-fit.json's metrics and the comparison's traces: the fit's parameters,
-structure and fitted initial states, the reference solver, every sample.
-The channels compared are :data:`COMPARED` (a charge/discharge test on its
-own chamber's pressure, a flow test on its flow only), plus a measured
-temperature, which is compared with the simulated gas temperature seen
-through the fitted first-order sensor lag (``metrics.temperature_sensor_lag``).
+Every recording of the campaign replayed with each fit
+(:class:`~pneumafit.comparison.replays.ModelReplay`: saved by the comparison
+stage in ``comparison/replays.npz``, which the report reads, or simulated
+by :func:`~pneumafit.comparison.replays.replay_model` for a fit it does not
+hold): the fit's parameters, structure and fitted initial states, the
+reference solver, every sample. The channels compared are :data:`COMPARED`
+(a charge/discharge test on its own chamber's pressure, a flow test on its
+flow only), plus a measured temperature, which is compared with the
+simulated gas temperature seen through the fitted first-order sensor lag
+(``metrics.temperature_sensor_lag``).
 
 The report's RMSE is on every sample and keeps each pressure sensor's
 offset; fit.json's is on the compared samples.
@@ -18,14 +20,14 @@ from __future__ import annotations
 
 import math
 import tempfile
-from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.comparison.replays import COMPARED, ModelReplay, compared_channels
+from pneumafit.comparison.replays import replay_model as replay_fit
 from pneumafit.models import parts
 from pneumafit.outputs.report_html import (
     CHANNEL_DISPLAY,
@@ -39,6 +41,7 @@ from pneumafit.outputs.report_html import (
 )
 
 __all__ = [
+    "COMPARED",
     "ModelReplay",
     "compared_channels",
     "render_air",
@@ -47,11 +50,6 @@ __all__ = [
     "replay_fit",
 ]
 
-#: Measured channels compared with a simulation (those of the main job's first
-#: version; a charge/discharge test is compared on its own chamber only).
-COMPARED = ("p_P", "p_N", "y", "qm_P", "qm_N")
-#: Simulated channels the report asks for.
-SIMULATED = ("y", "p_P", "p_N", "qm_P", "qm_N", "T_P", "T_N", "m_supply", "m_exhaust")
 #: Points drawn per line at most (strided beyond).
 MAX_PLOT_POINTS = 2500
 #: Residual figures drawn at most (the recordings furthest from white).
@@ -59,109 +57,6 @@ MAX_RESIDUAL_FIGURES = 3
 #: Line colour of each model in the overlays (the heat laws' parts, live;
 #: the comparison figures' colours too).
 MODEL_COLOURS = parts.MODEL_COLOURS
-
-
-def compared_channels(recording: Any) -> list[str]:
-    """Channels of a recording compared with the simulation.
-
-    :data:`COMPARED` (a charge/discharge test only on its chamber's
-    pressure) plus a measured gas temperature, less the imposed chamber
-    pressure of a flow test.
-    """
-    names = []
-    for name in (*COMPARED, "T_P", "T_N"):
-        if name not in recording.channels:
-            continue
-        if recording.kind in ("charge", "discharge") and name in ("p_P", "p_N"):
-            if name != "p_" + str(recording.chamber):
-                continue
-        if recording.kind == "flow" and name == "p_" + str(recording.chamber):
-            continue  # the imposed chamber pressure of a flow test is an input
-        names.append(name)
-    return names
-
-
-@dataclass
-class ModelReplay:
-    """Every recording of a campaign simulated with one fit.
-
-    Attributes
-    ----------
-    model : str
-        The fit's model name (its folder under ``fits/``).
-    structure : str
-        Structure name (heat law and effects).
-    channels : dict of str to dict of str to ndarray
-        Recording file -> channel -> simulated values at the recording's
-        sample times (SI; temperatures through the sensor lag). Missing for a
-        failed simulation.
-    failed : dict of str to str
-        Recording file -> the simulator's message.
-    air : dict of str to tuple of float
-        Recording file -> (mass supplied kg, mass exhausted kg, exergy J).
-    sensor_lag : float
-        Temperature sensor time constant applied (s; 0: none).
-    """
-
-    model: str
-    structure: str
-    channels: dict[str, dict[str, NDArray[np.float64]]] = field(default_factory=dict)
-    failed: dict[str, str] = field(default_factory=dict)
-    air: dict[str, tuple[float, float, float]] = field(default_factory=dict)
-    sensor_lag: float = 0.0
-
-
-def replay_fit(campaign: Any, fit: Mapping[str, Any], fit_path: Path, model: str) -> ModelReplay:
-    """Simulate every recording of ``campaign`` with one fit (see the module doc).
-
-    Parameters
-    ----------
-    campaign : Campaign
-    fit : mapping
-        The parsed fit.json.
-    fit_path : Path
-        The fit.json file (read again as a parameter file).
-    model : str
-        Name shown in the report.
-
-    Returns
-    -------
-    ModelReplay
-
-    Raises
-    ------
-    PneumafitInputError, ValueError
-        A fit.json whose parameters or structure cannot be used.
-    """
-    from pneumafit.comparison.evaluate import fit_values
-    from pneumafit.identification.replay import replay as replay_campaign
-    from pneumafit.models import parameter_vector
-    from pneumafit.simulation.sensor import first_order_lag
-    from pneumafit.simulation.simulator import STATUS_MESSAGES, AirConsumption
-
-    _name, structure, values = fit_values(fit, str(fit_path))  # the one fit.json reader
-    lag = (fit.get("metrics") or {}).get("temperature_sensor_lag")
-    lag = float(lag) if isinstance(lag, int | float) and math.isfinite(lag) and lag > 0 else 0.0
-    params = parameter_vector({k: v for k, v in values.items() if ":" not in k})
-    # the one replay: the comparison's and the fit metrics' traces, every sample
-    rep = replay_campaign(
-        campaign, structure, values, trace_channels=SIMULATED, lag=lag or None,
-        estimate_lag=False,
-    )  # fmt: skip
-    replay = ModelReplay(model=model, structure=structure.name, sensor_lag=lag)
-    for rec in rep.recordings:
-        if not rec.ok:
-            replay.failed[rec.file] = STATUS_MESSAGES.get(rec.status, f"status {rec.status}")
-            continue
-        chans = dict(rec.simulated)
-        if lag > 0:
-            for t_name in ("T_P", "T_N"):
-                if np.all(np.isfinite(chans[t_name])):
-                    chans[t_name] = first_order_lag(chans[t_name], rec.time, lag)
-        replay.channels[rec.file] = chans
-        air = AirConsumption.from_mass(chans["m_supply"][-1], chans["m_exhaust"][-1], params)
-        replay.air[rec.file] = (air.mass_supplied, air.mass_exhausted, air.exergy)
-    return replay
 
 
 def _mask(rec: Any, name: str) -> NDArray[np.bool_]:

@@ -323,3 +323,41 @@ def test_adapted_run_is_seeded_and_resumes_to_the_same_chain(tmp_path: Path, cut
         run_mcmc(flaky, params(), MEAN, COV, backend=path, **kw)
     resumed = run_mcmc(gaussian, params(), MEAN, COV, backend=path, **kw)
     assert np.array_equal(resumed.chain, full.chain)
+
+
+def test_a_vector_of_medians_off_the_posterior_is_not_reported() -> None:
+    """On a curved ridge (y = x^2 + noise) each median lies inside its 90 %
+    interval, but the point (median x, median y) is far off the ridge: the
+    reported point is then the most probable draw inside every interval
+    (staged._reported_point), and it is typical of the draws. On a Gaussian
+    the medians are kept. Kind: the rule on exact draws of known densities."""
+    from types import SimpleNamespace
+
+    from pneumafit.identification.sampling import summarize_samples
+    from pneumafit.identification.staged import TYPICAL_QUANTILE, _reported_point
+
+    ps = ParameterSet([Parameter("x", 0.0, "", -10.0, 10.0), Parameter("y", 0.0, "", -10.0, 10.0)])
+    rng = np.random.default_rng(4)
+    for curved in (True, False):
+
+        def post(z: np.ndarray, curved: bool = curved) -> np.ndarray:
+            x, y = z[:, 0], z[:, 1]
+            return -0.5 * x**2 - 0.5 * ((y - (x**2 if curved else 0.0)) / 0.1) ** 2
+
+        x = rng.normal(size=(500, 8))
+        y = (x**2 if curved else 0.0) + 0.1 * rng.normal(size=(500, 8))
+        chain = np.stack([x, y], axis=-1)
+        lp = post(chain.reshape(-1, 2)).reshape(500, 8)
+        summary = summarize_samples(chain.reshape(-1, 2), ps)
+        res = SimpleNamespace(chain=chain, log_prob=lp, discard=0, names=("x", "y"),
+                              parameters=ps)  # fmt: skip
+        point, line = _reported_point(post, ps, res, summary)
+        if not curved:
+            assert point == {} and line == ""
+            continue
+        assert "not a typical point" in line
+        lp_point = post(np.array([[point["x"], point["y"]]]))[0]
+        assert lp_point >= np.quantile(lp, TYPICAL_QUANTILE)
+        for p in summary.free:
+            lo, hi = p.interval_90
+            assert lo <= point[p.name] <= hi

@@ -361,3 +361,35 @@ def test_a_vector_of_medians_off_the_posterior_is_not_reported() -> None:
         for p in summary.free:
             lo, hi = p.interval_90
             assert lo <= point[p.name] <= hi
+
+
+def test_propagated_draws_stay_inside_the_bounds() -> None:
+    """A held parameter with a huge Laplace variance strongly correlated with
+    the sampled one shifts the draws far outside the sampled parameter's
+    bounds; they are drawn again, then put on the bound: every propagated
+    value finite and inside (before: exp(800) and a NaN interval). Draws
+    that a small covariance keeps inside are those of the plain shift.
+    Kind: control flow of sampling.propagate on a constructed covariance."""
+    from types import SimpleNamespace
+
+    from pneumafit.identification.sampling import propagate
+
+    h = Parameter("v_s", 0.02, "m/s", 1e-4, 10.0, scale="log")
+    joint = ParameterSet([h, Parameter("other", 0.0, "", -1e9, 1e9)])
+    sampled = ParameterSet([h])
+    rng = np.random.default_rng(2)
+    chain = np.log(0.02) + 0.1 * rng.normal(size=(200, 4, 1))
+    res = SimpleNamespace(chain=chain, discard=0, names=("v_s",), parameters=sampled)
+    for scale, inside_before in ((1e6, False), (1e-6, True)):
+        cov = np.array([[scale, 0.999 * scale], [0.999 * scale, scale]])
+        summary, z = propagate(res, joint, cov, seed=3)
+        lo, hi = sampled.internal_bounds()
+        assert np.all(np.isfinite(z)) and np.all((z >= lo) & (z <= hi))
+        p = summary["v_s"]
+        eps = 1e-12  # exp(log(10)) = 10.000000000000002: the round trip, not a bound crossed
+        assert 1e-4 * (1 - eps) <= p.interval_90[0] <= p.median <= p.interval_90[1]
+        assert p.interval_90[1] <= 10.0 * (1 + eps)
+        if inside_before:  # nothing to redraw: the plain shift, same seed
+            root = np.sqrt(cov[0, 1] ** 2 / cov[1, 1])
+            plain = chain.reshape(-1, 1) + np.random.default_rng(3).standard_normal((800, 1)) * root
+            np.testing.assert_allclose(z, plain, rtol=1e-9)

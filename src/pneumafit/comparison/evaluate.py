@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
+from pneumafit.comparison.replays import sensor_lag
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.problem import (
     INITIAL_PREFIX,
@@ -262,10 +263,7 @@ def evaluate_fit(
         Not a fit document.
     """
     model, structure, values = fit_values(document, where)
-    metrics = document.get("metrics") or {}
-    lag = metrics.get("temperature_sensor_lag")
-    if not (isinstance(lag, int | float) and lag > 0):
-        lag = None
+    lag = sensor_lag(document) or None  # the one reading of the fitted lag
     # the one replay (fit metrics, discovery and the report read the same)
     rep = replay(
         campaign, structure, values, trace_channels=TRACE_CHANNELS, lag=lag,

@@ -53,6 +53,7 @@ __all__ = [
     "replay_fingerprint",
     "replay_model",
     "save_replays",
+    "sensor_lag",
 ]
 
 #: The replays' file beside comparison.json.
@@ -121,7 +122,8 @@ class ModelReplay:
     fingerprint: str = ""
 
 
-def _sensor_lag(document: Mapping[str, Any]) -> float:
+def sensor_lag(document: Mapping[str, Any]) -> float:
+    """The fit's temperature sensor lag (s; ``metrics.temperature_sensor_lag``), 0 if none."""
     lag = (document.get("metrics") or {}).get("temperature_sensor_lag")
     ok = isinstance(lag, int | float) and not isinstance(lag, bool)
     return float(lag) if ok and math.isfinite(lag) and lag > 0 else 0.0
@@ -143,7 +145,7 @@ def replay_fingerprint(document: Mapping[str, Any]) -> str:
         "structure": document.get("structure"),
         "parameters": values,
         "nuisance": document.get("nuisance"),
-        "sensor_lag": _sensor_lag(document),
+        "sensor_lag": sensor_lag(document),
     }
     text = json.dumps(key, sort_keys=True, default=str, allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -180,7 +182,7 @@ def replay_model(
     from pneumafit.simulation.simulator import STATUS_MESSAGES, AirConsumption
 
     _name, structure, values = fit_values(document, where)  # the one fit.json reader
-    lag = _sensor_lag(document)
+    lag = sensor_lag(document)
     params = parameter_vector({k: v for k, v in values.items() if ":" not in k})
     # the one replay: the comparison's and the fit metrics' traces, every sample
     rep = replay_campaign(

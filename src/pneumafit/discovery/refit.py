@@ -674,13 +674,11 @@ def _unpinned(model: Model, effect: str) -> str | None:
     iv = fitted.interval_90
     if iv is None or not (math.isfinite(iv[0]) and math.isfinite(iv[1])):
         return None
-    span = par.upper - par.lower
-    low = iv[0] <= par.lower + UNPINNED_MARGIN * (
-        par.lower if par.lower > 0 and par.upper / par.lower > 100 else span
-    )
-    high = iv[1] >= par.upper - UNPINNED_MARGIN * (
-        par.upper if par.lower > 0 and par.upper / par.lower > 100 else span
-    )
+    # within the margin of each bound: relative to the bound for a range of
+    # decades, else to the range's width
+    decades = par.lower > 0 and par.upper / par.lower > 100
+    low = iv[0] <= par.lower + UNPINNED_MARGIN * (par.lower if decades else par.upper - par.lower)
+    high = iv[1] >= par.upper - UNPINNED_MARGIN * (par.upper if decades else par.upper - par.lower)
     if low and high:
         return (
             f"{name} is not pinned by the data: its 90 % interval [{iv[0]:.3g}, {iv[1]:.3g}] "

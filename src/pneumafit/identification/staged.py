@@ -1350,10 +1350,9 @@ def _reported_point(
     inside every interval. Returns the values to report by name (empty:
     the medians) and a line saying what was done (empty: nothing).
     """
-    names = [p.name for p in summary.free if p.median is not None]
-    if not names or res.chain.size == 0:
-        return {}, ""
     medians = {p.name: float(p.median) for p in summary.free if p.median is not None}
+    if not medians or res.chain.size == 0:
+        return {}, ""
     lp_med = float(post(ps.to_internal({**ps.values(), **medians})[None, :])[0])
     kept = res.chain[res.discard :].reshape(-1, len(res.names))
     lp = np.asarray(res.log_prob[res.discard :], dtype=float).reshape(-1)

@@ -398,3 +398,58 @@ def test_the_report_reads_the_saved_replays_and_simulates_nothing(
     assert "simulated the campaign with the polytropic fit" in console.file.getvalue()
     assert "simulated the campaign with the convection fit" not in console.file.getvalue()
     assert "replays.npz</code> for convection; the other fits simulated here" in html
+
+
+def test_the_report_reads_the_saved_residual_analysis(
+    run_folder: tuple[Path, Path], report: tuple[Path, str], tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """With comparison/residuals.json (written by the comparison service from
+    its replays) holding this convection fit, the report's residual section
+    runs no residual analysis: the same table as when it computed one, its
+    figures, and a source line naming the file. A file saved for another fit
+    (its fingerprint differs) is not used, and the source line says why."""
+    from pneumafit import discovery
+    from pneumafit.comparison import replays as replays_module
+    from pneumafit.identification.staged import campaign_identity
+    from pneumafit.outputs.residual_file import RESIDUALS_FILE, save_residuals
+
+    run, folder = run_folder
+    campaign = read_campaign(folder)
+    copy = tmp_path / "run"
+    shutil.copytree(run / "fits", copy / "fits")
+    path = copy / "fits" / "convection" / "fit.json"
+    saved = [replays_module.replay_model(campaign, json.loads(path.read_text()), str(path),
+                                         "convection")]  # fmt: skip
+    comparison = copy / "comparison"
+    replays_module.save_replays(comparison / replays_module.REPLAYS_FILE, saved,
+                                campaign_identity(campaign))  # fmt: skip
+    save_residuals(comparison, campaign, saved)
+    assert (comparison / RESIDUALS_FILE).is_file()
+    assert sorted(p.name for p in (comparison / "residuals").iterdir())  # its figures
+
+    def no_analysis(*_args: object, **_kwargs: object) -> None:
+        raise AssertionError("the report ran a residual analysis that was saved")
+
+    monkeypatch.setattr(discovery, "residual_analysis", no_analysis)
+    quiet = Console(file=io.StringIO())
+    html = write_report(copy, copy / "report.html", campaign=folder, console=quiet)
+    html = html.read_text(encoding="utf-8")
+    section, first = _section_html(html, "residuals"), _section_html(report[1], "residuals")
+    assert _sections(html)["residuals"] == "ok"
+    assert "comparison/residuals.json</code> (the convection fit's residual analysis" in section
+    row = re.compile(r"<tr><td>([^<]+)</td><td>([^<]+)</td>")
+    assert row.findall(section) == row.findall(first) and row.findall(first)
+    assert section.count("<img") == first.count("<img") > 0
+
+    # saved for another fit: not used; computed here, and the source says why
+    monkeypatch.undo()
+    doc = json.loads((comparison / RESIDUALS_FILE).read_text())
+    doc["models"]["convection"]["fingerprint"] = "another fit"
+    (comparison / RESIDUALS_FILE).write_text(json.dumps(doc))
+    quiet = Console(file=io.StringIO())
+    html = write_report(copy, copy / "report.html", campaign=folder, console=quiet)
+    html = html.read_text(encoding="utf-8")
+    section = _section_html(html, "residuals")
+    assert "run here (comparison/residuals.json was saved for another convection fit)" in section
+    assert row.findall(section) == row.findall(first)

@@ -514,18 +514,50 @@ def _measurement_section(run: _Run) -> tuple[str, str, str]:
 
 
 def _residual_section(run: _Run) -> tuple[str, str, str]:
-    from pneumafit.outputs.report_models import render_residuals
+    from pneumafit.outputs.report_models import render_residual_rows, render_residuals
 
-    source = (run.replay_source("<code>fits/convection/fit.json</code>") + "; "
-              "<code>pneumafit.discovery.residual_analysis</code>")  # fmt: skip
     replay = next((r for r in run.replays if r.model == "convection"), None)
     if replay is None:
+        source = run.replay_source("<code>fits/convection/fit.json</code>")
         if "convection" not in run.fits:
             return _not_found(run.dir / "fits" / "convection" / "fit.json"), "not run", source
         return note("not run: the convection fit could not be simulated (see above).",
                     "notrun"), "not run", source  # fmt: skip
+    saved, why = _saved_residuals(run, replay)
+    if saved is not None:
+        source = ("<code>comparison/residuals.json</code> (the convection fit's residual "
+                  "analysis, saved by the comparison)")  # fmt: skip
+        body, status = render_residual_rows(
+            replay.model, saved["rows"], saved["problems"], saved["figures"]
+        )
+        return body, status, source
+    source = run.replay_source("<code>fits/convection/fit.json</code>")
+    source += f"; <code>pneumafit.discovery.residual_analysis</code>, run here ({esc(why)})"
     body, status = render_residuals(run.campaign, replay)
     return body, status, source
+
+
+def _saved_residuals(run: _Run, replay: Any) -> tuple[dict[str, Any] | None, str]:
+    """The convection fit's residual analysis saved by the comparison
+    (``comparison/residuals.json``) when it is of this campaign, this fit and
+    has its figures; else None and why not."""
+    from pneumafit.outputs.residual_file import RESIDUALS_FILE, load_residuals
+
+    path = run.dir / "comparison" / RESIDUALS_FILE
+    if not path.is_file() or run.campaign is None:
+        return None, f"no comparison/{RESIDUALS_FILE}"
+    try:
+        saved = load_residuals(path, run.campaign.sha256).get(replay.model)
+    except PneumafitInputError as exc:
+        return None, str(exc)
+    if saved is None:
+        return None, f"comparison/{RESIDUALS_FILE} holds no {replay.model} fit"
+    if not replay.fingerprint or saved["fingerprint"] != replay.fingerprint:
+        return None, f"comparison/{RESIDUALS_FILE} was saved for another {replay.model} fit"
+    missing = [p for p, _ in saved["figures"] if not p.is_file()]
+    if missing:
+        return None, f"{missing[0]} is missing"
+    return saved, ""
 
 
 def _interval(entry: Mapping[str, Any], key: str, unit: str) -> str:

@@ -141,12 +141,11 @@ def render_measurement(campaign: Any, replays: list[ModelReplay]) -> str:
     return "\n".join(parts)
 
 
-def render_residuals(campaign: Any, replay: ModelReplay) -> tuple[str, str]:
-    """Residual diagnostics of one fit (``residual_analysis``, ``plot_residuals``).
-
-    Returns the HTML and a status.
-    """
-    from pneumafit.discovery import plot_residuals, residual_analysis, summarize
+def residual_reports(campaign: Any, replay: ModelReplay) -> tuple[list[Any], list[str]]:
+    """Residual analysis (``residual_analysis``) of every compared recording of
+    one fit's replay; the reports and one line per recording that could not be
+    analysed."""
+    from pneumafit.discovery import residual_analysis
 
     reports = []
     problems = []
@@ -162,8 +161,29 @@ def render_residuals(campaign: Any, replay: ModelReplay) -> tuple[str, str]:
             reports.append(residual_analysis(rec, chans, channels=names))
         except ValueError as exc:
             problems.append(f"{rec.file}: {exc}")
+    return reports, problems
+
+
+def worst_recordings(rows: list[Any]) -> list[str]:
+    """The (at most :data:`MAX_RESIDUAL_FIGURES`) recordings furthest from
+    white, in the order of ``rows`` (:func:`pneumafit.discovery.summarize`)."""
+    worst: list[str] = []
+    for r in rows:
+        if r.recording not in worst:
+            worst.append(r.recording)
+        if len(worst) == MAX_RESIDUAL_FIGURES:
+            break
+    return worst
+
+
+def render_residual_rows(
+    model: str, rows: list[Any], problems: list[str], figures: list[tuple[Path, str]]
+) -> tuple[str, str]:
+    """The residual section from its rows (``SummaryRow`` or the same fields
+    read back from ``comparison/residuals.json``) and figure files (path,
+    recording); the HTML and a status."""
     parts = [note(
-        f"Residuals of the <strong>{esc(replay.model)}</strong> fit, as MATLAB's "
+        f"Residuals of the <strong>{esc(model)}</strong> fit, as MATLAB's "
         "<code>resid</code>: Ljung-Box test of whiteness (LB z = (Q - M)/sqrt(2M), about "
         "N(0, 1) for white residuals), fraction of autocorrelation and input "
         "cross-correlation lags outside the 99 % band, and the test phase where the "
@@ -171,10 +191,9 @@ def render_residuals(campaign: Any, replay: ModelReplay) -> tuple[str, str]:
     )]  # fmt: skip
     for p in problems:
         parts.append(note(esc(p), "warn"))
-    if not reports:
+    if not rows:
         parts.append(note("no recording could be analysed.", "error"))
         return "\n".join(parts), "error"
-    rows = summarize(reports)
     parts.append(table(
         ["recording", "channel", "RMS", "mean", "LB z", "p", "acf outside", "ccf outside",
          "largest in", "white"],
@@ -184,21 +203,30 @@ def render_residuals(campaign: Any, replay: ModelReplay) -> tuple[str, str]:
           if math.isfinite(r.ccf_outside) else "-", esc(r.concentrated_in), fmt(r.white)]
          for r in rows],
     ))  # fmt: skip
-    worst: list[str] = []
-    for r in rows:
-        if r.recording not in worst:
-            worst.append(r.recording)
-        if len(worst) == MAX_RESIDUAL_FIGURES:
-            break
-    by_name = {rep.recording: rep for rep in reports}
-    parts.append(f"<p>Figures for the {len(worst)} recordings furthest from white "
+    parts.append(f"<p>Figures for the {len(figures)} recordings furthest from white "
                  "(residual over the test phases, autocorrelation, cross-correlation with "
                  "the inputs).</p>")  # fmt: skip
-    with tempfile.TemporaryDirectory(prefix="pneumafit-report-") as tmp:
-        for i, name in enumerate(worst):
-            path = plot_residuals(by_name[name], Path(tmp) / f"residuals_{i}.png")
-            parts.append(embed_png_file(path, f"residuals of {name} ({replay.model} fit)"))
+    for path, name in figures:
+        parts.append(embed_png_file(path, f"residuals of {name} ({model} fit)"))
     return "\n".join(parts), "ok" if not problems else "partial"
+
+
+def render_residuals(campaign: Any, replay: ModelReplay) -> tuple[str, str]:
+    """Residual diagnostics of one fit, computed here (``residual_analysis``,
+    ``plot_residuals``): for a run folder whose comparison saved none
+    (``comparison/residuals.json``, :mod:`pneumafit.services.compare`).
+
+    Returns the HTML and a status.
+    """
+    from pneumafit.discovery import plot_residuals, summarize
+
+    reports, problems = residual_reports(campaign, replay)
+    rows = summarize(reports)
+    by_name = {rep.recording: rep for rep in reports}
+    with tempfile.TemporaryDirectory(prefix="pneumafit-report-") as tmp:
+        figures = [(plot_residuals(by_name[name], Path(tmp) / f"residuals_{i}.png"), name)
+                   for i, name in enumerate(worst_recordings(rows))]  # fmt: skip
+        return render_residual_rows(replay.model, rows, problems, figures)
 
 
 def render_air(campaign: Any, replays: list[ModelReplay]) -> str:

@@ -67,6 +67,11 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
             assert "modelDescription.xml" in fmu.namelist()
     html = (out / "report.html").read_text()
     assert "The exported controller in the loop" in html
+    # the report reads what the comparison saved: no replay, no residual analysis
+    assert (out / "comparison" / "residuals.json").is_file()
+    assert "report: simulated" not in log
+    assert "comparison/residuals.json</code> (the convection fit's residual analysis" in html
+    assert "run here (" not in html
     assert html.lstrip().lower().startswith("<!doctype html")
     summary = json.loads((out / "summary.json").read_text())
     assert summary["failed_stage"] is None

@@ -298,8 +298,8 @@ def report(
         comparison.save(run / "comparison" / COMPARISON_FILE)
     where = campaign.path if isinstance(campaign, Campaign) else campaign
     if discovery is not None:
-        from pneumafit.cli.discover import discovery_document
-        from pneumafit.cli.discover import write_report as write_discovery
+        from pneumafit.services.discover import discovery_document
+        from pneumafit.services.discover import write_report as write_discovery
 
         base = discovery.base.structure.heat  # the model name of its base fit
         if base not in models:

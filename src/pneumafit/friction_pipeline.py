@@ -26,6 +26,7 @@ from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
     folder_problem,
+    int_problem,
     report_problems,
 )
 
@@ -54,10 +55,10 @@ def run_friction(
     strict: bool = False,
 ) -> int:
     """The friction-test job; same exit statuses as :func:`pneumafit.pipeline.run`."""
-    from pneumafit.cli.friction import friction_fit_command
-    from pneumafit.cli.friction_discover import friction_discover_command
+    from pneumafit.cli.friction import MIN_FRICTION_WALKERS, report_friction_fit
     from pneumafit.outputs.friction_report import write_friction_report
-    from pneumafit.pipeline import StageBook, StageFailed, fit_is_reusable
+    from pneumafit.pipeline import StageBook, StageFailed, _guarded, _say, fit_is_reusable
+    from pneumafit.services.friction import friction_fit_folder
 
     started = time.perf_counter()
     console.rule(f"[bold]pneumafit run[/bold] (friction tests): {path}")
@@ -66,7 +67,13 @@ def run_friction(
         return EXIT_BAD_INPUT
     campaign: Campaign = read_campaign(path)
     out = Path(out)
-    if report_problems(console, [folder_problem(out)]):
+    problems = [
+        folder_problem(out),
+        int_problem("--walkers", walkers, MIN_FRICTION_WALKERS),
+        int_problem("--steps", steps, 1),
+        int_problem("--seed", seed, 0),
+    ]
+    if report_problems(console, problems):
         return EXIT_BAD_INPUT
     out.mkdir(parents=True, exist_ok=True)
     book = StageBook(out)
@@ -79,16 +86,28 @@ def run_friction(
         else:
             console.rule("fit friction")
             t0 = time.perf_counter()
-            code = friction_fit_command(path, fit_dir, walkers, steps, seed, mcmc, console)
-            if code != 0:
-                raise StageFailed("fit friction", code)
+            n_fit = len([r for r in campaign.by_kind("friction") if r.role == "fit"])
+            console.print(f"fitting friction to {campaign.name} ({n_fit} fit friction tests)")
+            command = (f"pneumafit fit {path} --model friction --out {fit_dir}"
+                       + (f" --walkers {walkers}" if walkers is not None else "")
+                       + (f" --steps {steps}" if steps is not None else "")
+                       + f" --seed {seed}" + ("" if mcmc else " --no-mcmc"))  # fmt: skip
+            result = _guarded(
+                console, "fit friction",
+                lambda: friction_fit_folder(
+                    campaign, fit_dir, mcmc=mcmc, walkers=walkers, steps=steps, seed=seed,
+                    command=command, log=_say(console),
+                ),
+                campaign=path, failed="fit failed",
+            )  # fmt: skip
+            report_friction_fit(result, fit_dir, console)
             timings["fit friction"] = time.perf_counter() - t0
             book.mark("fit friction", book.fingerprint(campaign, [fit_file]),
                       timings["fit friction"])  # fmt: skip
         for name, inputs, outputs, body in (
             ("discovery", [fit_file], [out / "discovery" / "discovery.json"],
-             lambda: friction_discover_command(path, fit_file, out / "discovery", seed=seed,
-                                               console=console)),
+             lambda: _friction_discovery(path, campaign, fit_file, out / "discovery", seed,
+                                         console)),
         ):  # fmt: skip
             fp = book.fingerprint(campaign, inputs)
             if book.is_done(name, fp, outputs):
@@ -96,9 +115,7 @@ def run_friction(
                 continue
             console.rule(name)
             t0 = time.perf_counter()
-            code = body()
-            if code != 0:
-                raise StageFailed(name, code)
+            body()
             timings[name] = time.perf_counter() - t0
             book.mark(name, fp, timings[name])
         console.rule("report")
@@ -121,3 +138,23 @@ def run_friction(
     total = time.perf_counter() - started
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
     return EXIT_UNTRUSTWORTHY if strict and not ok else 0
+
+
+def _friction_discovery(
+    path: Path, campaign: Campaign, fit_file: Path, folder: Path, seed: int, console: Console
+) -> None:
+    """The discovery stage of the friction-test job: the service, then its summary."""
+    from pneumafit.cli.friction_discover import report_friction_discovery
+    from pneumafit.pipeline import _guarded, _say
+    from pneumafit.services.friction import friction_discover_folder
+
+    command = (f"pneumafit discover {path} --fit {fit_file} --out {folder} --seed {seed} "
+               "--rounds 3 --per-round 3")  # fmt: skip
+    done = _guarded(
+        console, "discovery",
+        lambda: friction_discover_folder(campaign, fit_file, folder, seed=seed, rounds=3,
+                                         per_round=3, command=command, log=_say(console)),
+        campaign=path, failed="discovery failed", interrupted="interrupted: nothing written",
+    )  # fmt: skip
+    report_friction_discovery(done.document, console)
+    console.print("wrote " + ", ".join(str(p) for p in done.files))

@@ -62,13 +62,17 @@ from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
     folder_problem,
+    int_problem,
     report_problems,
+    run_guarded,
 )
 from pneumafit.comparison.replays import REPLAYS_FILE
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.parts import MODEL_NAMES
+from pneumafit.outputs.residual_file import RESIDUALS_FILE
+from pneumafit.progress import Reporter
 from pneumafit.simulation import counter
 
 #: The bundled demo campaign: a virtual-rig recording of a rig like the paper's,
@@ -202,7 +206,15 @@ def run(
         return EXIT_BAD_INPUT  # check's own status is 1: problems found
     campaign = read_campaign(path)
     out = Path(out)
-    if report_problems(console, [folder_problem(out)]):
+    from pneumafit.cli.fit import MAX_SAMPLED
+
+    problems = [
+        folder_problem(out),
+        int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
+        int_problem("--steps", steps, 1),
+        int_problem("--seed", seed, 0),
+    ]
+    if report_problems(console, problems):
         return EXIT_BAD_INPUT
     out.mkdir(parents=True, exist_ok=True)
     book = StageBook(out)
@@ -296,8 +308,17 @@ def _fits(
 ) -> dict[str, Path]:  # fmt: skip
     """Fit the three models (or reuse finished fits); fit.json path per model.
     Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
-    from pneumafit.cli.fit import fit_command
+    from pneumafit.cli.fit import report_fit
+    from pneumafit.identification.staged import FitOptions
+    from pneumafit.services.fit import (
+        fit_command_line,
+        fit_folder,
+        interrupted_message,
+        partial_path,
+    )
 
+    say = _say(console)
+    options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
     files = {}
     for model in RUN_MODELS:
         folder = out / "fits" / model
@@ -308,13 +329,48 @@ def _fits(
         else:
             console.rule(name)
             t0, n0 = time.perf_counter(), counter.simulations()
-            code = fit_command(path, model, folder, walkers, steps, seed, mcmc, console)
-            if code != 0:
-                raise StageFailed(name, code)
+            console.print(f"fitting {model} to {campaign.name} "
+                          f"({len(campaign.by_role('fit'))} fit recordings)")  # fmt: skip
+            command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc)
+            result = _guarded(
+                console, name,
+                lambda m=model, f=folder, c=command: fit_folder(
+                    campaign, m, f, options=options, seed=seed, command=c, log=say,
+                    progress=Reporter(say, console=console),
+                ),
+                campaign=path, failed="fit failed",
+                interrupted=lambda f=folder: interrupted_message(
+                    partial_path(f) if mcmc else None
+                ),
+            )  # fmt: skip
+            report_fit(result, folder, console)
             timings[name] = time.perf_counter() - t0
             sims[name] = counter.simulations() - n0
         files[model] = folder / "fit.json"
     return files
+
+
+def _say(console: Console) -> Callable[[str], None]:
+    """A service's log lines, printed as plain text (no rich markup)."""
+
+    def say(line: str) -> None:
+        console.print(Text(line))
+
+    return say
+
+
+def _guarded(
+    console: Console, stage: str, work: Callable[[], Any], *, campaign: Path, failed: str,
+    interrupted: str | Callable[[], str] = "interrupted",
+) -> Any:  # fmt: skip
+    """A service's result; its bad input, failure or interruption printed (as
+    the command line prints them) and raised as :class:`StageFailed` with the
+    command's exit status."""
+    result, status = run_guarded(console, work, campaign=campaign, failed=failed,
+                                 interrupted=interrupted)  # fmt: skip
+    if status is not None:
+        raise StageFailed(stage, status)
+    return result
 
 
 def _analyses(
@@ -326,19 +382,49 @@ def _analyses(
     all_fits = [fits[m] for m in RUN_MODELS]
 
     def compare() -> int:
-        from pneumafit.cli.compare import compare_command
+        from pneumafit.comparison.report import print_table
+        from pneumafit.services.compare import compare_folder, read_fit
 
-        return compare_command(path, out / "comparison", [f.parent for f in all_fits],
-                               seed=seed, console=console)  # fmt: skip
+        folder = out / "comparison"
+        fit_options = "".join(f" --fits {f.parent}" for f in all_fits)
+        command = f"pneumafit compare {path} --out {folder}{fit_options} --seed {seed}"
+        comparison = _guarded(
+            console, "comparison",
+            lambda: compare_folder(
+                campaign, folder, {m: read_fit(fits[m]) for m in RUN_MODELS}, seed=seed,
+                command=command, log=_say(console),
+            ),
+            campaign=path, failed="comparison failed",
+        )  # fmt: skip
+        print_table(comparison.document, console)
+        console.print(f"wrote {folder / COMPARISON_FILE}")
+        return 0
 
     stage("comparison", all_fits,
-          [out / "comparison" / COMPARISON_FILE, out / "comparison" / REPLAYS_FILE],
+          [out / "comparison" / COMPARISON_FILE, out / "comparison" / REPLAYS_FILE,
+           out / "comparison" / RESIDUALS_FILE],
           compare)  # fmt: skip
 
     def discover() -> int:
-        from pneumafit.cli.discover import discover_command
+        from pneumafit.cli.discover import report_discovery
+        from pneumafit.services.discover import discover_folder
 
-        return discover_command(path, conv, out / "discovery", seed=seed, console=console)
+        folder = out / "discovery"
+        say = _say(console)
+        console.print(f"discovery on {campaign.name}: base model convection from {conv}")
+        done = _guarded(
+            console, "discovery",
+            lambda: discover_folder(
+                campaign, conv, folder, seed=seed, rounds=2, per_round=3,
+                command=(f"pneumafit discover {path} --fit {conv} --out {folder} --seed {seed} "
+                         "--rounds 2 --per-round 3"),
+                log=say, progress=Reporter(say, console=console),
+            ),
+            campaign=path, failed="discovery failed", interrupted="interrupted: nothing written",
+        )  # fmt: skip
+        report_discovery(done.document, console)
+        console.print("wrote " + ", ".join(str(p) for p in done.files))
+        return 0
 
     stage("discovery", [conv], [out / "discovery" / "discovery.json"], discover)
 
@@ -405,6 +491,7 @@ def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,
         *(fits[m] for m in RUN_MODELS),
         out / "comparison" / COMPARISON_FILE,
         out / "comparison" / REPLAYS_FILE,
+        out / "comparison" / RESIDUALS_FILE,
         out / "discovery" / "discovery.json",
         out / "linear" / "linear.json",
         out / "closed_loop" / "closed_loop.json",

@@ -261,6 +261,7 @@ def test_discovery_defaults_to_the_fits_seed_and_options(
     """pneumafit discover without --seed uses the seed the base fit was made
     with (provenance.seed), and its channels, offsets and step (options)."""
     from pneumafit.cli import discover as discovery_command
+    from pneumafit.services import discover as discovery_service
 
     out, doc = fitted
     folder, _, _ = small
@@ -270,7 +271,7 @@ def test_discovery_defaults_to_the_fits_seed_and_options(
         seen.append((seed, base))
         raise KeyboardInterrupt  # nothing written: enough to see what discovery was given
 
-    monkeypatch.setattr(discovery_command, "discover", stop)
+    monkeypatch.setattr(discovery_service, "discover", stop)
     run = discovery_command.discover_command
     assert run(folder, out, tmp_path / "d1", console=console) == 130
     assert run(folder, out / "fit.json", tmp_path / "d2", seed=3, console=console) == 130

@@ -8,8 +8,8 @@ import h5py
 import pytest
 from rich.console import Console
 
-from pneumafit.cli import fit as fit_module
 from pneumafit.cli.fit import fit_command
+from pneumafit.services import fit as fit_module
 
 
 def _interrupt_after(steps: int):

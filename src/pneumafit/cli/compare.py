@@ -20,7 +20,6 @@ Every file appears atomically; comparison.json is written last.
 from __future__ import annotations
 
 import os
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -29,64 +28,29 @@ from rich.console import Console
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.cli.console import folder_problem, int_problem, report_problems
+from pneumafit.cli.console import (
+    EXIT_FAILED,
+    folder_problem,
+    int_problem,
+    report_problems,
+    run_guarded,
+)
 from pneumafit.cli.fit import (
     EXIT_BAD_INPUT,
     EXIT_OK,
-    FIT_FILE,
     MAX_SAMPLED,
-    fit_command,
+    report_fit,
 )
-from pneumafit.comparison.evaluate import fit_values
-from pneumafit.comparison.figures import plot_recording
 from pneumafit.comparison.information import DEFAULT_DRAWS
 from pneumafit.comparison.report import print_table
-from pneumafit.comparison.result import COMPARISON_FILE, compare_fits
-from pneumafit.identification.fitfile import SavedFit
-from pneumafit.identification.staged import FitResult
-from pneumafit.models.parts import MODEL_NAMES
+from pneumafit.comparison.result import COMPARISON_FILE
+from pneumafit.identification.staged import FitOptions, FitResult
 from pneumafit.models.structure import MODELS
+from pneumafit.progress import Reporter
+from pneumafit.services.compare import COMPARED_MODELS, compare_folder, read_fit
+from pneumafit.services.fit import fit_command_line, interrupted_message, partial_path
 
 __all__ = ["COMPARED_MODELS", "COMPARISON_FILE", "compare_command", "read_fit"]
-
-#: The models compared, in table order.
-COMPARED_MODELS = MODEL_NAMES  # the heat laws, model-list order (models.parts, live)
-
-
-def read_fit(path: Path, option: str = "--fits") -> tuple[Path, dict[str, Any]]:
-    """The fit.json of a fit folder (or the file itself), parsed.
-
-    Parameters
-    ----------
-    path : Path
-        A folder holding fit.json (written by ``pneumafit fit``) or a fit.json.
-    option : str
-        The option it was given with, for messages.
-
-    Returns
-    -------
-    file : Path
-    document : dict
-
-    Raises
-    ------
-    PneumafitInputError
-        No fit.json, unreadable, invalid JSON or not a fit document.
-    """
-    file = path / FIT_FILE if path.is_dir() else path
-    if not path.exists():
-        raise PneumafitInputError(
-            f"option {option} {os.fspath(path)!r}: expected a fit folder holding {FIT_FILE} "
-            "(written by pneumafit fit), found nothing at that path"
-        )
-    if not file.is_file():
-        raise PneumafitInputError(
-            f"option {option} {os.fspath(path)!r}: expected a fit folder holding {FIT_FILE} "
-            f"(written by pneumafit fit), found a folder without {FIT_FILE}"
-        )
-    document = dict(FitResult.load(file).document)  # the one reader of fit.json
-    fit_values(document, os.fspath(file))  # format, model and parameters
-    return file, document
 
 
 def _same_campaign(file: Path, document: dict[str, Any], sha256: dict[str, str], name: str) -> str:
@@ -149,7 +113,6 @@ def compare_command(
     from pneumafit.campaign import read_campaign
 
     console = console or Console()
-    t_start = time.perf_counter()
     out = Path(out)
     problems = [
         int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
@@ -195,53 +158,6 @@ def compare_command(
         console.print(Text(message, "bold red"))
         return EXIT_BAD_INPUT
 
-    # ------------------------------------------------------------------ fits
-    chosen: dict[str, tuple[Path, dict[str, Any]]] = {}
-    sources: dict[str, dict[str, Any]] = {}
-    todo = [m for m in COMPARED_MODELS if m not in given]
-    for k, model in enumerate(COMPARED_MODELS):
-        if model in given:
-            file, document = given[model]
-            console.print(f"[{k + 1}/{len(COMPARED_MODELS)}] {model}: reusing {file}")
-            chosen[model] = given[model]
-            sources[model] = {"file": os.fspath(file), "given": True}
-            continue
-        folder = out / "fits" / model
-        console.print(f"[{k + 1}/{len(COMPARED_MODELS)}] {model}: fitting into {folder} "
-                      f"({todo.index(model) + 1} of {len(todo)} fits to make)")  # fmt: skip
-        t0 = time.perf_counter()
-        code = fit_command(camp.path or Path(campaign), model, folder, walkers, steps, seed,
-                           mcmc, console)  # fmt: skip
-        if code != EXIT_OK:
-            console.print(Text(f"{model}: the fit stopped (exit status {code})", "bold red"))
-            return code
-        chosen[model] = read_fit(folder)
-        sources[model] = {"file": os.fspath(folder / FIT_FILE), "given": False,
-                          "seconds": time.perf_counter() - t0}  # fmt: skip
-
-    # ------------------------------------------------------------- evaluate
-    comparison = compare_fits(
-        camp, {m: SavedFit.from_document(d, os.fspath(f)) for m, (f, d) in chosen.items()},
-        draws=draws, seed=seed, sources=sources, log=console.print,
-    )  # fmt: skip
-    evaluations = comparison.evaluations
-
-    # -------------------------------------------------------------- figures
-    written: list[str] = []
-    if figures:
-        chambers = {r.file: r.chamber for r in camp.recordings}
-        names = [tr.recording for tr in evaluations[0].traces]
-        for name in names:
-            traces = {
-                ev.model: tr for ev in evaluations for tr in ev.traces if tr.recording == name
-            }
-            role = next(iter(traces.values())).role
-            rel = Path("figures") / f"{Path(name).stem}.png"
-            plot_recording(traces, out / rel, chamber=chambers.get(name),
-                           title=f"{name} ({role})")  # fmt: skip
-            written.append(rel.as_posix())
-        console.print(f"wrote {len(written)} figures in {out / 'figures'}")
-
     command = (
         f"pneumafit compare {os.fspath(campaign)} --out {os.fspath(out)}"
         + "".join(f" --fits {os.fspath(p)}" for p in fits)
@@ -250,10 +166,36 @@ def compare_command(
         + f" --seed {seed}"
         + ("" if mcmc else " --no-mcmc")
     )
-    document = comparison.document
-    document["figures"] = written
-    document["provenance"].update(command=command, seconds=time.perf_counter() - t_start)
-    comparison.save(out / COMPARISON_FILE)
-    print_table(document, console)
+    options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
+    campaign_path = camp.path or Path(campaign)
+
+    def say(line: str) -> None:
+        console.print(Text(line))
+
+    def stopped(model_folder: Path) -> str:
+        return interrupted_message(partial_path(model_folder) if mcmc else None)
+
+    current: list[Path] = []
+
+    def fitted(model: str, result: FitResult, folder: Path) -> None:
+        report_fit(result, folder, console)
+
+    def fit_line(model: str, folder: Path) -> str:
+        current[:] = [folder]
+        return fit_command_line(campaign_path, model, folder, walkers, steps, seed, mcmc)
+
+    comparison, status = run_guarded(
+        console,
+        lambda: compare_folder(
+            camp, out, given, options=options, seed=seed, draws=draws, figures=figures,
+            command=command, fit_command=fit_line, log=say,
+            progress=Reporter(say, console=console), on_fit=fitted,
+        ),
+        campaign=campaign, failed="comparison failed",
+        interrupted=lambda: stopped(current[0]) if current else "interrupted: nothing written",
+    )  # fmt: skip
+    if status is not None or comparison is None:
+        return status if status is not None else EXIT_FAILED
+    print_table(comparison.document, console)
     console.print(f"wrote {out / COMPARISON_FILE}")
     return EXIT_OK

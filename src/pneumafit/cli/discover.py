@@ -1,27 +1,10 @@
 """Body of ``pneumafit discover``: from a base fit to the effects the data ask for.
 
-``discover_command(campaign, fit, out, seed, rounds, per_round, console)``
-reads the campaign and the base fit (``FIT/fit.json``, written by
-``pneumafit fit``), checks that the fit was made on this campaign (the
-SHA-256 of every file, as fit.json records them) with a known model, runs
-:func:`~pneumafit.discovery.refit.discover` and writes, atomically:
-
-- ``OUT/discovery.json`` (format ``pneumafit-discovery``, version 1; keys are
-  only ever added): ``base_model``, ``candidates`` (first round, ranked:
-  ``effect``, ``score``, ``evidence``), ``rounds`` (every round's candidates
-  and attribution summary), ``refits`` (every refit tried, why kept or
-  rejected), ``selected``, ``rmse_before`` / ``rmse_after`` (``fit`` and
-  ``validate``: channel -> SI), ``aic_before`` / ``aic_after``,
-  ``bic_before`` / ``bic_after``, ``log_likelihood_before`` / ``_after``,
-  ``effect_parameters`` (name -> ``value``, ``unit``, ``std``,
-  ``interval_90`` (Laplace), ``effect``), ``parameters_after`` (every
-  model parameter, SI), ``unexplained`` and ``statement``,
-  ``noise_pressure``, ``campaign``, ``fit``, ``seed``, ``provenance``,
-  ``figures`` (file names of the figures beside it);
-- ``OUT/discovery.md``: the report section (tables and figures);
-- ``OUT/residuals_before.png``, ``OUT/residuals_after.png``: pressure
-  residuals of every charge, discharge and step recording against the base
-  and the final model; ``OUT/candidates.png``: the ranked candidates.
+The work and the files are the service's
+(:func:`pneumafit.services.discover.discover_folder`: discovery.json,
+discovery.md and the figures, written atomically); this module checks the
+options, prints the progress and the summary (:func:`report_discovery`,
+also used by the main job) and turns the service's ends into exit statuses.
 
 Exit status: 0 done (whatever was found), 1 the computation failed, 2 bad
 input (a message naming the file or key, what was expected and what was
@@ -30,21 +13,16 @@ found; never a traceback), 130 interrupted.
 
 from __future__ import annotations
 
-import datetime as _dt
-import json
-import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.campaign.model import Campaign
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
@@ -54,15 +32,17 @@ from pneumafit.cli.console import (
     int_problem,
     report_problems,
 )
-from pneumafit.discovery.attribution import simulate_recording
-from pneumafit.discovery.catalog import get_effect
-from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, discover
-from pneumafit.fileio import atomic_path, write_text_atomic
-from pneumafit.identification.fitfile import SavedFit, json_safe
-from pneumafit.identification.staged import FitResult
-from pneumafit.models.layout import SPECS
-from pneumafit.models.structure import MODELS
+from pneumafit.discovery.refit import PRESSURES
 from pneumafit.progress import Reporter
+from pneumafit.services.discover import (
+    DISCOVERY_FORMAT,
+    DISCOVERY_VERSION,
+    discover_folder,
+    discovery_document,
+    format_number,
+    load_base_fit,
+    write_report,
+)
 
 __all__ = [
     "DISCOVERY_FORMAT",
@@ -70,392 +50,9 @@ __all__ = [
     "discover_command",
     "discovery_document",
     "load_base_fit",
+    "report_discovery",
     "write_report",
 ]
-
-DISCOVERY_FORMAT = "pneumafit-discovery"
-DISCOVERY_VERSION = 1
-FIT_FILE = "fit.json"
-
-
-# ----------------------------------------------------------------- input
-def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, SavedFit, Path]:
-    """Read and check ``fit`` (a fit.json or the folder holding one).
-
-    The file is read by :meth:`FitResult.load
-    <pneumafit.identification.staged.FitResult.load>`; the base fit is
-    :meth:`BaseFit.from_document` of what it read (with the channels,
-    offsets, step and solver correction the fit was made with).
-
-    Returns
-    -------
-    base : BaseFit
-    fit : SavedFit
-        The fit.json read (its seed: ``fit.seed``).
-    path : Path
-        The fit.json file.
-
-    Raises
-    ------
-    PneumafitInputError
-        No fit.json, not JSON, not a ``pneumafit-fit`` document, an unknown
-        model, or a fit of another campaign (SHA-256 of the files differ).
-    """
-    path = Path(fit)
-    if path.is_dir():
-        path = path / FIT_FILE
-    if not path.is_file():
-        raise PneumafitInputError(
-            f"option --fit {os.fspath(fit)!r}: expected a fit.json (from pneumafit fit) or a "
-            f"folder holding one, found no file {os.fspath(path)!r}"
-        )
-    try:
-        saved = FitResult.load(path)
-    except PneumafitInputError as exc:
-        detail = str(exc).removeprefix(f"{path}: ")
-        if detail.startswith(("line ", "cannot be read")):  # not JSON at all
-            raise PneumafitInputError(
-                f"{path}: expected a JSON fit document, found: {detail}"
-            ) from None
-        raise
-    doc = saved.document
-    model = saved.model
-    if model not in MODELS:
-        raise PneumafitInputError(
-            f"{path}: key 'model': expected one of {', '.join(MODELS)}, found {model!r}"
-        )
-    for key in ("campaign", "parameters", "structure", "nuisance"):
-        if not isinstance(doc.get(key), dict):
-            raise PneumafitInputError(
-                f"{path}: key {key!r}: expected an object, found {type(doc.get(key)).__name__}"
-            )
-    recorded = saved.campaign_sha256
-    actual = dict(campaign.sha256)
-    if recorded != actual:
-        differ = sorted(k for k in set(recorded) | set(actual) if recorded.get(k) != actual.get(k))
-        shown = ", ".join(differ[:4]) + (" ..." if len(differ) > 4 else "")
-        raise PneumafitInputError(
-            f"{path}: key 'campaign.sha256': expected the SHA-256 of campaign "
-            f"{campaign.name!r}'s files, found a fit of another campaign "
-            f"({saved.campaign.get('name')!r}; files differing: {shown})"
-        )
-    try:
-        base = BaseFit.from_document(saved)
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise PneumafitInputError(
-            f"{path}: expected a complete pneumafit-fit document, found a problem: {exc}"
-        ) from None
-    return base, saved, path
-
-
-# ----------------------------------------------------------------- document
-def _effect_parameters(model: Model) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    ps = model.parameters
-    for effect in model.effects:
-        eff = get_effect(effect)
-        for name in eff.parameter_names(model.structure.effects.get(effect)):
-            entry: dict[str, Any] = {
-                "effect": effect,
-                "value": model.values.get(name),
-                "unit": SPECS[name].unit,
-                "std": None,
-                "interval_90": None,
-                "uncertainty": "laplace",
-            }
-            if ps is not None and name in ps:
-                p = ps[name]
-                entry["std"] = p.std
-                entry["interval_90"] = list(p.interval_90) if p.interval_90 else None
-            out[name] = entry
-    return out
-
-
-def discovery_document(
-    result: Discovery,
-    campaign: Campaign,
-    fit_path: Path,
-    fit_doc: Mapping[str, Any],
-    *,
-    command: str = "",
-    options: Mapping[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The discovery.json content (see the module docstring)."""
-    from pneumafit.identification.fitfile import _version
-
-    base, final = result.base, result.final
-    rounds = []
-    for i, att in enumerate(result.attributions, start=1):
-        rounds.append(
-            {
-                "round": i,
-                "attribution": att.as_dict(),
-                "candidates": [
-                    {"effect": c.effect, "score": c.score, "evidence": c.evidence()}
-                    for c in att.candidates
-                ],
-            }
-        )
-    history = result.rounds_history
-    refits = []
-    for step in result.steps:
-        current = history[0]
-        for m in history:
-            if len(m.effects) == step.round - 1:
-                current = m
-        refits.append(step.as_dict(current))
-    model_names = [k for k in final.values if k in SPECS]
-    doc = {
-        "format": DISCOVERY_FORMAT,
-        "version": DISCOVERY_VERSION,
-        "base_model": fit_doc.get("model"),
-        "base_structure": fit_doc.get("structure"),
-        "campaign": {
-            "name": campaign.name,
-            "path": os.fspath(campaign.path) if campaign.path is not None else None,
-            "sha256": dict(campaign.sha256),
-        },
-        "fit": os.fspath(fit_path),
-        "seed": result.seed,
-        "candidates": rounds[0]["candidates"] if rounds else [],
-        "rounds": rounds,
-        "refits": refits,
-        "selected": list(result.selected),
-        "final_structure": {
-            "heat": final.structure.heat,
-            "air_properties": final.structure.air_properties,
-            "effects": dict(final.structure.effects),
-        },
-        "rmse_before": base.rmse,
-        "rmse_after": final.rmse,
-        "pressure_rmse_before": {r: base.pressure_rmse(r) for r in ("fit", "validate")},
-        "pressure_rmse_after": {r: final.pressure_rmse(r) for r in ("fit", "validate")},
-        "aic_before": base.aic,
-        "aic_after": final.aic,
-        "bic_before": base.bic,
-        "bic_after": final.bic,
-        "log_likelihood_before": base.log_likelihood,
-        "log_likelihood_after": final.log_likelihood,
-        "n_parameters_before": base.n_parameters,
-        "n_parameters_after": final.n_parameters,
-        "n_data": base.n_data,
-        "effect_parameters": _effect_parameters(final),
-        "parameters_after": {k: final.values[k] for k in model_names},
-        "noise_pressure": result.noise,
-        "unexplained": bool(result.unexplained),
-        "statement": result.statement,
-        "provenance": {
-            "pneumafit_version": _version(),
-            "seed": result.seed,
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-            "command": command,
-            "options": dict(options or {}),
-            "seconds": result.seconds,
-        },
-    }
-    return json_safe(doc)
-
-
-# ----------------------------------------------------------------- report
-def _fmt(x: Any, digits: int = 4) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "-"
-    if isinstance(x, float | int):
-        return f"{x:.{digits}g}"
-    return str(x)
-
-
-def _plot_pressure_residuals(
-    campaign: Campaign, model: Model, path: Path, title: str
-) -> Path | None:
-    """Pressure residual (kPa) over time of every charge, discharge and step recording."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    recs = [r for r in campaign.recordings if r.kind in ("charge", "discharge", "step")]
-    if not recs:
-        return None
-    cols = 2
-    rows = math.ceil(len(recs) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.6 * rows), squeeze=False)
-    try:
-        for ax, rec in zip(axes.flat, recs, strict=False):
-            sim = simulate_recording(rec, model.structure, model.values)
-            for ch in PRESSURES:
-                if sim is None or ch not in rec.channels:
-                    continue
-                res = (np.asarray(rec.channels[ch], float) - sim[ch]) / 1e3
-                ax.plot(rec.time, res, lw=0.7, label=ch)
-            ax.axhline(0.0, color="k", lw=0.5)
-            ax.set_title(f"{rec.file} ({rec.kind}, {rec.role})", fontsize=9)
-            ax.set_ylabel("kPa")
-            ax.legend(fontsize=7, loc="best")
-        for ax in list(axes.flat)[len(recs) :]:
-            ax.axis("off")
-        for ax in axes[-1]:
-            ax.set_xlabel("time (s)")
-        fig.suptitle(title)
-        fig.tight_layout()
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=100)
-    finally:
-        plt.close(fig)
-    return path
-
-
-def _plot_candidates(result: Discovery, path: Path) -> Path | None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    if not result.attributions:
-        return None
-    cands = result.attributions[0].candidates
-    names = [c.effect for c in cands]
-    y = np.arange(len(names))
-    fig, axes = plt.subplots(1, 3, figsize=(12, 0.5 * len(names) + 1.5), sharey=True)
-    try:
-        for ax, key, label in zip(
-            axes,
-            ("inclusion_probability", "variance_explained", "phase_match"),
-            ("inclusion probability", "variance explained (R^2)", "phase match"),
-            strict=True,
-        ):
-            vals = [getattr(c, key) for c in cands]
-            colors = ["tab:green" if c.effect in result.selected else "tab:gray" for c in cands]
-            ax.barh(y, vals, color=colors)
-            ax.set_xlim(0, 1)
-            ax.set_xlabel(label)
-        axes[0].set_yticks(y, names)
-        axes[0].invert_yaxis()
-        fig.suptitle("Candidates of round 1, best score first (green: selected)")
-        fig.tight_layout()
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=100)
-    finally:
-        plt.close(fig)
-    return path
-
-
-def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
-    lines = [
-        f"# Model discovery: {doc['campaign']['name']}",
-        "",
-        f"Base model `{doc['base_model']}` (fit `{doc['fit']}`), seed {doc['seed']}.",
-        "",
-        f"**{doc['statement']}**",
-        "",
-        "Selected effects: "
-        + (", ".join(f"`{e}`" for e in doc["selected"]) if doc["selected"] else "none")
-        + f"; unexplained: {str(doc['unexplained']).lower()}.",
-        "",
-        "## Candidates",
-        "",
-    ]
-    for rnd in doc["rounds"]:
-        att = rnd["attribution"]
-        lines += [
-            f"Round {rnd['round']}: {att['n_rows']} rows, residual-rate R^2 of the sparse model "
-            f"{_fmt(att['explained'], 3)}, {att['n_bootstrap']} bootstrap fits.",
-            "",
-            "| effect | score | inclusion | R^2 alone | phase match | coefficient | unit "
-            "| supported |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
-        for c in rnd["candidates"]:
-            ev = c["evidence"]
-            lines.append(
-                f"| `{c['effect']}` | {_fmt(c['score'], 3)} | "
-                f"{_fmt(ev['inclusion_probability'], 2)} | {_fmt(ev['variance_explained'], 3)} | "
-                f"{_fmt(ev['phase_match'], 2)} | {_fmt(ev['coefficient'], 3)} | "
-                f"{ev['coefficient_unit']} | {'yes' if ev['supported'] else 'no'} |"
-            )
-        lines.append("")
-    lines += ["## Refits", ""]
-    if doc["refits"]:
-        lines += [
-            "| round | effect | start | dBIC | dAIC | validate p RMSE (Pa) | decision |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        for s in doc["refits"]:
-            start = ", ".join(f"{k} {_fmt(v, 3)}" for k, v in s["start"].items())
-            val = s.get("rmse", {}).get("validate", {})
-            pv = ", ".join(f"{c} {_fmt(val.get(c), 4)}" for c in PRESSURES if c in val)
-            lines.append(
-                f"| {s['round']} | `{s['effect']}` | {start} | {_fmt(s.get('delta_bic'), 4)} | "
-                f"{_fmt(s.get('delta_aic'), 4)} | {pv or '-'} | {s['reason']} |"
-            )
-    else:
-        lines.append("No candidate was supported enough to be refitted.")
-    lines += ["", "## Errors before and after", ""]
-    lines += ["| role | channel | before | after | unit |", "|---|---|---|---|---|"]
-    units = {"p_P": "Pa", "p_N": "Pa", "y": "m", "T_P": "K", "T_N": "K", "qm_P": "kg/s",
-             "qm_N": "kg/s"}  # fmt: skip
-    for role in ("fit", "validate"):
-        before = doc["rmse_before"].get(role) or {}
-        after = doc["rmse_after"].get(role) or {}
-        for ch in before:
-            lines.append(
-                f"| {role} | {ch} | {_fmt(before.get(ch))} | {_fmt(after.get(ch))} | "
-                f"{units.get(ch, '')} |"
-            )
-    lines += [
-        "",
-        f"Log-likelihood {_fmt(doc['log_likelihood_before'], 8)} -> "
-        f"{_fmt(doc['log_likelihood_after'], 8)}; AIC {_fmt(doc['aic_before'], 8)} -> "
-        f"{_fmt(doc['aic_after'], 8)}; BIC {_fmt(doc['bic_before'], 8)} -> "
-        f"{_fmt(doc['bic_after'], 8)} ({doc['n_data']} compared samples).",
-        "",
-        "## Effect parameters",
-        "",
-    ]
-    if doc["effect_parameters"]:
-        lines += ["| parameter | effect | value | unit | 90 % interval (Laplace) |",
-                  "|---|---|---|---|---|"]  # fmt: skip
-        for name, e in doc["effect_parameters"].items():
-            iv = e.get("interval_90")
-            iv_s = f"[{_fmt(iv[0])}, {_fmt(iv[1])}]" if iv else "-"
-            lines.append(
-                f"| `{name}` | `{e['effect']}` | {_fmt(e['value'])} | {e['unit']} | {iv_s} |"
-            )
-    else:
-        lines.append("None.")
-    lines += ["", "## Figures", ""]
-    lines += [f"![{f}]({f})" for f in figures]
-    return "\n".join(lines) + "\n"
-
-
-def write_report(
-    out: Path, doc: Mapping[str, Any], result: Discovery, campaign: Campaign
-) -> list[Path]:
-    """Write discovery.json, the figures and discovery.md into ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
-    figs: list[str] = []
-    for path in (
-        _plot_pressure_residuals(
-            campaign, result.base, out / "residuals_before.png",
-            f"Pressure residuals, base model ({doc['base_model']})",
-        ),
-        _plot_pressure_residuals(
-            campaign, result.final, out / "residuals_after.png",
-            "Pressure residuals, with "
-            + (", ".join(result.selected) if result.selected else "no effect added"),
-        ),
-        _plot_candidates(result, out / "candidates.png"),
-    ):  # fmt: skip
-        if path is not None:
-            written.append(path)
-            figs.append(path.name)
-    doc = {**doc, "figures": figs}
-    md = out / "discovery.md"
-    write_text_atomic(md, _markdown(doc, figs))
-    js = out / "discovery.json"
-    write_text_atomic(js, json.dumps(doc, indent=2, allow_nan=False) + "\n")
-    return [js, md, *written]
 
 
 # ----------------------------------------------------------------- command
@@ -512,11 +109,10 @@ def discover_command(
         return EXIT_BAD_INPUT
     try:
         camp = read_campaign(campaign)
-        base, saved, fit_path = load_base_fit(Path(fit), camp)
+        _base, saved, fit_path = load_base_fit(Path(fit), camp)
     except (PneumafitInputError, ValueError) as exc:
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
-    fit_doc = saved.document
     if seed is None:  # the base fit's own
         seed = saved.seed if saved.seed is not None else 0
     console.print(
@@ -527,10 +123,14 @@ def discover_command(
     def say(line: str) -> None:
         console.print(Text(line))
 
+    command = (
+        f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"
+        f" --seed {seed} --rounds {rounds} --per-round {per_round}"
+    )
     try:
-        result = discover(
-            camp, base, seed=seed, rounds=rounds, per_round=per_round, log=say,
-            progress=Reporter(say, console=console),
+        done = discover_folder(
+            camp, fit_path, out, seed=seed, rounds=rounds, per_round=per_round,
+            command=command, log=say, progress=Reporter(say, console=console),
         )  # fmt: skip
     except KeyboardInterrupt:
         console.print(Text("interrupted: nothing written", "yellow"))
@@ -541,25 +141,14 @@ def discover_command(
     except RuntimeError as exc:
         console.print(Text(f"discovery failed: {exc}", style="bold red"))
         return EXIT_FAILED
-    command = (
-        f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"
-        f" --seed {seed} --rounds {rounds} --per-round {per_round}"
-    )
-    doc = discovery_document(
-        result, camp, fit_path, fit_doc, command=command,
-        options={"seed": seed, "rounds": rounds, "per_round": per_round},
-    )  # fmt: skip
-    try:
-        written = write_report(out, doc, result, camp)
-    except OSError as exc:
-        console.print(Text(f"{os.fspath(out)}: cannot write the report: {exc}", "bold red"))
-        return EXIT_FAILED
-    _summary(doc, console)
-    console.print("wrote " + ", ".join(os.fspath(p) for p in written))
+    report_discovery(done.document, console)
+    console.print("wrote " + ", ".join(os.fspath(p) for p in done.files))
     return EXIT_OK
 
 
-def _summary(doc: Mapping[str, Any], console: Console) -> None:
+def report_discovery(doc: Mapping[str, Any], console: Console) -> None:
+    """The console summary of a discovery (discovery.json's content): the
+    pressure RMSE before and after, the effects selected, the statement."""
     table = Table(title=Text("pressure RMSE (Pa): before -> after"))
     for col in ("role", *PRESSURES):
         table.add_column(col, justify="left" if col == "role" else "right")
@@ -567,7 +156,9 @@ def _summary(doc: Mapping[str, Any], console: Console) -> None:
         b, a = doc["rmse_before"].get(role) or {}, doc["rmse_after"].get(role) or {}
         if not b:
             continue
-        table.add_row(role, *(f"{_fmt(b.get(c))} -> {_fmt(a.get(c))}" for c in PRESSURES))
+        table.add_row(
+            role, *(f"{format_number(b.get(c))} -> {format_number(a.get(c))}" for c in PRESSURES)
+        )
     console.print(table)
     sel = doc["selected"]
     console.print(
@@ -576,7 +167,7 @@ def _summary(doc: Mapping[str, Any], console: Console) -> None:
     for name, e in doc["effect_parameters"].items():
         iv = e.get("interval_90")
         console.print(
-            f"  {name} = {_fmt(e['value'])} {e['unit']}"
-            + (f", 90 % [{_fmt(iv[0])}, {_fmt(iv[1])}]" if iv else "")
+            f"  {name} = {format_number(e['value'])} {e['unit']}"
+            + (f", 90 % [{format_number(iv[0])}, {format_number(iv[1])}]" if iv else "")
         )
     console.print(doc["statement"])

@@ -1,5 +1,10 @@
 """Body of ``pneumafit fit``: staged identification of a campaign, with MCMC.
 
+The work and the files are the service's
+(:func:`pneumafit.services.fit.fit_folder`); this module checks the options,
+prints the fit's progress and summary (:func:`report_fit`, also used by the
+main job) and turns the service's ends into exit statuses.
+
 ``fit_command`` never lets a traceback out for bad input: it prints one
 message naming the file or option, what was expected and what was found,
 and returns 2. It returns 1 when the fit itself fails (every simulation
@@ -21,14 +26,10 @@ its files), model, seed, walkers, steps and pneumafit version.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 from pathlib import Path
-from typing import Any
 
-import h5py
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
@@ -46,88 +47,34 @@ from pneumafit.cli.console import (
     report_problems,
     run_guarded,
 )
-from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
+from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
     FitResult,
-    identify,
 )
 from pneumafit.models.layout import FRICTION_LAWS, VALVE_LAWS
 from pneumafit.models.structure import MODELS
 from pneumafit.progress import Reporter
+from pneumafit.services.fit import (
+    fit_command_line,
+    fit_folder,
+    interrupted_message,
+    partial_path,
+)
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "fit_command"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "fit_command",
+    "report_fit",
+]
 
 
-PARTIAL_FILE = "chains.partial.h5"
 #: The largest stage sampled by default has this many parameters (friction).
 MAX_SAMPLED = len(FRICTION_PARAMETERS)
-
-
-def _fingerprint(
-    campaign_sha: dict[str, str], model: str, seed: int, walkers: Any, steps: Any
-) -> str:
-    text = json.dumps(
-        {"sha256": campaign_sha, "model": model, "seed": seed, "walkers": walkers,
-         "steps": steps, "version": _version()},
-        sort_keys=True,
-    )  # fmt: skip
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _prepare_partial(partial: Path, fingerprint: str, console: Console) -> None:
-    """Keep a partial chains file made by the same run; otherwise remove it."""
-    if not partial.exists():
-        return
-    try:
-        with h5py.File(partial, "r") as f:
-            same = f.attrs.get("pneumafit_fingerprint") == fingerprint
-    except OSError:
-        same = False
-    if same:
-        console.print(f"resuming the chains in {partial}")
-        return
-    console.print(f"{partial}: made by another run (campaign, model, seed or settings differ): "
-                  "starting afresh")  # fmt: skip
-    partial.unlink()
-
-
-def _interrupted_message(partial: Path | None) -> str:
-    """What an interrupted fit keeps, in words that hold.
-
-    Least-squares stages save nothing: a re-run does them again. Only MCMC
-    steps are stored (``partial``, one group per sampled stage) and resumed.
-    """
-    if partial is None:
-        return (
-            "interrupted: nothing is kept (a fit with --no-mcmc stores no intermediate "
-            "state); the same command starts again from the beginning"
-        )
-    try:
-        with h5py.File(partial, "r") as f:
-            stages = [
-                f"{name} {int(f[name].attrs.get('iteration', 0))} steps"
-                for name in f
-                if isinstance(f[name], h5py.Group) and f[name].attrs.get("iteration", 0) > 0
-            ]
-    except OSError:
-        stages = []
-    if not stages:
-        return (
-            f"interrupted before any MCMC step was stored: nothing is kept ({partial} holds "
-            "no chain yet); the same command starts again from the beginning"
-        )
-    return (
-        f"interrupted: the MCMC chains sampled so far are kept in {partial} "
-        f"({', '.join(stages)}); the same command redoes the least-squares stages and "
-        "resumes the chains where they stopped"
-    )
-
-
-def _stamp(partial: Path, fingerprint: str) -> None:
-    with h5py.File(partial, "a") as f:
-        f.attrs["pneumafit_fingerprint"] = fingerprint
 
 
 def fit_command(
@@ -212,17 +159,8 @@ def fit_command(
     except PneumafitInputError as exc:
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
-    command = (
-        f"pneumafit fit {os.fspath(campaign)} --model {model} --out {os.fspath(out)}"
-        + (f" --walkers {walkers}" if walkers is not None else "")
-        + (f" --steps {steps}" if steps is not None else "")
-        + f" --seed {seed}"
-        + ("" if mcmc else " --no-mcmc")
-        + (" --strict" if strict else "")
-        + (f" --valve {valve}" if valve != "iso6358" else "")
-        + (f" --friction {friction}" if friction != "auto" else "")
-        + (f" --seal-friction {seal}" if seal != "off" else "")
-    )
+    command = fit_command_line(campaign, model, out, walkers, steps, seed, mcmc, strict=strict,
+                               valve=valve, friction=friction, seal=seal)  # fmt: skip
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
         friction=friction, seal=seal,
@@ -234,18 +172,7 @@ def fit_command(
             Text(f"option --out {os.fspath(out)!r}: cannot be created: {exc}", "bold red")
         )
         return EXIT_BAD_INPUT
-    partial = out / PARTIAL_FILE
-    chains_path: Path | None = None
-    if mcmc:
-        variant = (
-            ("" if valve == "iso6358" else "+" + valve)
-            + ("" if friction == "auto" else "+friction-" + friction)
-            + ("" if seal == "auto" else "+seal-" + seal)
-        )
-        fingerprint = _fingerprint(camp.sha256, model + variant, seed, walkers, steps)
-        _prepare_partial(partial, fingerprint, console)
-        _stamp(partial, fingerprint)
-        chains_path = partial
+    partial = partial_path(out) if mcmc else None
     console.print(f"fitting {model} to {camp.name} ({len(camp.by_role('fit'))} fit recordings)")
 
     def say(line: str) -> None:
@@ -253,58 +180,33 @@ def fit_command(
 
     result, status = run_guarded(
         console,
-        lambda: identify(
-            camp, model, options=options, seed=seed, chains=chains_path, log=say,
-            progress=Reporter(say, console=console),
-        ),
+        lambda: fit_folder(camp, model, out, options=options, seed=seed, command=command,
+                           log=say, progress=Reporter(say, console=console)),
         campaign=campaign, failed="fit failed",
-        interrupted=lambda: _interrupted_message(partial if mcmc else None),
+        interrupted=lambda: interrupted_message(partial),
     )  # fmt: skip
-    if status is not None:
-        return status
-    try:
-        if mcmc:
-            os.replace(partial, out / CHAINS_FILE)
-        else:
-            (out / CHAINS_FILE).unlink(missing_ok=True)  # no stale chains beside a new fit
-        result.save(out / FIT_FILE, command=command, chains=CHAINS_FILE if mcmc else None)
-    except OSError as exc:
-        console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
-        return EXIT_FAILED
-    netcdf = write_inference_data(result, out) if mcmc else []
-    _summary(result, console)
-    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
-    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else "") + arviz)
+    if status is not None or result is None:
+        return status if status is not None else EXIT_FAILED
+    report_fit(result, out, console)
     quality = result.quality
-    if quality is not None and not quality.trustworthy:
-        console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))
-        if strict:
-            return EXIT_UNTRUSTWORTHY
+    if strict and quality is not None and not quality.trustworthy:
+        return EXIT_UNTRUSTWORTHY
     return EXIT_OK
 
 
-def write_inference_data(result: FitResult, out: Path) -> list[Path]:
-    """Each sampled stage's chain as ArviZ netCDF, ``OUT/chains.<stage>.nc`` (atomic).
-
-    The emcee HDF5 file stays the resumable record; these are for ArviZ and
-    xarray (:meth:`~pneumafit.identification.sampling.MCMCResult.to_inference_data`).
-    A stage whose file cannot be written is skipped (the fit is complete
-    without it).
-    """
-    from pneumafit.fileio import atomic_path
-
-    written = []
-    for stage in result.stages:
-        if stage.mcmc is None:
-            continue
-        target = out / f"chains.{stage.name}.nc"
-        try:
-            with atomic_path(target) as tmp:
-                stage.mcmc.to_inference_data().to_netcdf(str(tmp), engine="h5netcdf")
-        except (OSError, ValueError, ImportError):
-            continue
-        written.append(target)
-    return written
+def report_fit(result: FitResult, out: Path, console: Console) -> None:
+    """The console output of a finished fit written to ``out``: the summary,
+    the files written and, for a fit that is not trustworthy, why."""
+    mcmc = any(stage.mcmc is not None for stage in result.stages)
+    _summary(result, console)
+    netcdf = sorted(out.glob("chains.*.nc")) if mcmc else []
+    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
+    chains = out / CHAINS_FILE
+    console.print(f"wrote {out / FIT_FILE}" + (f" and {chains}" if chains.exists() else "")
+                  + arviz)  # fmt: skip
+    quality = result.quality
+    if quality is not None and not quality.trustworthy:
+        console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))
 
 
 def _fmt(x: float | None, digits: int = 4) -> str:

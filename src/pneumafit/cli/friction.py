@@ -1,6 +1,8 @@
 """Body of ``pneumafit fit CAMPAIGN --model friction``: the friction law on friction tests.
 
-Same contract as the other models' ``fit`` (:mod:`pneumafit.cli.fit`):
+The work and the files are the service's
+(:func:`pneumafit.services.friction.friction_fit_folder`). Same contract as
+the other models' ``fit`` (:mod:`pneumafit.cli.fit`):
 ``OUT/fit.json`` (format ``pneumafit-fit``, written by the same writer) and,
 with MCMC, ``OUT/chains.h5``; exit 0 done, 1 failed, 2 bad input (one
 message, no traceback), 3 untrustworthy under ``--strict``, 130 interrupted.
@@ -32,12 +34,14 @@ from pneumafit.cli.console import (
     report_problems,
     run_guarded,
 )
-from pneumafit.frictiontest.fit import identify_friction
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE
+from pneumafit.identification.staged import FitResult
+from pneumafit.services.friction import friction_fit_folder
 
-__all__ = ["friction_fit_command"]
+__all__ = ["MIN_FRICTION_WALKERS", "friction_fit_command", "report_friction_fit"]
 
-PARTIAL_FILE = "chains.partial.h5"
+#: The fewest walkers the friction-test fit accepts (``--walkers``).
+MIN_FRICTION_WALKERS = 16
 #: --friction value -> law of the friction-test fit
 _LAW = {"auto": "auto", "switch": "stribeck", "lugre": "lugre"}
 #: --seal-friction value -> effects of the friction-test fit
@@ -60,7 +64,7 @@ def friction_fit_command(
     from pneumafit.campaign import read_campaign
 
     problems = [
-        int_problem("--walkers", walkers, 16),
+        int_problem("--walkers", walkers, MIN_FRICTION_WALKERS),
         int_problem("--steps", steps, 1),
         int_problem("--seed", seed, 0),
         folder_problem(out),
@@ -94,35 +98,31 @@ def friction_fit_command(
     except OSError as exc:
         console.print(Text(f"option --out {os.fspath(out)!r}: cannot be created: {exc}", "red"))
         return EXIT_BAD_INPUT
-    partial = out / PARTIAL_FILE
-    partial.unlink(missing_ok=True)  # the friction chain is short: always afresh
     n_fit = len([r for r in camp.by_kind("friction") if r.role == "fit"])
     console.print(f"fitting friction to {camp.name} ({n_fit} fit friction tests)")
     result, status = run_guarded(
         console,
-        lambda: identify_friction(
-            camp, law=_LAW[friction], effects=_EFFECTS[seal], mcmc=mcmc, walkers=walkers,
-            steps=steps, seed=seed, chains=partial if mcmc else None,
-            log=lambda line: console.print(Text(line)),
+        lambda: friction_fit_folder(
+            camp, out, law=_LAW[friction], effects=_EFFECTS[seal], mcmc=mcmc, walkers=walkers,
+            steps=steps, seed=seed, command=command, log=lambda line: console.print(Text(line)),
         ),
         campaign=campaign, failed="fit failed", interrupted="interrupted",
     )  # fmt: skip
-    if status is not None:
-        return status
-    # fit.json through the common writer: the effect parameters are model
-    # parameters here (not nuisance), the options the law and effects fitted
-    try:
-        if mcmc:
-            os.replace(partial, out / CHAINS_FILE)
-        else:
-            (out / CHAINS_FILE).unlink(missing_ok=True)
-        result.save(out / FIT_FILE, command=command, chains=CHAINS_FILE if mcmc else None)
-    except OSError as exc:
-        console.print(Text(f"{os.fspath(out)}: cannot write the results: {exc}", "bold red"))
-        return EXIT_FAILED
-    from pneumafit.cli.fit import _summary, write_inference_data
+    if status is not None or result is None:
+        return status if status is not None else EXIT_FAILED
+    report_friction_fit(result, out, console)
+    quality = result.quality
+    if strict and quality is not None and not quality.trustworthy:
+        return EXIT_UNTRUSTWORTHY
+    return EXIT_OK
 
-    netcdf = write_inference_data(result, out) if mcmc else []
+
+def report_friction_fit(result: FitResult, out: Path, console: Console) -> None:
+    """The console output of a friction fit written to ``out`` (also the main job's)."""
+    from pneumafit.cli.fit import _summary
+
+    mcmc = (out / CHAINS_FILE).exists()
+    netcdf = sorted(out.glob("chains.*.nc")) if mcmc else []
     _summary(result, console)
     m = result.metrics
     console.print(
@@ -135,6 +135,3 @@ def friction_fit_command(
     quality = result.quality
     if quality is not None and not quality.trustworthy:
         console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))
-        if strict:
-            return EXIT_UNTRUSTWORTHY
-    return EXIT_OK

@@ -78,6 +78,7 @@ from pneumafit.identification.quality import (
 )
 from pneumafit.identification.sampling import run_mcmc
 from pneumafit.identification.staged import (
+    ADAPT_CHECKS,
     ADAPT_FRACTION,
     MCMC_CHECKS,
     FitResult,
@@ -491,6 +492,7 @@ def identify_friction(
                 post, parameters, est.z, est.covariance, n_walkers=n_walkers,
                 n_steps=n_steps, seed=seed, backend=chains, name="friction", log=say,
                 report=task, adapt=int(ADAPT_FRACTION * n_steps), min_steps=check,
+                adapt_check=int(ADAPT_FRACTION * n_steps) // ADAPT_CHECKS if check else 0,
                 max_steps=None if steps else 2 * n_steps,
             )  # fmt: skip
         joint.mcmc = run

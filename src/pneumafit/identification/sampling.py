@@ -84,6 +84,13 @@ INITIAL_SPREAD = 1e-3
 #: Degrees of freedom of the independence proposal (heavier tails than the
 #: fitted Gaussian, so that the posterior's tails are proposed too).
 PROPOSAL_DF = 5.0
+#: An adaptation phase checked for its end (``run_mcmc(adapt_check=)``) ends
+#: once the walkers' mean log posterior rose by less than this many times
+#: sqrt(n_free / 2) (the spread of a d-dimensional posterior's log density,
+#: chi-square with d degrees of freedom, over 2) between the last two
+#: quarters of the phase so far, its transient over by the middle
+#: (:func:`_phase_settled`).
+SETTLED_RISE = 0.25
 #: Share of the independence move after the adaptation (the rest: DE).
 INDEPENDENCE_WEIGHT = 0.9
 
@@ -125,6 +132,9 @@ class MCMCResult:
         Log-posterior evaluations (parameter sets) in this call.
     resumed_from : int
         Steps found in the backend when the call started (0: a fresh run).
+    adapted_after : int
+        Steps of the adaptation phase (0: none; ``run_mcmc(adapt_check=)``
+        may end it before its ``adapt`` steps).
     seed : int
     """
 
@@ -147,6 +157,7 @@ class MCMCResult:
     seconds: float = 0.0
     evaluations: int = 0
     resumed_from: int = 0
+    adapted_after: int = 0
     seed: int = 0
 
     def to_inference_data(self) -> Any:
@@ -191,6 +202,7 @@ class MCMCResult:
             "seconds": self.seconds,
             "evaluations": self.evaluations,
             "resumed_from": self.resumed_from,
+            "adapted_after": self.adapted_after,
             "seed": self.seed,
             "warnings": list(self.warnings),
         }
@@ -344,6 +356,7 @@ def run_mcmc(
     min_steps: int | None = None,
     report: Progress | None = None,
     adapt: int = 0,
+    adapt_check: int = 0,
 ) -> MCMCResult:
     """Sample a log posterior with emcee; resume a stored run when possible.
 
@@ -404,6 +417,13 @@ def run_mcmc(
         burn-in: the summaries start after them, the convergence checks
         start ``min_steps`` steps after them, and ``n_steps`` and
         ``max_steps`` count them. ``moves`` applies to the adaptation phase.
+    adapt_check : int
+        With ``adapt``, end the adaptation phase early: checked every
+        ``adapt_check`` steps from ``2 adapt_check``, it ends at the first
+        check where the walkers have settled (:func:`_phase_settled`), at
+        ``adapt`` steps at the latest. 0: exactly ``adapt`` steps. The
+        decision depends on the stored chain only (a resumed run ends its
+        phase at the same step); ``MCMCResult.adapted_after`` gives it.
 
     Returns
     -------
@@ -456,13 +476,9 @@ def run_mcmc(
     adapt = max(int(adapt), 0)
     sampler = sampler_with(default_moves() if moves is None else moves)
     adapted = False
-    check = int(min_steps) if min_steps else 0
-    target = min(check, n_steps) if check > 0 else n_steps
-    if adapt:
-        n_steps = max(n_steps, adapt + 2)
-        target = min(adapt + check, n_steps) if check > 0 else n_steps
-    limit = max(n_steps, int(max_steps or n_steps))
     last: emcee.State | None = None
+    check = int(min_steps) if min_steps else 0
+    target = limit = 0
 
     def status() -> str:
         have = int(store.iteration)
@@ -476,6 +492,38 @@ def run_mcmc(
             + (f"{taus.max():.1f} steps (largest, chain so far)" if taus.size else "not yet known")
             + f", {evaluations} evaluations"
         )
+
+    def first_state() -> emcee.State:
+        lower, upper = parameters.internal_bounds()
+        rng = np.random.default_rng(seed)
+        walkers = _initial_walkers(
+            counted, np.asarray(start, float), covariance, n_walkers, rng, lower, upper
+        )
+        return emcee.State(walkers, random_state=np.random.RandomState(seed % 2**32).get_state())
+
+    adapt_check = max(int(adapt_check), 0)
+    if adapt and adapt_check and 2 * adapt_check < adapt:
+        # the phase, run (or resumed) check by check until it is decided
+        while True:
+            have = int(store.iteration) if store.initialized else 0
+            stored = store.get_log_prob() if have else np.empty((0, n_walkers))
+            end = _phase_end(stored, adapt, adapt_check, n_free)
+            if end is not None:
+                adapt = end
+                break
+            target = min(adapt, max(2 * adapt_check, (have // adapt_check + 1) * adapt_check))
+            for result_state in sampler.sample(
+                first_state() if have == 0 else sampler.get_last_sample(),
+                iterations=target - have, progress=progress,
+            ):
+                last = result_state
+                if report is not None:
+                    report.update(status)
+    target = min(check, n_steps) if check > 0 else n_steps
+    if adapt:
+        n_steps = max(n_steps, adapt + 2)
+        target = min(adapt + check, n_steps) if check > 0 else n_steps
+    limit = max(n_steps, int(max_steps or n_steps))
 
     def advance(state: emcee.State | None, n: int) -> emcee.State | None:
         # as EnsembleSampler.run_mcmc(state, n): None resumes from the last
@@ -502,18 +550,7 @@ def run_mcmc(
         have = int(store.iteration) if store.initialized else 0
         remaining = target - have
         if remaining > 0:
-            if have == 0:
-                lower, upper = parameters.internal_bounds()
-                rng = np.random.default_rng(seed)
-                walkers = _initial_walkers(
-                    counted, np.asarray(start, float), covariance, n_walkers, rng, lower, upper
-                )
-                state = emcee.State(
-                    walkers, random_state=np.random.RandomState(seed % 2**32).get_state()
-                )
-                last = advance(state, remaining)
-            else:
-                last = advance(last, remaining)
+            last = advance(first_state() if have == 0 else last, remaining)
         chain = store.get_chain()[:target]
         lp = store.get_log_prob()[:target]
         # acceptance over the steps kept (emcee counts every step stored)
@@ -541,6 +578,7 @@ def run_mcmc(
     result.seconds = seconds
     result.evaluations = evaluations
     result.resumed_from = done
+    result.adapted_after = adapt
     return result
 
 
@@ -556,6 +594,40 @@ def _settled(log_prob: NDArray[np.float64]) -> int:
     level = np.nanmedian(mean[lp.shape[0] // 2 :])
     reached = np.flatnonzero(mean >= level)
     return int(reached[0]) if reached.size else lp.shape[0] // 2
+
+
+def _phase_settled(log_prob: NDArray[np.float64], n_free: int) -> bool:
+    """True when an adaptation phase whose log posteriors are ``log_prob``
+    (steps, walkers) can end: the walkers' mean log posterior first reaches its
+    second-half median in the first half (:func:`_settled`), and it rose by
+    less than :data:`SETTLED_RISE` sqrt(n_free / 2) between the last two
+    quarters. A function of the stored steps only."""
+    lp = np.asarray(log_prob, dtype=float)
+    if lp.ndim != 2 or lp.shape[0] < 8:
+        return False
+    n = lp.shape[0]
+    if _settled(lp) > n // 2:
+        return False
+    with np.errstate(invalid="ignore"):
+        mean = np.nanmean(np.where(np.isfinite(lp), lp, np.nan), axis=1)
+    q = n // 4
+    rise = float(np.nanmean(mean[n - q :]) - np.nanmean(mean[n - 2 * q : n - q]))
+    return math.isfinite(rise) and rise < SETTLED_RISE * math.sqrt(max(n_free, 1) / 2.0)
+
+
+def _phase_end(
+    log_prob: NDArray[np.float64], adapt: int, adapt_check: int, n_free: int
+) -> int | None:
+    """The step at which an adaptation phase of at most ``adapt`` steps,
+    checked every ``adapt_check`` steps from ``2 adapt_check``, ends, when the
+    stored ``log_prob`` already decides it; None while it does not."""
+    have = log_prob.shape[0]
+    for end in range(2 * adapt_check, adapt, adapt_check):
+        if end > have:
+            return None
+        if _phase_settled(log_prob[:end], n_free):
+            return end
+    return adapt if have >= adapt else None
 
 
 def summarize_chain(

@@ -142,6 +142,12 @@ MCMC_CHECKS = 20
 #: steps, heat 150. From the wide start the demo's friction walkers settle
 #: in 90-170 steps (DE alone), so the t is fitted to settled walkers.
 ADAPT_FRACTION = 0.15
+#: With early stopping the adaptation phase is checked every 1/ADAPT_CHECKS of
+#: its length (friction every 50 steps, heat every 25) from twice that, and
+#: ends once the walkers have settled (``run_mcmc(adapt_check=)``,
+#: :func:`pneumafit.identification.sampling._phase_settled`), at its full
+#: length at the latest.
+ADAPT_CHECKS = 6
 #: Stages sampled by default. The valve is not: its eight parameters need
 #: long chains on the charge/discharge tests (the flow tests alone leave the
 #: centre leakage, which the blocked tests measure, ten times less certain
@@ -1268,6 +1274,7 @@ def identify(
                     seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
                     max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
                     min_steps=check, report=task, adapt=int(ADAPT_FRACTION * n_steps),
+                    adapt_check=int(ADAPT_FRACTION * n_steps) // ADAPT_CHECKS if check else 0,
                 )  # fmt: skip
             evaluations += res.evaluations
             stage_obj = next(s for s in stages if s.name == stage_name)

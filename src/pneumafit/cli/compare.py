@@ -12,7 +12,7 @@ Output folder ``OUT``::
     OUT/comparison.json           format pneumafit-comparison (report.py)
     OUT/replays.npz               every fit's replay of every recording, for the report
     OUT/residuals.json            every fit's residual analysis, for the report
-    OUT/residuals/<model>_<k>.png its figures
+    OUT/residuals/<model>_<k>.png its figures (the convection fit's)
     OUT/figures/<recording>.png   measured vs the models, and residuals
     OUT/fits/<model>/fit.json     the fits made here (and chains.h5 with MCMC)
 

@@ -8,7 +8,8 @@ residual analysis of its own for a fit this file holds. Per model: the
 fingerprint of the fit analysed (:func:`~pneumafit.comparison.replays.replay_fingerprint`),
 one row per recording and channel (:class:`~pneumafit.discovery.residuals.SummaryRow`,
 furthest from white first; non-finite numbers as null), the recordings that
-could not be analysed, and the figures of the recordings furthest from white.
+could not be analysed, and (for the fits of :data:`FIGURE_MODELS`, the one
+the report shows) the figures of the recordings furthest from white.
 """
 
 from __future__ import annotations
@@ -27,14 +28,29 @@ from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.identification.fitfile import json_safe
 
-__all__ = ["RESIDUALS_FILE", "RESIDUALS_FORMAT", "load_residuals", "save_residuals"]
+__all__ = [
+    "FIGURE_MODELS",
+    "RESIDUALS_FILE",
+    "RESIDUALS_FORMAT",
+    "load_residuals",
+    "save_residuals",
+]
 
 #: The residual analysis of every fit, beside comparison.json.
 RESIDUALS_FILE = "residuals.json"
 RESIDUALS_FORMAT = "pneumafit-residuals"
+#: The fits whose residual figures are drawn: the one the report shows (the
+#: paper's full convection model); every fit gets its rows. Drawing the
+#: three recordings furthest from white costs ~0.6 s per figure (demo).
+FIGURE_MODELS = ("convection",)
 
 
-def save_residuals(folder: Path, campaign: Campaign, replays: list[ModelReplay]) -> Path:
+def save_residuals(
+    folder: Path,
+    campaign: Campaign,
+    replays: list[ModelReplay],
+    figure_models: tuple[str, ...] | None = FIGURE_MODELS,
+) -> Path:
     """Write ``folder/residuals.json`` and its figures: each replayed fit's
     residual analysis (``residual_analysis`` per recording, ranked by
     ``summarize``) and the figures of its recordings furthest from white.
@@ -46,6 +62,8 @@ def save_residuals(folder: Path, campaign: Campaign, replays: list[ModelReplay])
     campaign : Campaign
     replays : list of ModelReplay
         The comparison's replays (:attr:`Comparison.replays`).
+    figure_models : tuple of str, optional
+        The fits whose figures are drawn (None: every fit).
 
     Returns
     -------
@@ -61,7 +79,8 @@ def save_residuals(folder: Path, campaign: Campaign, replays: list[ModelReplay])
         rows = summarize(reports)
         by_name = {rep.recording: rep for rep in reports}
         figures = []
-        for k, name in enumerate(worst_recordings(rows)):
+        drawn = figure_models is None or replay.model in figure_models
+        for k, name in enumerate(worst_recordings(rows) if drawn else []):
             rel = Path("residuals") / f"{replay.model}_{k}.png"
             plot_residuals(by_name[name], folder / rel)
             figures.append({"file": rel.as_posix(), "recording": name})

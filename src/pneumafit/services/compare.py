@@ -6,7 +6,7 @@ writes ``OUT``::
     OUT/comparison.json             format pneumafit-comparison (comparison/report.py)
     OUT/replays.npz                 every fit's replay of every recording, for the report
     OUT/residuals.json              every fit's residual analysis (whiteness, phases)
-    OUT/residuals/<model>_<k>.png   its figures, the recordings furthest from white
+    OUT/residuals/<model>_<k>.png   the convection fit's: the recordings furthest from white
     OUT/figures/<recording>.png     measured vs the models, and residuals
     OUT/fits/<model>/fit.json       the fits made here (and chains.h5 with MCMC)
 

@@ -58,6 +58,7 @@ def run_friction(
     from pneumafit.cli.friction import MIN_FRICTION_WALKERS, report_friction_fit
     from pneumafit.outputs.friction_report import write_friction_report
     from pneumafit.pipeline import StageBook, StageFailed, _guarded, _say, fit_is_reusable
+    from pneumafit.services.fit import fit_command_line
     from pneumafit.services.friction import friction_fit_folder
 
     started = time.perf_counter()
@@ -88,10 +89,7 @@ def run_friction(
             t0 = time.perf_counter()
             n_fit = len([r for r in campaign.by_kind("friction") if r.role == "fit"])
             console.print(f"fitting friction to {campaign.name} ({n_fit} fit friction tests)")
-            command = (f"pneumafit fit {path} --model friction --out {fit_dir}"
-                       + (f" --walkers {walkers}" if walkers is not None else "")
-                       + (f" --steps {steps}" if steps is not None else "")
-                       + f" --seed {seed}" + ("" if mcmc else " --no-mcmc"))  # fmt: skip
+            command = fit_command_line(path, "friction", fit_dir, walkers, steps, seed, mcmc)
             result = _guarded(
                 console, "fit friction",
                 lambda: friction_fit_folder(

@@ -47,7 +47,6 @@ from pneumafit.cli.console import (
     report_problems,
     run_guarded,
 )
-from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
@@ -61,6 +60,7 @@ from pneumafit.services.fit import (
     fit_folder,
     interrupted_message,
     partial_path,
+    written_line,
 )
 
 __all__ = [
@@ -188,6 +188,12 @@ def fit_command(
     if status is not None or result is None:
         return status if status is not None else EXIT_FAILED
     report_fit(result, out, console)
+    return fit_status(result, strict)
+
+
+def fit_status(result: FitResult, strict: bool) -> int:
+    """The exit status of a finished fit: 3 when it is not trustworthy under
+    ``--strict``, else 0."""
     quality = result.quality
     if strict and quality is not None and not quality.trustworthy:
         return EXIT_UNTRUSTWORTHY
@@ -197,13 +203,8 @@ def fit_command(
 def report_fit(result: FitResult, out: Path, console: Console) -> None:
     """The console output of a finished fit written to ``out``: the summary,
     the files written and, for a fit that is not trustworthy, why."""
-    mcmc = any(stage.mcmc is not None for stage in result.stages)
     _summary(result, console)
-    netcdf = sorted(out.glob("chains.*.nc")) if mcmc else []
-    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
-    chains = out / CHAINS_FILE
-    console.print(f"wrote {out / FIT_FILE}" + (f" and {chains}" if chains.exists() else "")
-                  + arviz)  # fmt: skip
+    console.print(written_line(out))
     quality = result.quality
     if quality is not None and not quality.trustworthy:
         console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))

@@ -27,15 +27,14 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
-    EXIT_OK,
-    EXIT_UNTRUSTWORTHY,
     folder_problem,
     int_problem,
     report_problems,
     run_guarded,
 )
-from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE
+from pneumafit.cli.fit import _summary, fit_status
 from pneumafit.identification.staged import FitResult
+from pneumafit.services.fit import fit_command_line, written_line
 from pneumafit.services.friction import friction_fit_folder
 
 __all__ = ["MIN_FRICTION_WALKERS", "friction_fit_command", "report_friction_fit"]
@@ -83,16 +82,8 @@ def friction_fit_command(
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
     out = Path(out)
-    command = (
-        f"pneumafit fit {os.fspath(campaign)} --model friction --out {os.fspath(out)}"
-        + (f" --walkers {walkers}" if walkers is not None else "")
-        + (f" --steps {steps}" if steps is not None else "")
-        + f" --seed {seed}"
-        + ("" if mcmc else " --no-mcmc")
-        + (" --strict" if strict else "")
-        + (f" --friction {friction}" if friction != "auto" else "")
-        + (f" --seal-friction {seal}" if seal != "off" else "")
-    )
+    command = fit_command_line(campaign, "friction", out, walkers, steps, seed, mcmc,
+                               strict=strict, friction=friction, seal=seal)  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -111,18 +102,11 @@ def friction_fit_command(
     if status is not None or result is None:
         return status if status is not None else EXIT_FAILED
     report_friction_fit(result, out, console)
-    quality = result.quality
-    if strict and quality is not None and not quality.trustworthy:
-        return EXIT_UNTRUSTWORTHY
-    return EXIT_OK
+    return fit_status(result, strict)
 
 
 def report_friction_fit(result: FitResult, out: Path, console: Console) -> None:
     """The console output of a friction fit written to ``out`` (also the main job's)."""
-    from pneumafit.cli.fit import _summary
-
-    mcmc = (out / CHAINS_FILE).exists()
-    netcdf = sorted(out.glob("chains.*.nc")) if mcmc else []
     _summary(result, console)
     m = result.metrics
     console.print(
@@ -130,8 +114,7 @@ def report_friction_fit(result: FitResult, out: Path, console: Console) -> None:
         "force RMSE by recording: "
         + ", ".join(f"{f} {v:.3g} N" for f, v in m["rmse_by_recording"].items())
     )
-    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
-    console.print(f"wrote {out / FIT_FILE}" + (f" and {out / CHAINS_FILE}" if mcmc else "") + arviz)
+    console.print(written_line(out))
     quality = result.quality
     if quality is not None and not quality.trustworthy:
         console.print(Text(f"NOT TRUSTWORTHY: {quality.verdict()}", style="bold red"))

@@ -34,7 +34,7 @@ from pneumafit.identification.staged import FitOptions, FitResult
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.residual_file import RESIDUALS_FILE, save_residuals
 from pneumafit.progress import Reporter
-from pneumafit.services.fit import fit_folder
+from pneumafit.services.fit import fit_folder, output_folder
 
 __all__ = [
     "COMPARED_MODELS",
@@ -145,13 +145,7 @@ def compare_folder(
     """
     say = log or (lambda _line: None)
     started = time.perf_counter()
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise PneumafitInputError(
-            f"option --out {os.fspath(out)!r}: cannot be created: {exc}"
-        ) from exc
+    out = output_folder(out)
     given = dict(given or {})
     chosen: dict[str, tuple[Path, dict[str, Any]]] = {}
     sources: dict[str, dict[str, Any]] = {}

@@ -49,7 +49,7 @@ from pneumafit.discovery.attribution import simulate_recording
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, discover
 from pneumafit.fileio import atomic_path, write_text_atomic
-from pneumafit.identification.fitfile import SavedFit, json_safe
+from pneumafit.identification.fitfile import SavedFit, _version, json_safe
 from pneumafit.identification.staged import FitResult
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
@@ -61,8 +61,10 @@ __all__ = [
     "DiscoveryFolder",
     "discover_folder",
     "discovery_document",
+    "effect_parameter_lines",
     "format_number",
     "load_base_fit",
+    "provenance",
     "write_report",
 ]
 
@@ -174,7 +176,6 @@ def discovery_document(
     options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The discovery.json content (see the module docstring)."""
-    from pneumafit.identification.fitfile import _version
 
     base, final = result.base, result.final
     rounds = []
@@ -237,19 +238,39 @@ def discovery_document(
         "noise_pressure": result.noise,
         "unexplained": bool(result.unexplained),
         "statement": result.statement,
-        "provenance": {
-            "pneumafit_version": _version(),
-            "seed": result.seed,
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-            "command": command,
-            "options": dict(options or {}),
-            "seconds": result.seconds,
-        },
+        "provenance": provenance(result.seed, result.seconds, command, options),
     }
     return json_safe(doc)
 
 
+def provenance(
+    seed: int, seconds: float, command: str, options: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """discovery.json's ``provenance``: version, seed, time made, command, options, seconds."""
+    return {
+        "pneumafit_version": _version(),
+        "seed": seed,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "command": command,
+        "options": dict(options or {}),
+        "seconds": seconds,
+    }
+
+
 # ----------------------------------------------------------------- report
+def effect_parameter_lines(parameters: Mapping[str, Any]) -> list[str]:
+    """discovery.md's table of the effect parameters (``effect_parameters``)."""
+    if not parameters:
+        return ["None."]
+    lines = ["| parameter | effect | value | unit | 90 % interval (Laplace) |",
+             "|---|---|---|---|---|"]  # fmt: skip
+    for name, e in parameters.items():
+        iv = e.get("interval_90")
+        iv_s = f"[{_fmt(iv[0])}, {_fmt(iv[1])}]" if iv else "-"
+        lines.append(f"| `{name}` | `{e['effect']}` | {_fmt(e['value'])} | {e['unit']} | {iv_s} |")
+    return lines
+
+
 def format_number(x: Any, digits: int = 4) -> str:
     """A number in ``digits`` significant digits; '-' for None or non-finite."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
@@ -409,17 +430,7 @@ def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
         "## Effect parameters",
         "",
     ]
-    if doc["effect_parameters"]:
-        lines += ["| parameter | effect | value | unit | 90 % interval (Laplace) |",
-                  "|---|---|---|---|---|"]  # fmt: skip
-        for name, e in doc["effect_parameters"].items():
-            iv = e.get("interval_90")
-            iv_s = f"[{_fmt(iv[0])}, {_fmt(iv[1])}]" if iv else "-"
-            lines.append(
-                f"| `{name}` | `{e['effect']}` | {_fmt(e['value'])} | {e['unit']} | {iv_s} |"
-            )
-    else:
-        lines.append("None.")
+    lines += effect_parameter_lines(doc["effect_parameters"])
     lines += ["", "## Figures", ""]
     lines += [f"![{f}]({f})" for f in figures]
     return "\n".join(lines) + "\n"

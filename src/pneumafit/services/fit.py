@@ -37,8 +37,10 @@ __all__ = [
     "fit_command_line",
     "fit_folder",
     "interrupted_message",
+    "output_folder",
     "partial_path",
     "write_inference_data",
+    "written_line",
 ]
 
 PARTIAL_FILE = "chains.partial.h5"
@@ -144,6 +146,35 @@ def write_inference_data(result: FitResult, out: Path) -> list[Path]:
     return written
 
 
+def output_folder(out: str | os.PathLike[str]) -> Path:
+    """The output folder ``out``, created (with its parents) if need be.
+
+    Raises
+    ------
+    PneumafitInputError
+        It cannot be created (names the ``--out`` option and why).
+    """
+    from pneumafit.errors import PneumafitInputError
+
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise PneumafitInputError(
+            f"option --out {os.fspath(folder)!r}: cannot be created: {exc}"
+        ) from exc
+    return folder
+
+
+def written_line(out: Path) -> str:
+    """What a fit folder holds, as the commands print it: 'wrote OUT/fit.json
+    and OUT/chains.h5 (chains.heat.nc, ...: ArviZ)'."""
+    chains = out / CHAINS_FILE
+    netcdf = sorted(out.glob("chains.*.nc")) if chains.exists() else []
+    arviz = f" ({', '.join(p.name for p in netcdf)}: ArviZ)" if netcdf else ""
+    return f"wrote {out / FIT_FILE}" + (f" and {chains}" if chains.exists() else "") + arviz
+
+
 def fit_command_line(
     campaign: str | os.PathLike[str], model: str, out: str | os.PathLike[str],
     walkers: int | None, steps: int | None, seed: int, mcmc: bool, *, strict: bool = False,
@@ -212,17 +243,9 @@ def fit_folder(
         Interrupted: with MCMC the chains sampled so far are kept
         (:func:`interrupted_message`).
     """
-    from pneumafit.errors import PneumafitInputError
-
     options = options or FitOptions()
     say = log or (lambda _line: None)
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise PneumafitInputError(
-            f"option --out {os.fspath(out)!r}: cannot be created: {exc}"
-        ) from exc
+    out = output_folder(out)
     partial = partial_path(out)
     chains_path: Path | None = None
     if options.mcmc:

@@ -22,9 +22,7 @@ through; they print nothing.
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
-import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -43,7 +41,8 @@ from pneumafit.frictiontest.fit import identify_friction
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, SavedFit, json_safe
 from pneumafit.identification.staged import FitResult
 from pneumafit.outputs.friction_report import before_after_rows
-from pneumafit.services.fit import PARTIAL_FILE, write_inference_data
+from pneumafit.services.discover import effect_parameter_lines, format_number, provenance
+from pneumafit.services.fit import PARTIAL_FILE, output_folder, write_inference_data
 
 __all__ = [
     "FrictionDiscoveryFolder",
@@ -104,13 +103,7 @@ def friction_fit_folder(
     PneumafitComputationError
         The fit failed, or its files cannot be written.
     """
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise PneumafitInputError(
-            f"option --out {os.fspath(out)!r}: cannot be created: {exc}"
-        ) from exc
+    out = output_folder(out)
     partial = out / PARTIAL_FILE
     partial.unlink(missing_ok=True)  # the friction chain is short: always afresh
     result = identify_friction(
@@ -153,7 +146,6 @@ def friction_discovery_document(
     options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The discovery.json content of a friction-test discovery."""
-    from pneumafit.identification.fitfile import _version
 
     def roles(rm: Mapping[str, Any]) -> dict[str, Any]:
         return {role: {"F": v} for role, v in rm["role"].items()}
@@ -194,22 +186,13 @@ def friction_discovery_document(
         "noise_F": result.noise,
         "unexplained": not result.selected,
         "statement": result.statement,
-        "provenance": {
-            "pneumafit_version": _version(),
-            "seed": result.seed,
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-            "command": command,
-            "options": dict(options or {}),
-            "seconds": result.seconds,
-        },
+        "provenance": provenance(result.seed, result.seconds, command, options),
     }
     return json_safe(doc)
 
 
 def _f(x: Any, digits: int = 3) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "-"
-    return f"{x:.{digits}g}"
+    return format_number(x, digits)
 
 
 def _markdown(doc: Mapping[str, Any], figures: list[str]) -> str:
@@ -261,17 +244,7 @@ def _markdown(doc: Mapping[str, Any], figures: list[str]) -> str:
         "## Effect parameters",
         "",
     ]
-    if doc["effect_parameters"]:
-        lines += ["| parameter | effect | value | unit | 90 % interval (Laplace) |",
-                  "|---|---|---|---|---|"]  # fmt: skip
-        for name, e in doc["effect_parameters"].items():
-            iv = e.get("interval_90")
-            iv_s = f"[{_f(iv[0], 4)}, {_f(iv[1], 4)}]" if iv else "-"
-            lines.append(
-                f"| `{name}` | `{e['effect']}` | {_f(e['value'], 4)} | {e['unit']} | {iv_s} |"
-            )
-    else:
-        lines.append("None.")
+    lines += effect_parameter_lines(doc["effect_parameters"])
     lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
     return "\n".join(lines) + "\n"
 

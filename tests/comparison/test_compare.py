@@ -22,6 +22,7 @@ from pneumafit.comparison import (
     evaluate_fit,
 )
 from pneumafit.comparison.replays import REPLAYS_FILE, load_replays, replay_fingerprint
+from pneumafit.outputs.residual_file import RESIDUALS_FILE, load_residuals
 
 MODELS = ("convection", "constant-lambda", "polytropic")
 
@@ -123,6 +124,13 @@ def test_cli_compare_writes_json_and_figures(
         fit_file = fit_file / "fit.json" if fit_file.is_dir() else fit_file
         assert r.fingerprint == replay_fingerprint(json.loads(fit_file.read_text()))
         assert set(r.channels) == {x.file for x in campaign.recordings} and not r.failed
+    # every fit's residual analysis, for the report (figures: the convection fit's)
+    saved = load_residuals(out / RESIDUALS_FILE, campaign.sha256)
+    assert set(saved) == set(MODELS)
+    for r in replays:
+        assert saved[r.model]["fingerprint"] == r.fingerprint and saved[r.model]["rows"]
+        assert bool(saved[r.model]["figures"]) == (r.model == "convection")
+        assert all(path.is_file() for path, _ in saved[r.model]["figures"])
     post = doc["constant-lambda"]["posterior"]
     assert post["available"] is True, post
     # one sampled parameter (lambda): WAIC's effective parameter count is about
@@ -272,3 +280,32 @@ def test_report_from_python_reads_what_it_saved(
         pf.report(tmp_path / "again", campaign, fits=[fits[2], fits[2]])
     with pytest.raises(PneumafitInputError, match=f"base fit \\(model {fits[0].model}\\)"):
         pf.report(tmp_path / "again", campaign, fits=fits[1:], discovery=found)
+
+
+def test_a_failing_residual_analysis_does_not_fail_the_comparison(
+    blocked_campaign: tuple[Path, Campaign], blocked_fits: dict[str, Path], tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """The residual analysis is an optional artifact of the comparison: if it
+    fails, comparison.json is still written, residuals.json is not (the
+    report then runs the analysis itself and shows what fails), and the log
+    says so."""
+    from pneumafit.outputs import report_models
+    from pneumafit.services.compare import compare_folder, read_fit
+
+    _folder, campaign = blocked_campaign
+
+    def broken(*_args: object, **_kwargs: object) -> None:
+        raise TypeError("made to fail")
+
+    monkeypatch.setattr(report_models, "residual_reports", broken)
+    said: list[str] = []
+    out = tmp_path / "cmp"
+    comparison = compare_folder(
+        campaign, out, {m: read_fit(blocked_fits[m]) for m in MODELS}, figures=False,
+        log=said.append,
+    )  # fmt: skip
+    assert (out / "comparison.json").is_file() and comparison.models == list(MODELS)
+    assert not (out / RESIDUALS_FILE).exists()
+    assert any("residual analysis not saved (TypeError: made to fail)" in line for line in said)
+

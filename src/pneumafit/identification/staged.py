@@ -142,22 +142,12 @@ MCMC_CHECKS = 20
 #: steps, heat 150. From the wide start the demo's friction walkers settle
 #: in 90-170 steps (DE alone), so the t is fitted to settled walkers.
 ADAPT_FRACTION = 0.15
-#: With early stopping the adaptation phase of the stages in
-#: :data:`EARLY_PHASE_END` is checked every 1/ADAPT_CHECKS of its length (heat
-#: every 25 steps) from twice that, and ends once the walkers have settled
-#: (``run_mcmc(adapt_check=)``,
+#: With early stopping the adaptation phase is checked every 1/ADAPT_CHECKS of
+#: its length (friction every 50 steps, heat every 25) from twice that, and
+#: ends once the walkers have settled (``run_mcmc(adapt_check=)``,
 #: :func:`pneumafit.identification.sampling._phase_settled`), at its full
 #: length at the latest.
 ADAPT_CHECKS = 6
-#: The stages whose adaptation phase may end early: the heat stage only.
-#: Measured on the demo's main job (2026-11-27, the three fits): the heat
-#: chains took 17.9, 17.0 and 11.9 s against 20.3, 17.1 and 22.8 s with the
-#: fixed phase; the friction chains 63.7, 84.3 and 41.0 s against 45.9,
-#: 60.9 and 39.7 s: their phase ended after 100-200 steps, when the mean log
-#: posterior had levelled but the walkers had mixed for only 3-6 of DE's
-#: autocorrelation times (23-38 steps), so the Student t fitted to them was
-#: a poorer proposal and the chain needed 100-300 more steps to R-hat 1.01.
-EARLY_PHASE_END = ("heat",)
 #: Stages sampled by default. The valve is not: its eight parameters need
 #: long chains on the charge/discharge tests (the flow tests alone leave the
 #: centre leakage, which the blocked tests measure, ten times less certain
@@ -1284,8 +1274,7 @@ def identify(
                     seed=seeds[4 + k], backend=chains, name=stage_name, progress=opts.progress,
                     max_steps=None if opts.steps else int(opts.extend * n_steps), log=say,
                     min_steps=check, report=task, adapt=int(ADAPT_FRACTION * n_steps),
-                    adapt_check=int(ADAPT_FRACTION * n_steps) // ADAPT_CHECKS
-                    if check and stage_name in EARLY_PHASE_END else 0,
+                    adapt_check=int(ADAPT_FRACTION * n_steps) // ADAPT_CHECKS if check else 0,
                 )  # fmt: skip
             evaluations += res.evaluations
             stage_obj = next(s for s in stages if s.name == stage_name)

@@ -25,6 +25,7 @@ from pneumafit.campaign import Campaign, check_campaign, read_campaign
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -57,7 +58,7 @@ def run_friction(
     """The friction-test job; same exit statuses as :func:`pneumafit.pipeline.run`."""
     from pneumafit.cli.friction import MIN_FRICTION_WALKERS, report_friction_fit
     from pneumafit.outputs.friction_report import write_friction_report
-    from pneumafit.pipeline import StageBook, StageFailed, _guarded, _say, fit_is_reusable
+    from pneumafit.pipeline import StageBook, StageFailed, fit_is_reusable, run_service
     from pneumafit.services.fit import fit_command_line
     from pneumafit.services.friction import friction_fit_folder
 
@@ -90,11 +91,11 @@ def run_friction(
             n_fit = len([r for r in campaign.by_kind("friction") if r.role == "fit"])
             console.print(f"fitting friction to {campaign.name} ({n_fit} fit friction tests)")
             command = fit_command_line(path, "friction", fit_dir, walkers, steps, seed, mcmc)
-            result = _guarded(
+            result = run_service(
                 console, "fit friction",
                 lambda: friction_fit_folder(
                     campaign, fit_dir, mcmc=mcmc, walkers=walkers, steps=steps, seed=seed,
-                    command=command, log=_say(console),
+                    command=command, log=console_log(console),
                 ),
                 campaign=path, failed="fit failed",
             )  # fmt: skip
@@ -143,15 +144,15 @@ def _friction_discovery(
 ) -> None:
     """The discovery stage of the friction-test job: the service, then its summary."""
     from pneumafit.cli.friction_discover import report_friction_discovery
-    from pneumafit.pipeline import _guarded, _say
+    from pneumafit.pipeline import run_service
     from pneumafit.services.friction import friction_discover_folder
 
     command = (f"pneumafit discover {path} --fit {fit_file} --out {folder} --seed {seed} "
                "--rounds 3 --per-round 3")  # fmt: skip
-    done = _guarded(
+    done = run_service(
         console, "discovery",
         lambda: friction_discover_folder(campaign, fit_file, folder, seed=seed, rounds=3,
-                                         per_round=3, command=command, log=_say(console)),
+                                         per_round=3, command=command, log=console_log(console)),
         campaign=path, failed="discovery failed", interrupted="interrupted: nothing written",
     )  # fmt: skip
     report_friction_discovery(done.document, console)

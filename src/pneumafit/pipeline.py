@@ -61,6 +61,7 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -317,7 +318,7 @@ def _fits(
         partial_path,
     )
 
-    say = _say(console)
+    say = console_log(console)
     options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
     files = {}
     for model in RUN_MODELS:
@@ -332,7 +333,7 @@ def _fits(
             console.print(f"fitting {model} to {campaign.name} "
                           f"({len(campaign.by_role('fit'))} fit recordings)")  # fmt: skip
             command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc)
-            result = _guarded(
+            result = run_service(
                 console, name,
                 lambda m=model, f=folder, c=command: fit_folder(
                     campaign, m, f, options=options, seed=seed, command=c, log=say,
@@ -350,16 +351,7 @@ def _fits(
     return files
 
 
-def _say(console: Console) -> Callable[[str], None]:
-    """A service's log lines, printed as plain text (no rich markup)."""
-
-    def say(line: str) -> None:
-        console.print(Text(line))
-
-    return say
-
-
-def _guarded(
+def run_service(
     console: Console, stage: str, work: Callable[[], Any], *, campaign: Path, failed: str,
     interrupted: str | Callable[[], str] = "interrupted",
 ) -> Any:  # fmt: skip
@@ -388,11 +380,11 @@ def _analyses(
         folder = out / "comparison"
         fit_options = "".join(f" --fits {f.parent}" for f in all_fits)
         command = f"pneumafit compare {path} --out {folder}{fit_options} --seed {seed}"
-        comparison = _guarded(
+        comparison = run_service(
             console, "comparison",
             lambda: compare_folder(
                 campaign, folder, {m: read_fit(fits[m]) for m in RUN_MODELS}, seed=seed,
-                command=command, log=_say(console),
+                command=command, log=console_log(console),
             ),
             campaign=path, failed="comparison failed",
         )  # fmt: skip
@@ -411,9 +403,9 @@ def _analyses(
         from pneumafit.services.discover import discover_folder
 
         folder = out / "discovery"
-        say = _say(console)
+        say = console_log(console)
         console.print(f"discovery on {campaign.name}: base model convection from {conv}")
-        done = _guarded(
+        done = run_service(
             console, "discovery",
             lambda: discover_folder(
                 campaign, conv, folder, seed=seed, rounds=2, per_round=3,

@@ -32,6 +32,7 @@ from rich.text import Text
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_FAILED,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -171,8 +172,7 @@ def compare_command(
     options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
     campaign_path = camp.path or Path(campaign)
 
-    def say(line: str) -> None:
-        console.print(Text(line))
+    say = console_log(console)
 
     def stopped(model_folder: Path) -> str:
         return interrupted_message(partial_path(model_folder) if mcmc else None)

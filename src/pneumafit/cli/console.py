@@ -36,6 +36,7 @@ __all__ = [
     "LogConsole",
     "check_output",
     "configure_output",
+    "console_log",
     "folder_problem",
     "int_problem",
     "make_console",
@@ -112,6 +113,15 @@ class LogConsole(Console):
 
 
 _T = TypeVar("_T")
+
+
+def console_log(console: Console) -> Callable[[str], None]:
+    """A service's ``log``: each line printed as plain text (no rich markup)."""
+
+    def say(line: str) -> None:
+        console.print(Text(line))
+
+    return say
 
 
 def run_guarded(

@@ -28,6 +28,7 @@ from pneumafit.cli.console import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -120,8 +121,7 @@ def discover_command(
         f"({len(camp.by_role('fit'))} fit, {len(camp.by_role('validate'))} validate recordings)"
     )
 
-    def say(line: str) -> None:
-        console.print(Text(line))
+    say = console_log(console)
 
     command = (
         f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"

@@ -42,6 +42,7 @@ from pneumafit.cli.console import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_UNTRUSTWORTHY,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -175,8 +176,7 @@ def fit_command(
     partial = partial_path(out) if mcmc else None
     console.print(f"fitting {model} to {camp.name} ({len(camp.by_role('fit'))} fit recordings)")
 
-    def say(line: str) -> None:
-        console.print(Text(line))
+    say = console_log(console)
 
     result, status = run_guarded(
         console,

@@ -27,6 +27,7 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -95,7 +96,7 @@ def friction_fit_command(
         console,
         lambda: friction_fit_folder(
             camp, out, law=_LAW[friction], effects=_EFFECTS[seal], mcmc=mcmc, walkers=walkers,
-            steps=steps, seed=seed, command=command, log=lambda line: console.print(Text(line)),
+            steps=steps, seed=seed, command=command, log=console_log(console),
         ),
         campaign=campaign, failed="fit failed", interrupted="interrupted",
     )  # fmt: skip

@@ -30,6 +30,7 @@ from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
+    console_log,
     folder_problem,
     int_problem,
     report_problems,
@@ -118,7 +119,7 @@ def friction_discover_command(
         console,
         lambda: friction_discover_folder(
             camp, fit_path, out, seed=seed, rounds=rounds, per_round=per_round,
-            command=command, log=lambda line: console.print(Text(line)),
+            command=command, log=console_log(console),
         ),
         campaign=campaign, failed="discovery failed", interrupted="interrupted: nothing written",
     )  # fmt: skip

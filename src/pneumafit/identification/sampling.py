@@ -514,7 +514,8 @@ def run_mcmc(
             target = min(adapt, max(2 * adapt_check, (have // adapt_check + 1) * adapt_check))
             for result_state in sampler.sample(
                 first_state() if have == 0 else sampler.get_last_sample(),
-                iterations=target - have, progress=progress,
+                iterations=target - have,
+                progress=progress,
             ):
                 last = result_state
                 if report is not None:

@@ -49,6 +49,7 @@ from pneumafit.discovery.attribution import simulate_recording
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, discover
 from pneumafit.fileio import atomic_path, write_text_atomic
+from pneumafit.frictiontest.discover import FrictionDiscovery
 from pneumafit.identification.fitfile import SavedFit, _version, json_safe
 from pneumafit.identification.staged import FitResult
 from pneumafit.models.layout import SPECS
@@ -475,14 +476,16 @@ class DiscoveryFolder:
     ----------
     document : dict
         discovery.json's content.
-    discovery : Discovery
-        The discovery itself (rounds, refits, selected effects, final model).
+    discovery : Discovery or FrictionDiscovery
+        The discovery itself (rounds, refits, selected effects, final model;
+        a :class:`~pneumafit.frictiontest.discover.FrictionDiscovery` from
+        :func:`pneumafit.services.friction.friction_discover_folder`).
     files : list of Path
         The files written (discovery.json, discovery.md, the figures).
     """
 
     document: dict[str, Any]
-    discovery: Discovery
+    discovery: Discovery | FrictionDiscovery
     files: list[Path] = field(default_factory=list)
 
 

@@ -202,7 +202,7 @@ def fit_folder(
     *,
     options: FitOptions | None = None,
     seed: int = 0,
-    command: str | None = None,
+    command: str = "",
     log: Callable[[str], None] | None = None,
     progress: Reporter | None = None,
 ) -> FitResult:
@@ -267,7 +267,7 @@ def fit_folder(
             os.replace(partial, out / CHAINS_FILE)
         else:
             (out / CHAINS_FILE).unlink(missing_ok=True)  # no stale chains beside a new fit
-        result.save(out / FIT_FILE, command=command or "",
+        result.save(out / FIT_FILE, command=command,
                     chains=CHAINS_FILE if options.mcmc else None)  # fmt: skip
     except OSError as exc:
         raise PneumafitComputationError(

@@ -25,7 +25,6 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -41,11 +40,15 @@ from pneumafit.frictiontest.fit import identify_friction
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, SavedFit, json_safe
 from pneumafit.identification.staged import FitResult
 from pneumafit.outputs.friction_report import before_after_rows
-from pneumafit.services.discover import effect_parameter_lines, format_number, provenance
+from pneumafit.services.discover import (
+    DiscoveryFolder,
+    effect_parameter_lines,
+    format_number,
+    provenance,
+)
 from pneumafit.services.fit import PARTIAL_FILE, output_folder, write_inference_data
 
 __all__ = [
-    "FrictionDiscoveryFolder",
     "friction_discover_folder",
     "friction_discovery_document",
     "friction_fit_folder",
@@ -296,16 +299,6 @@ def write_discovery_files(out: Path, doc: dict[str, Any], result: FrictionDiscov
     return [out / "discovery.json", out / "discovery.md", *([fig] if fig else [])]
 
 
-@dataclass
-class FrictionDiscoveryFolder:
-    """What :func:`friction_discover_folder` wrote: discovery.json's content,
-    the discovery, and the files."""
-
-    document: dict[str, Any]
-    discovery: FrictionDiscovery
-    files: list[Path] = field(default_factory=list)
-
-
 def friction_discover_folder(
     campaign: Campaign,
     fit: str | os.PathLike[str],
@@ -316,7 +309,7 @@ def friction_discover_folder(
     per_round: int = 3,
     command: str = "",
     log: Callable[[str], None] | None = None,
-) -> FrictionDiscoveryFolder:
+) -> DiscoveryFolder:
     """Discovery on a friction-test campaign from its friction fit; write the folder ``out``.
 
     Parameters
@@ -337,7 +330,7 @@ def friction_discover_folder(
 
     Returns
     -------
-    FrictionDiscoveryFolder
+    DiscoveryFolder
 
     Raises
     ------
@@ -361,4 +354,4 @@ def friction_discover_folder(
         raise PneumafitComputationError(
             f"{os.fspath(out)}: cannot write the report: {exc}"
         ) from exc
-    return FrictionDiscoveryFolder(doc, result, written)
+    return DiscoveryFolder(doc, result, written)

@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import PARAMETER_NAMES, SPECS
+from pneumafit.models.parts import VALVE_LAWS, ValveLaw
 from pneumafit.models.structure import FRICTION_PARAMETERS, ModelStructure, get_structure
 
 __all__ = [
@@ -662,12 +663,34 @@ class ParameterSet:
         return np.array([x[0] for x in b]), np.array([x[1] for x in b])
 
     def log_prior(self, z: ArrayLike) -> NDArray[np.float64]:
-        """log prior density of internal vectors (n, n_free) -> (n,)."""
+        """log prior density of internal vectors (n, n_free) -> (n,).
+
+        Each free parameter's own prior, plus the joint smoothness prior of
+        every valve law with a free parameter here (``ValveLaw.roughness``,
+        e.g. the measured map's).
+        """
         zz = np.atleast_2d(np.asarray(z, dtype=float))
         total = np.zeros(zz.shape[0])
         for j, p in enumerate(self.free):
             total = total + p.log_prior_internal(zz[:, j])
+        laws = self._rough_laws()
+        if laws and np.any(np.isfinite(total)):
+            values = self.to_values(zz)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                for law in laws:
+                    r = np.asarray(law.roughness(values), dtype=float)
+                    total = total - 0.5 * np.sum(r * r, axis=1)
+            total = np.where(np.isnan(total), -np.inf, total)
         return total
+
+    def _rough_laws(self) -> list[ValveLaw]:
+        """Valve laws with a smoothness prior and a free parameter in this set."""
+        free, names = set(self.free_names), set(self.names)
+        return [
+            law for law in VALVE_LAWS.values()
+            if law.roughness is not None and free.intersection(law.parameters)
+            and names.issuperset(law.parameters)
+        ]  # fmt: skip
 
     def prior_residuals(self, z: ArrayLike) -> NDArray[np.float64]:
         """Whitened residuals of the Gaussian priors at one internal vector."""
@@ -678,6 +701,10 @@ class ParameterSet:
                 r = p.prior.residual(p.to_value(zz[j : j + 1]))
                 if r is not None:
                     res.append(np.asarray(r, dtype=float).reshape(-1))
+        laws = self._rough_laws()
+        if laws:
+            values = self.to_values(zz)
+            res += [np.asarray(law.roughness(values), dtype=float).reshape(-1) for law in laws]
         return np.concatenate(res) if res else np.zeros(0)
 
     # ---------------------------------------------------------- (de)serialise

@@ -16,7 +16,7 @@ from pneumafit.models.parts.registry import (
     register_heat_law,
     register_valve_law,
 )
-from pneumafit.physics.valve_map import MAP_PARAMETER_NAMES
+from pneumafit.physics.valve_map import MAP_PARAMETER_NAMES, map_roughness
 
 __all__ = ["CONSTANT_LAMBDA", "CONVECTION", "ISO6358", "LUGRE", "MAP", "POLYTROPIC", "SWITCH"]
 
@@ -95,6 +95,7 @@ MAP = register_valve_law(
         parameters=("valve_m", "valve_x_laminar", "valve_u_sat", *MAP_PARAMETER_NAMES),
         description="measured valve map: conductances and critical ratios at knots of u "
         "(pneumafit.physics.valve_map)",
+        roughness=map_roughness,
     )
 )
 

@@ -171,7 +171,20 @@ class _Law:
 @dataclass(frozen=True)
 class ValveLaw(_Law):
     """A servo-valve law (configuration slot ``C_VALVE_LAW``, ``kernel.VALVE_*``;
-    ``ModelStructure.valve``); the attributes of every law."""
+    ``ModelStructure.valve``); the attributes of every law, and:
+
+    Attributes
+    ----------
+    roughness : callable or None
+        The law's joint smoothness prior, or None: ``roughness(values)``
+        takes the law's parameters by name (floats or arrays of n sets) and
+        returns the prior's whitened residuals, shape (n, n_terms); the log
+        prior is -sum(r^2) / 2. Parameter sets add it to their priors when
+        one of the law's parameters is free
+        (:meth:`pneumafit.identification.ParameterSet.log_prior`).
+    """
+
+    roughness: Callable[[Mapping[str, Any]], Any] | None = None
 
 
 @dataclass(frozen=True)

@@ -261,6 +261,21 @@ def _uninformed_knots(campaign: Campaign, values: Mapping[str, float]) -> list[s
     return held
 
 
+def _dead_band_knots(unmeasured: Sequence[str], free: Sequence[str]) -> tuple[str, ...]:
+    """Free map knots in the unmeasured run around the centre, on each side.
+
+    From the centre outwards, every knot in ``unmeasured`` up to the first
+    measured one (both paths' parameters, those in ``free``).
+    """
+    out: list[str] = []
+    for step in (-1, 1):
+        k = CENTRE_KNOT + step
+        while 0 <= k < len(MAP_KNOTS) and MAP_CS_NAMES[k] in unmeasured:
+            out += [n for n in (MAP_CS_NAMES[k], MAP_CE_NAMES[k]) if n in free]
+            k += step
+    return tuple(out)
+
+
 def _brief_values(values: Mapping[str, float], names: Sequence[str]) -> str:
     return ", ".join(f"{n} {values[n]:.4g}" for n in names if n in values)
 
@@ -948,11 +963,19 @@ def identify(
             iso = _iso_valve(campaign, flows, structure, values, opts, seeds[0], task)
         values.update(map_from_iso({**values, **iso}))
         values["valve_m"] = iso["valve_m"]
-        held = _uninformed_knots(campaign, values)
-        if held:
+        # a knot no flow level informs follows the smoothness prior through its
+        # neighbours here (physics.valve_map.map_roughness), and in the joint
+        # stage also the charge/discharge and step tests whose commands reach
+        # it; the centre knots (the paths' leakages) are the heat stage's when
+        # no flow level is near 0 V
+        unmeasured = _uninformed_knots(campaign, values)
+        held = [n for n in unmeasured if n in MAP_LEAK_PARAMETERS]
+        shown = [n for n in unmeasured if n not in held and n in valve_free]
+        if shown:
             warns.append(
-                "valve map: knots without a flow level between their neighbours, held at the "
-                "ISO 6358 fit: " + ", ".join(held)
+                "valve map: knots without a flow level between their neighbours, left to the "
+                "smoothness prior and to the charge/discharge and step tests whose commands "
+                "reach them: " + ", ".join(shown)
             )
         valve_free = tuple(n for n in valve_free if n not in held)
         say(f"valve: ISO 6358 start {_brief_values(iso, VALVE_PARAMETERS)}")
@@ -1007,6 +1030,15 @@ def identify(
         stage.note = "no fit flow test: valve parameters held at their defaults"
         warns.append(f"valve: {stage.note}")
     stages.append(stage)
+    if structure.valve == "map" and flows and any(n not in valve_free for n in leak_names):
+        # the knots between a held centre and the first measured knot on
+        # either side follow it through the smoothness prior: they are fitted
+        # with it in stage (b), or the ISO start's centre leakage (25-35x the
+        # leak of a table valve whose ISO fit rounds the dead band) stays in
+        # the dead band where the rest phases and the closed loops sit
+        leak_names = (
+            *MAP_LEAK_PARAMETERS, *_dead_band_knots(_uninformed_knots(campaign, values), valve_free)
+        )  # fmt: skip
 
     # -------------------------------------------------------------- (b) heat
     # the centre leakage is fitted here too: the charge/discharge tests' rest
@@ -1145,8 +1177,14 @@ def identify(
     stages.append(stage)
 
     # ------------------------------------------------------------- (d) joint
+    # the map's centre knots, held out of stage (a) for want of a 0-V flow
+    # level and fitted in stage (b), are free again with everything else
+    map_leak = (
+        tuple(n for n in MAP_LEAK_PARAMETERS if n not in valve_free)
+        if structure.valve == "map" and flows and leak_here else ()
+    )  # fmt: skip
     joint_free = tuple(
-        [*(valve_free if flows else ()), *(heat_names if (blocked or steps) else ()),
+        [*(valve_free if flows else ()), *map_leak, *(heat_names if (blocked or steps) else ()),
          *(friction_names if steps else ()), *nuisance]
     )  # fmt: skip
     all_fit = flows + blocked + steps

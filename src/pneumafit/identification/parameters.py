@@ -353,7 +353,12 @@ class Parameter:
     def to_value(self, internal: ArrayLike) -> NDArray[np.float64]:
         """Internal coordinate(s) -> value(s)."""
         z = np.asarray(internal, dtype=float)
-        return np.exp(z) if self.scale == "log" else z
+        if self.scale != "log":
+            return z
+        # a trial step far outside the bounds overflows to inf: the set is
+        # then refused as out of bounds (-inf), not reported as a warning
+        with np.errstate(over="ignore"):
+            return np.exp(z)
 
     @property
     def internal_bounds(self) -> tuple[float, float]:

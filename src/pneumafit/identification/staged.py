@@ -1514,7 +1514,9 @@ def _laplace_draws(
         return None
     rng = np.random.default_rng(seed)
     cov = 0.5 * (est.covariance + est.covariance.T)
-    z = rng.multivariate_normal(est.z, cov, size=n, method="eigh")
+    # a pseudo-inverse of J^T J: positive semi-definite up to rounding, whose
+    # tiny negative eigenvalues numpy would report as a warning on the console
+    z = rng.multivariate_normal(est.z, cov, size=n, method="eigh", check_valid="ignore")
     lo, hi = laplace.internal_bounds()
     return laplace.to_values(np.clip(z, lo, hi))
 

@@ -125,6 +125,18 @@ def test_run_on_a_missing_campaign_is_a_message(tmp_path):
     assert not (tmp_path / "run" / "fits").exists()
 
 
+def test_run_refuses_an_unknown_valve_law_before_fitting(tmp_path):
+    """``pneumafit run --valve`` takes the fit command's laws; another value
+    is bad input (exit 2) naming the option, the laws and the value, and
+    nothing is fitted."""
+    res = cli("run", str(DEMO), "--no-mcmc", "--valve", "linear", "--out", str(tmp_path / "run"))
+    text = res.stdout + res.stderr
+    assert res.returncode == 2
+    assert "--valve" in text and "linear" in text and "iso6358" in text and "map" in text
+    assert "Traceback" not in text
+    assert not (tmp_path / "run" / "fits").exists()
+
+
 def test_linear_and_export_use_a_fitted_valve_map(tmp_path):
     """A fit of the measured valve map (fit.json ``structure.valve = "map"``)
     is analysed and exported with its map: here a map whose supply knots are

@@ -71,6 +71,7 @@ from pneumafit.comparison.replays import REPLAYS_FILE
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
+from pneumafit.models.layout import VALVE_LAWS
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.residual_file import RESIDUALS_FILE
 from pneumafit.progress import Reporter
@@ -115,8 +116,9 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def fit_is_reusable(folder: Path, campaign: Campaign, model: str) -> bool:
-    """True when ``folder/fit.json`` is a finished fit of ``model`` on this campaign."""
+def fit_is_reusable(folder: Path, campaign: Campaign, model: str, valve: str | None = None) -> bool:
+    """True when ``folder/fit.json`` is a finished fit of ``model`` on this
+    campaign (and with the valve law ``valve``, when given)."""
     from pneumafit.identification.staged import FitResult
 
     try:
@@ -127,6 +129,7 @@ def fit_is_reusable(folder: Path, campaign: Campaign, model: str) -> bool:
         fit.model == model
         and isinstance(fit.document.get("campaign"), dict)
         and fit.campaign_sha256 == campaign.sha256
+        and (valve is None or fit.structure.valve == valve)
     )
 
 
@@ -174,6 +177,7 @@ def run(
     walkers: int | None = None,
     steps: int | None = None,
     strict: bool = False,
+    valve: str = "iso6358",
 ) -> int:
     """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input,
     3 a fit is not trustworthy under ``strict``).
@@ -194,6 +198,10 @@ def run(
     strict : bool
         Return 3 when a fit is not trustworthy (fit.json ``quality``); every
         stage still runs, and the verdicts are printed at the end either way.
+    valve : {"iso6358", "map"}
+        Valve law of the three fits (``pneumafit fit --valve``); every later
+        stage reads it from the fits. A finished fit of the other law is
+        not reused.
     """
     started = time.perf_counter()
     path = Path(campaign_path) if campaign_path is not None else DEMO
@@ -214,6 +222,9 @@ def run(
         int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
         int_problem("--steps", steps, 1),
         int_problem("--seed", seed, 0),
+        None
+        if valve in VALVE_LAWS
+        else f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}",
     ]
     if report_problems(console, problems):
         return EXIT_BAD_INPUT
@@ -240,7 +251,7 @@ def run(
 
     try:
         fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings,
-                          sims)  # fmt: skip
+                          sims, valve)  # fmt: skip
         for model, file in fit_files.items():  # fit times, for the report
             seconds = timings.get(f"fit {model}")
             if seconds:
@@ -306,6 +317,7 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
 def _fits(
     campaign: Campaign, path: Path, out: Path, console: Console, seed: int, mcmc: bool,
     walkers: int | None, steps: int | None, timings: dict[str, float], sims: dict[str, int],
+    valve: str = "iso6358",
 ) -> dict[str, Path]:  # fmt: skip
     """Fit the three models (or reuse finished fits); fit.json path per model.
     Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
@@ -319,12 +331,14 @@ def _fits(
     )
 
     say = console_log(console)
-    options = FitOptions(mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal)
+    options = FitOptions(
+        mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve
+    )
     files = {}
     for model in RUN_MODELS:
         folder = out / "fits" / model
         name = f"fit {model}"
-        if fit_is_reusable(folder, campaign, model):
+        if fit_is_reusable(folder, campaign, model, valve):
             console.print(f"[dim]{name}: reused {folder / 'fit.json'}[/dim]")
             timings[name] = 0.0
         else:
@@ -332,7 +346,8 @@ def _fits(
             t0, n0 = time.perf_counter(), counter.simulations()
             console.print(f"fitting {model} to {campaign.name} "
                           f"({len(campaign.by_role('fit'))} fit recordings)")  # fmt: skip
-            command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc)
+            command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc,
+                                       valve=valve)  # fmt: skip
             result = run_service(
                 console, name,
                 lambda m=model, f=folder, c=command: fit_folder(

@@ -206,6 +206,13 @@ def run(
         bool,
         typer.Option("--strict", help="Exit 3 when a fit is not trustworthy (see pneumafit fit)."),
     ] = False,
+    valve: Annotated[
+        str,
+        typer.Option(
+            help=f"Valve law of the three fits, one of {', '.join(Valve)} (see pneumafit fit); "
+            "every later stage uses the fits' law.",
+        ),
+    ] = "iso6358",
 ) -> None:
     """The main job: check, fit the three models, compare, discover, design, report, export.
 
@@ -219,7 +226,7 @@ def run(
 
     check_output(out, "folder")
     code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
-                        steps=steps, strict=strict)  # fmt: skip
+                        steps=steps, strict=strict, valve=valve)  # fmt: skip
     raise typer.Exit(code)
 
 

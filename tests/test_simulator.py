@@ -316,3 +316,24 @@ def test_per_stage_functions_skip_reference_counting():
         valve_map.map_critical_ratios,
     ]  # fmt: skip
     assert [f.py_func.__name__ for f in hot if f.targetoptions.get("_nrt", True)] == []
+
+
+@pytest.mark.parametrize("valve", ["iso6358", "map"])
+def test_a_first_order_valve_without_a_time_constant_is_refused_not_raised(valve: str) -> None:
+    """Effect valve_dynamics option 1 integrates (u_cmd - u) / tau; at
+    tau = 0 (the parameter's default) the compiled code raised
+    ZeroDivisionError. The set is refused as inadmissible (status
+    STATUS_BAD_PARAMETERS, as any other bad value; the sampled controller
+    path makes the same check, ``kernel.admissible``); a positive tau runs,
+    and option 2 needs no time constant."""
+    from pneumafit.models import ModelStructure, kernel
+    from pneumafit.simulation import Simulator, choose_step
+    from pneumafit.simulation.scenarios import blocked_test
+
+    exp = blocked_test("charge", {}, chamber="P", duration=0.3)
+    first = ModelStructure(heat="convection", valve=valve).with_effects(valve_dynamics=1)
+    sim = Simulator(first, step=choose_step({}, valve=valve))
+    assert sim.simulate({"valve_time_constant": 0.0}, exp).status == kernel.STATUS_BAD_PARAMETERS
+    assert sim.simulate({"valve_time_constant": 0.005}, exp).ok
+    second = ModelStructure(heat="convection", valve=valve).with_effects(valve_dynamics=2)
+    assert Simulator(second, step=choose_step({}, valve=valve)).simulate({}, exp).ok

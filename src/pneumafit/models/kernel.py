@@ -267,6 +267,17 @@ def check_parameters(p: np.ndarray) -> bool:
 
 
 @njit(cache=True)
+def admissible(p: np.ndarray, cfg: np.ndarray) -> bool:
+    """:func:`check_parameters`, and what the configuration needs of ``p``: a
+    first-order valve (effect valve_dynamics, option 1) a time constant > 0
+    (its rate is (u_cmd - u) / tau; tau = 0, the parameter's default, raised
+    ZeroDivisionError from the compiled code instead of a failed status)."""
+    if not check_parameters(p):
+        return False
+    return not (cfg[C_VALVE_ORDER] == 1 and p[P_VTAU] <= 0.0)
+
+
+@njit(cache=True)
 def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
     """Fill the ISO 6358 constants vc (NVC) and the valve-map constants vm (NVM).
 
@@ -1047,7 +1058,7 @@ def integrate(
     kk = np.empty((n_st, NX))
     aux = np.zeros(NAUX)
     dx = np.empty(NX)
-    if not check_parameters(p):
+    if not admissible(p, cfg):
         return _fail(out, 0, STATUS_BAD_PARAMETERS)
     derive(p, d)
     _initial_state(x0, p, cfg, x)

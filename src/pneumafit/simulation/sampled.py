@@ -82,7 +82,7 @@ def _start(x0, p, d, cfg, ctrl, inp, h0, x, mem_i, mem_f, dx, aux) -> int:
     """Initial state, LuGre deflection and friction mode (as ``kernel.integrate``).
 
     ``inp`` holds the first held command; returns a status code."""
-    if not kernel.check_parameters(p):
+    if not kernel.admissible(p, cfg):
         return kernel.STATUS_BAD_PARAMETERS
     kernel.derive(p, d)
     kernel._initial_state(x0, p, cfg, x)

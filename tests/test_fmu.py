@@ -302,6 +302,31 @@ def test_fmu_state_and_reset(plants, tmp_path):
     slave.freeInstance()
 
 
+def test_first_order_valve_without_time_constant_is_refused(plants, tmp_path):
+    """A first-order valve's rate is (u_cmd - u) / tau: tau = 0 is refused as
+    inadmissible (kernel.admissible), by the builder and by the FMU itself
+    when an importer sets it before initialisation (the C model's
+    pf_admissible), instead of dividing by zero in the plant."""
+    from fmpy.fmi1 import FMICallException
+
+    params, fmu = plants["convection-effects"]
+    zero = json.loads(params.read_text(encoding="utf-8"))
+    zero["parameters"]["valve_time_constant"] = 0.0
+    bad = tmp_path / "tau0.json"
+    bad.write_text(json.dumps(zero), encoding="utf-8")
+    with pytest.raises(PneumafitInputError, match="valve_time_constant 0"):
+        build_fmu(bad, tmp_path / "tau0.fmu")
+    assert not (tmp_path / "tau0.fmu").exists()
+
+    slave, refs = _slave(fmu, fmpy.extract(str(fmu), unzipdir=str(tmp_path / "unzip")))
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([refs["valve_time_constant"]], [0.0])
+    with pytest.raises(FMICallException):
+        slave.exitInitializationMode()
+    slave.freeInstance()
+
+
 def test_model_description_carries_fitted_values_and_units(plants):
     _, fmu = plants["convection-lugre"]
     md = fmpy.read_model_description(str(fmu))

@@ -596,10 +596,11 @@ def write_fmu(
         )
     except ValueError as exc:
         raise PneumafitInputError(f"{source}: {exc}") from None
-    if vec.shape != (NP,) or not kernel.check_parameters(vec):
+    if vec.shape != (NP,) or not kernel.admissible(vec, structure.config()):
         raise PneumafitInputError(
             f"{source}: the parameters are not physically admissible (e.g. rod >= bore, "
-            "Coulomb friction above static friction, overlap >= u_sat); cannot export an FMU"
+            "Coulomb friction above static friction, overlap >= u_sat, a first-order valve "
+            "with valve_time_constant 0); cannot export an FMU"
         )
     if integration_step is None:
         integration_step = choose_step(vec, valve=structure.valve, friction=structure.friction)

@@ -165,10 +165,11 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     pf_instance *inst = (pf_instance *)c;
     pf_inputs in;
     if (inst == NULL) return fmi2Error;
-    if (!pf_check_parameters(inst->d.model.p)) {
+    if (!pf_admissible(&inst->d.model)) {
         log_msg(inst, fmi2Error, "logStatusError",
                 "the parameters are not physically admissible (see pneumafit's "
-                "kernel.check_parameters: e.g. rod < bore, static >= Coulomb friction)");
+                "kernel.admissible: e.g. rod < bore, static >= Coulomb friction, "
+                "valve_time_constant > 0 for a first-order valve)");
         inst->d.phase = PHASE_FAILED;
         return fmi2Error;
     }

@@ -82,6 +82,14 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters */
     return 1;
 }
 
+int pf_admissible(const pf_model *m) /* kernel.admissible */
+{
+    if (!pf_check_parameters(m->p)) return 0;
+    /* a first-order valve's rate is (u_cmd - u) / tau: tau must be > 0 */
+    if (m->valve_order == 1 && !(m->p[PF_P_valve_time_constant] > 0.0)) return 0;
+    return 1;
+}
+
 /* ---------------------------------------------------------------- valve */
 
 static void laminar_tail(double b, double m, double x_lam, double *a, double *c)

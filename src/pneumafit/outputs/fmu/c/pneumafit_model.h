@@ -60,6 +60,8 @@ typedef struct {
 } pf_inputs;
 
 int pf_check_parameters(const double *p);
+/* pf_check_parameters and what the configuration needs (kernel.admissible) */
+int pf_admissible(const pf_model *m);
 void pf_derive(pf_model *m);
 void pf_rhs(const pf_model *m, const double *x, int mode, double u_p, double u_n, double *dx,
             double *aux);

@@ -128,8 +128,8 @@ class _Whitened:
             parts.append(w * power[j])
         res = np.concatenate(parts, axis=1)
         res[~ev.ok] = FAILED_RESIDUAL
-        prior = np.array([self.like.parameters.prior_residuals(z) for z in zz])
-        if prior.size:
+        prior = self.like.parameters.prior_residuals(zz)
+        if prior.shape[1]:
             res = np.concatenate([res, prior], axis=1)
         return res
 

@@ -678,15 +678,23 @@ class ParameterSet:
         total = np.zeros(zz.shape[0])
         for j, p in enumerate(self.free):
             total = total + p.log_prior_internal(zz[:, j])
-        laws = self._rough_laws()
-        if laws and np.any(np.isfinite(total)):
-            values = self.to_values(zz)
+        if self._rough_laws() and np.any(np.isfinite(total)):
             with np.errstate(invalid="ignore", divide="ignore"):
-                for law in laws:
-                    r = np.asarray(law.roughness(values), dtype=float)
-                    total = total - 0.5 * np.sum(r * r, axis=1)
+                r = self._roughness(zz)
+                total = total - 0.5 * np.sum(r * r, axis=1)
             total = np.where(np.isnan(total), -np.inf, total)
         return total
+
+    def _roughness(self, zz: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Whitened residuals (n, n_terms) of the smoothness priors of the
+        valve laws with a free parameter here, at internal vectors (n, n_free);
+        (n, 0) without such a law."""
+        laws = self._rough_laws()
+        if not laws:
+            return np.zeros((zz.shape[0], 0))
+        values = self.to_values(zz)
+        parts = [np.asarray(law.roughness(values), dtype=float) for law in laws]
+        return np.concatenate([p.reshape(zz.shape[0], -1) for p in parts], axis=1)
 
     def _rough_laws(self) -> list[ValveLaw]:
         """Valve laws with a smoothness prior and a free parameter in this set."""
@@ -698,19 +706,37 @@ class ParameterSet:
         ]  # fmt: skip
 
     def prior_residuals(self, z: ArrayLike) -> NDArray[np.float64]:
-        """Whitened residuals of the Gaussian priors at one internal vector."""
-        zz = np.asarray(z, dtype=float).reshape(-1)
+        """Whitened residuals of the Gaussian priors, each free parameter's
+        and the valve laws' smoothness priors (:meth:`log_prior` is minus half
+        their sum of squares, plus constants).
+
+        Parameters
+        ----------
+        z : array_like (n_free,) or (n, n_free)
+            Internal vectors.
+
+        Returns
+        -------
+        ndarray (n_res,) or (n, n_res)
+            One row per vector, in the shape of ``z``; one batch costs about
+            one vector (the least-squares batches call it once).
+        """
+        arr = np.asarray(z, dtype=float)
+        zz = np.atleast_2d(arr)
         res = []
         for j, p in enumerate(self.free):
             if p.prior is not None:
-                r = p.prior.residual(p.to_value(zz[j : j + 1]))
+                r = p.prior.residual(p.to_value(zz[:, j]))
                 if r is not None:
-                    res.append(np.asarray(r, dtype=float).reshape(-1))
-        laws = self._rough_laws()
-        if laws:
-            values = self.to_values(zz)
-            res += [np.asarray(law.roughness(values), dtype=float).reshape(-1) for law in laws]
-        return np.concatenate(res) if res else np.zeros(0)
+                    res.append(np.asarray(r, dtype=float).reshape(zz.shape[0], -1))
+        res.append(self._roughness(zz))
+        # C order, as rows stacked one by one. The least-squares residual
+        # matrix takes its blocks' layout: a Fortran-ordered block (the map's
+        # roughness is a transpose) made it Fortran-ordered and the Jacobian
+        # C-ordered, and the solver's linear algebra, summing in another
+        # order, took a map fit to another local optimum (the same values)
+        out = np.ascontiguousarray(np.concatenate(res, axis=1))
+        return out[0] if arr.ndim == 1 else out
 
     # ---------------------------------------------------------- (de)serialise
     def to_dict(self) -> dict[str, Any]:

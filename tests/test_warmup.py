@@ -12,8 +12,8 @@ from pneumafit.simulation import Experiment, Simulator, choose_step, simulate_sa
 from pneumafit.warmup import warm_up
 
 ENTRY_POINTS = (
-    kernel.integrate_many, kernel.integrate_many_serial, kernel.stiffness_bound,
-    kernel.static_valve_flows, kernel.check_parameters,
+    kernel.integrate_many, kernel.integrate_many_serial, kernel.integrate_jobs,
+    kernel.stiffness_bound, kernel.static_valve_flows, kernel.check_parameters,
 )  # fmt: skip
 
 
@@ -41,6 +41,10 @@ def test_after_the_warm_up_nothing_compiles_at_first_use(
     x0s = np.broadcast_to(packed.x0s, (1, *packed.x0s.shape))
     sim.simulate_batch(sets[:1], packed, initial_states=x0s)
     sim.simulate_batch(sets[:1], sim.pack([step_experiment]), initial_states=x0s[:, :1])
+    # a Jacobian's batch: pairs shared with the first set, fitted initial states
+    same = np.array([[False, False], [True, False], [False, True]])
+    x0s3 = np.repeat(x0s, 3, axis=0)
+    sim.simulate_batch(sets, packed, initial_states=x0s3, same_as_first=same)
     choose_step({}, y_range=(0.1, 0.4))
     t = step_experiment.time[:200]
     simulate_sampled({}, t, np.full(t.size, 0.26), lambda x, r: 50.0 * (r - x[0]))

@@ -16,7 +16,8 @@ ordinary process that compiles one function at a time, so it never races a
 simulation, a test or a worker process over the cache.
 
 Entry points: the serial and parallel batch integrators
-(:meth:`Simulator.simulate`, :meth:`Simulator.simulate_batch`), the sampled
+(:meth:`Simulator.simulate`, :meth:`Simulator.simulate_batch`, with and
+without pairs shared with the first set), the sampled
 closed loop (:func:`simulate_sampled`), the stiffness bound
 (:func:`choose_step` and the fits' step choice), the static valve flows
 (linear analysis), the parameter check, and the small kernels of the fits,
@@ -77,6 +78,10 @@ def warm_up(log: Callable[[str], None] | None = None) -> dict[str, float]:
     timed("static_valve_flows", lambda: kernel.static_valve_flows(params, 0, 1.0, 4e5, wall))
     timed("simulate (serial)", lambda: sim.simulate(params, step))
     timed("simulate_batch (parallel)", lambda: sim.simulate_batch(np.tile(params, (2, 1)), [step]))
+    # the finite-difference Jacobians' batches (pairs shared with the first set)
+    same = np.array([[False], [True], [False]])
+    timed("simulate_batch (shared)", lambda: sim.simulate_batch(np.tile(params, (3, 1)), [step],
+                                                                same_as_first=same))  # fmt: skip
     timed("simulate_sampled", lambda: simulate_sampled(params, t, step.y_ref,
                                                        lambda x, r: 60.0 * (r - x[0])))  # fmt: skip
     timed("small kernels", lambda: _small_kernels(params))

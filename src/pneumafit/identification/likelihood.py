@@ -79,6 +79,7 @@ class LogLikelihood:
         self.problem = problem
         self.parameters = parameters
         self._lower, self._upper = parameters.internal_bounds()
+        self._unaffected: NDArray[np.bool_] | None = None
 
     @property
     def n_parameters(self) -> int:
@@ -105,15 +106,40 @@ class LogLikelihood:
             (zz >= self._lower) & (zz <= self._upper), axis=1
         )
 
-    def evaluate(self, z: ArrayLike) -> Evaluation:
-        """Simulate and score a batch; see :class:`Evaluation`."""
+    def evaluate(self, z: ArrayLike, moved: ArrayLike | None = None) -> Evaluation:
+        """Simulate and score a batch; see :class:`Evaluation`.
+
+        ``moved`` (n_sets,) of int, optional: for a batch whose set i differs
+        from set 0 in free parameter ``moved[i]`` alone (-1: in any), e.g. a
+        finite-difference Jacobian's, the recordings that parameter cannot
+        affect (:meth:`Problem.unaffected`) are not simulated again: they
+        take set 0's simulation, which is what simulating them gives.
+        """
         zz = np.atleast_2d(np.asarray(z, dtype=float))
         n = zz.shape[0]
         inside = self.inside(zz)
         # simulate only the sets inside the bounds; others stay NaN / -inf
         z_run = np.where(inside[:, None], zz, self.parameters.to_internal()[None, :])
         values = self.values(z_run)
-        pred = self.problem.predict(values, n)
+        same = None
+        # a problem without the structure's rules (a duck-typed one) simulates all
+        if moved is not None and hasattr(self.problem, "unaffected"):
+            if self._unaffected is None:
+                self._unaffected = self.problem.unaffected(self.names)
+            idx = np.asarray(moved, dtype=np.int64)
+            same = np.zeros((n, self._unaffected.shape[1]), dtype=bool)
+            one = idx >= 0
+            same[one] = self._unaffected[idx[one]]
+            # a set outside the bounds is simulated at the set's values: not set 0's
+            same[~inside] = False
+            same[0] = False
+            if not inside[0]:
+                same = None  # set 0 is simulated at the defaults: nothing to share
+        pred = (
+            self.problem.predict(values, n)
+            if same is None
+            else self.problem.predict(values, n, same_as_first=same)
+        )
         residuals = self.problem.residuals(pred)
         ok = pred.ok & inside
         blocks = np.empty((n, len(residuals)))

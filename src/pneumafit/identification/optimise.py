@@ -116,9 +116,12 @@ class _Whitened:
         self.states = states
         return float(ev.log_likelihood[0])
 
-    def batch(self, zz: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Whitened residual vectors (n_sets, n_res) of a batch."""
-        ev = self.like.evaluate(zz)
+    def batch(
+        self, zz: NDArray[np.float64], moved: NDArray[np.int64] | None = None
+    ) -> NDArray[np.float64]:
+        """Whitened residual vectors (n_sets, n_res) of a batch (``moved``:
+        see :meth:`LogLikelihood.evaluate`)."""
+        ev = self.like.evaluate(zz, moved=moved)
         parts = []
         power = np.sqrt(self.like.problem.tempering)
         for j, (o, r, st) in enumerate(
@@ -141,7 +144,9 @@ class _Whitened:
         sign = np.where(z + h > self.upper, -1.0, 1.0)
         pts = np.repeat(z[None, :], z.size + 1, axis=0)
         pts[1:] += np.diag(sign * h)
-        res = self.batch(pts)
+        # set j + 1 moves coordinate j alone: the recordings it cannot affect
+        # keep set 0's simulation (exactly what simulating them again gives)
+        res = self.batch(pts, moved=np.arange(-1, z.size))
         jac = (res[1:] - res[0]).T / (sign * h)
         return res[0], jac
 

@@ -64,7 +64,12 @@ from pneumafit.identification.noise import (
 from pneumafit.models import kernel
 from pneumafit.models.layout import X_PN, X_PP, X_TN, X_TP, X_Y, P
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.models.structure import (
+    FRICTION_PARAMETERS,
+    HEAT_PARAMETERS,
+    ModelStructure,
+    get_structure,
+)
 from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step
 from pneumafit.simulation.sensor import first_order_lag
 
@@ -682,7 +687,52 @@ class Problem:
                 vec[:, j] = np.broadcast_to(np.asarray(val, dtype=float), (n_sets,))
         return vec
 
-    def predict(self, values: Mapping[str, ArrayLike], n_sets: int | None = None) -> Prediction:
+    def unaffected(self, names: Sequence[str]) -> NDArray[np.bool_]:
+        """Which recordings' simulations cannot depend on each parameter.
+
+        By the model's structure, not by numbers: a parameter that is not
+        a model parameter (a sensor lag: it acts after the simulation) moves
+        no simulation; an initial state (``initial:<file>:<state>``) only its
+        own recording's; a friction-law parameter neither a blocked test's
+        (the piston is clamped and the kernel never evaluates the friction)
+        nor a flow test's (the static characteristic); a heat-law parameter
+        not a flow test's. :meth:`predict` then takes those simulations from
+        the batch's first set (``same_as_first``);
+        ``tests/identification/test_sparse_jacobian.py`` checks every rule
+        against full simulations.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Parameter names (model, nuisance or initial-state parameters).
+
+        Returns
+        -------
+        ndarray of bool, shape (len(names), n_recordings)
+        """
+        friction = {n for law in FRICTION_PARAMETERS for n in FRICTION_PARAMETERS[law]}
+        heat = {n for law in HEAT_PARAMETERS for n in HEAT_PARAMETERS[law]}
+        flow = np.array([e.kind == "flow" for e in self.experiments])
+        clamped = np.array([e.blocked or e.kind == "flow" for e in self.experiments])
+        out = np.zeros((len(names), len(self.experiments)), dtype=bool)
+        for k, name in enumerate(names):
+            if name in self.initial_parameters:
+                out[k] = True
+                out[k, self.initial_parameters[name][0]] = False
+            elif name not in P:
+                out[k] = True
+            elif name in friction:
+                out[k] = clamped
+            elif name in heat:
+                out[k] = flow
+        return out
+
+    def predict(
+        self,
+        values: Mapping[str, ArrayLike],
+        n_sets: int | None = None,
+        same_as_first: NDArray[np.bool_] | None = None,
+    ) -> Prediction:
         """Simulate the observations for a batch of parameter sets.
 
         Parameters
@@ -692,6 +742,10 @@ class Problem:
             lags) by name; model parameters not given keep ``base``.
         n_sets : int, optional
             Batch size (default: from the first array in ``values``).
+        same_as_first : ndarray of bool (n_sets, n_recordings), optional
+            Recordings whose simulation is known to equal the first set's
+            (:meth:`unaffected`): not simulated again (the sensor lags and
+            solver corrections still apply per set).
 
         Returns
         -------
@@ -702,7 +756,9 @@ class Problem:
         if n_sets is None:
             n_sets = max((np.size(v) for v in values.values()), default=1)
         vec = self.model_vectors(values, n_sets)
-        out, status = self._simulate(vec, self.initial_states(values, n_sets))
+        out, status = self._simulate(
+            vec, self.initial_states(values, n_sets), same_as_first=same_as_first
+        )
         self.n_evaluations += n_sets
         blocks = []
         ok = np.all(status == 0, axis=1)
@@ -778,10 +834,12 @@ class Problem:
         x0s: NDArray[np.float64],
         tableau: object | None = None,
         nsub: NDArray[np.int64] | None = None,
+        same_as_first: NDArray[np.bool_] | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
         return self.simulator.simulate_batch(
-            vec, self.packed, initial_states=x0s, nsub=nsub, tableau=tableau
-        )
+            vec, self.packed, initial_states=x0s, nsub=nsub, tableau=tableau,
+            same_as_first=same_as_first,
+        )  # fmt: skip
 
     # ---------------------------------------------------------- initial states
     def _initial_parameters(self) -> dict[str, tuple[int, str, float, str]]:

@@ -1254,6 +1254,35 @@ def integrate_many(
                  tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
 
 
+@njit(cache=True, parallel=True)
+def integrate_jobs(
+    jobs: np.ndarray,
+    params: np.ndarray,
+    cfgs: np.ndarray,
+    ctrls: np.ndarray,
+    x0s: np.ndarray,
+    t_all: np.ndarray,
+    inp_all: np.ndarray,
+    nsub_all: np.ndarray,
+    offsets: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+    status: np.ndarray,
+) -> None:
+    """:func:`integrate_many` for the listed (parameter set, recording) pairs
+    only, job = set * n_recordings + recording; every other pair's rows of
+    ``out`` and entry of ``status`` are left as they are.
+
+    The threads take equal runs of ``jobs`` (numba's static schedule), so a
+    caller orders it to balance their work."""
+    for k in prange(jobs.size):
+        _run_job(jobs[k], params, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets,
+                 tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
+
+
 @njit(cache=True)
 def integrate_many_serial(
     params: np.ndarray,

@@ -15,6 +15,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pneumafit.errors import PneumafitInputError
@@ -246,6 +247,7 @@ class Simulator:
         initial_states: np.ndarray | None = None,
         nsub: np.ndarray | None = None,
         tableau: Tableau | None = None,
+        same_as_first: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Simulate every parameter set on every experiment, in parallel.
 
@@ -262,6 +264,13 @@ class Simulator:
             packed ones).
         tableau : Tableau, optional
             Method for this call (default the simulator's).
+        same_as_first : ndarray of bool, shape (n_sets, n_experiments), optional
+            Pairs the caller knows to give exactly the first set's result
+            (they differ from it only in parameters that experiment does not
+            use, e.g. another experiment's initial state): not simulated, they
+            take the first set's rows and status. The first set is always
+            simulated. A finite-difference Jacobian skips most of its
+            simulations this way.
 
         Returns
         -------
@@ -296,6 +305,30 @@ class Simulator:
                     f"found {x0s.shape}"
                 )
         nsub_all = packed.nsub_all if nsub is None else nsub
+        if same_as_first is not None:
+            same = np.asarray(same_as_first, dtype=bool)
+            if same.shape != (n_sets, n_exp):
+                raise PneumafitInputError(
+                    f"simulator: same_as_first: expected shape {(n_sets, n_exp)}, "
+                    f"found {same.shape}"
+                )
+            same = same.copy()
+            same[0] = False
+            if same.any():
+                jobs = _balanced_jobs(~same, packed.offsets, nsub_all)
+                kernel.integrate_jobs(
+                    jobs, params, packed.cfgs, packed.ctrls, x0s, packed.t_all,
+                    packed.inp_all, nsub_all, packed.offsets, tab.a, tab.b, tab.c,
+                    self._ch_sel, out, status,
+                )  # fmt: skip
+                for r in range(n_exp):
+                    rows = np.flatnonzero(same[:, r])
+                    if rows.size:
+                        a, b = packed.offsets[r], packed.offsets[r + 1]
+                        out[rows, a:b] = out[0, a:b]
+                        status[rows, r] = status[0, r]
+                counter.add(int(jobs.size))
+                return out, status
         run = (
             kernel.integrate_many
             if n_sets * len(packed.experiments) > 1
@@ -421,3 +454,20 @@ def choose_step(
         vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve], FRICTION_LAWS[friction]
     )
     return float(min(default, STABILITY_MARGIN * tableau.stability / rate))
+
+
+def _balanced_jobs(run: np.ndarray, offsets: np.ndarray, nsub_all: np.ndarray) -> np.ndarray:
+    """Job indices (set * n_experiments + experiment) of the pairs ``run``
+    (n_sets, n_experiments) marks, ordered so that numba's static schedule,
+    which gives each thread an equal run of them, gives the threads equal
+    work: by cost (integration steps of the experiment), then dealt in turn.
+    """
+    n_exp = run.shape[1]
+    steps = np.add.reduceat(nsub_all, offsets[:-1]) if nsub_all.size else np.zeros(n_exp)
+    sets, exps = np.nonzero(run)
+    jobs = sets * n_exp + exps
+    order = np.argsort(-steps[exps], kind="stable")
+    jobs = jobs[order]
+    threads = max(int(numba.get_num_threads()), 1)
+    # thread t takes jobs t, t + threads, ... of the sorted list, as a run
+    return np.concatenate([jobs[t::threads] for t in range(threads)]).astype(np.int64)

@@ -182,7 +182,7 @@ OLD_CATALOG = {
         ("relaxation", "rest"),
     ),
     "valve_dynamics": (
-        {"valve_time_constant": ("s", 1e-4, 0.1, LU, 0.015, None),
+        {"valve_time_constant": ("s", 1e-3, 0.1, LU, 0.015, None),
          "valve_natural_frequency": ("rad/s", 30.0, 1e4, LU, 600.0, None),
          "valve_damping_ratio": ("", 0.1, 2.0, LU, 0.7, None)},
         {1: ("valve_time_constant",), 2: ("valve_natural_frequency", "valve_damping_ratio")},

@@ -207,3 +207,26 @@ def test_solver_correction_moves_predictions_to_the_reference(small: tuple) -> N
     delta = after - before
     # the coarse solver is already good to a few Pa; the correction is that
     assert 0.0 < np.max(np.abs(delta)) < 100.0
+
+
+def test_a_spool_lag_at_its_fitting_floor_is_simulated(small: tuple) -> None:
+    """With a first-order spool lag the problem's steps (also the blocked
+    tests' rest steps) are stable down to the lag's fitting floor, not only at
+    the nominal lag it was built with: a fit that moves tau there still
+    simulates (before, a 2-ms start failed in every simulation: the 4-ms step
+    and the rest steps were stable for the 15-ms nominal lag only)."""
+    from pneumafit.discovery.catalog import get_effect
+    from pneumafit.identification.problem import valve_lag_floor
+
+    _, campaign, truth = small
+    lagged = get_effect("valve_dynamics").structure(STRUCTURE)
+    nominal = {**truth, "valve_time_constant": 0.015}
+    prob = Problem(campaign.by_role("fit"), lagged, nominal)
+    floor = valve_lag_floor(lagged, prob.base)
+    assert floor == 1e-3
+    pred = prob.predict({"valve_time_constant": np.array([floor, 2e-3, 0.015])}, 3)
+    assert np.all(pred.status == 0) and pred.ok.all()
+    assert {"charge", "discharge", "step"} <= {e.kind for e in prob.experiments}
+    # the cap applies only with the lag
+    assert valve_lag_floor(STRUCTURE, prob.base) is None
+    assert max(Problem(campaign.by_role("fit"), STRUCTURE, truth).steps) > max(prob.steps)

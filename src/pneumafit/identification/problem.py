@@ -64,6 +64,7 @@ from pneumafit.identification.noise import (
 from pneumafit.models import kernel
 from pneumafit.models.layout import X_PN, X_PP, X_TN, X_TP, X_Y, P
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.parts import EFFECTS
 from pneumafit.models.structure import (
     FRICTION_PARAMETERS,
     HEAT_PARAMETERS,
@@ -72,6 +73,7 @@ from pneumafit.models.structure import (
 )
 from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step
 from pneumafit.simulation.sensor import first_order_lag
+from pneumafit.simulation.simulator import STABILITY_MARGIN
 
 __all__ = [
     "COMPARABLE_CHANNELS",
@@ -284,6 +286,31 @@ class _Layout:
 
 #: Fraction of the method's stability limit used by :func:`rest_step`.
 REST_STABILITY_MARGIN = 0.5
+
+
+def valve_lag_floor(structure: ModelStructure, nominal: NDArray[np.float64]) -> float | None:
+    """Shortest first-order spool time constant (s) a problem must integrate.
+
+    With the ``valve_dynamics`` effect at order 1 the spool position relaxes
+    at rate 1 / tau, a mode the rate bound of
+    :func:`~pneumafit.simulation.choose_step` does not see, and a fit moves
+    tau down to its fitting range's lower bound: the step has to be stable
+    there, not only at the nominal tau (on the demo a start at 2 ms failed in
+    every simulation: the 4-ms step and the blocked tests' rest steps were
+    stable for the 15-ms nominal lag only). The floor is the smaller of that
+    bound (the effect's ``FitRange``) and a positive nominal tau; None
+    without a first-order spool lag.
+    """
+    if structure.effects.get("valve_dynamics") != 1:
+        return None
+    floor = math.inf
+    for fr in EFFECTS["valve_dynamics"].fit:
+        if fr.parameter == "valve_time_constant":
+            floor = fr.lower
+    tau = float(nominal[P["valve_time_constant"]])
+    if tau > 0.0:
+        floor = min(floor, tau)
+    return floor if math.isfinite(floor) else None
 
 
 def rest_step(parameters: NDArray[np.float64], cap: float, stability: float) -> float:
@@ -553,17 +580,21 @@ class Problem:
             y_range = (float(np.min(rec.channels["y"])), float(np.max(rec.channels["y"])))
         else:
             y_range = None
+        lag = valve_lag_floor(self.structure, nominal)
+        # the spool lag's own mode, stable down to the floor (see valve_lag_floor)
+        lag_step = math.inf if lag is None else STABILITY_MARGIN * self._tableau.stability * lag
         if self.max_step is None:
             step = choose_step(
                 nominal, default=DEFAULT_STEP, y_range=y_range, valve=self.structure.valve,
                 friction=self.structure.friction,
             )  # fmt: skip
             idx = np.arange(n)
-            return _Layout(exp, step, idx, idx, None, None)
+            return _Layout(exp, min(step, lag_step), idx, idx, None, None)
         step = choose_step(
             nominal, default=self.max_step, y_range=y_range, valve=self.structure.valve,
             friction=self.structure.friction,
         )  # fmt: skip
+        step = min(step, lag_step)
         dt = float(np.median(np.diff(t)))
         k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
         # dense samples: everywhere, or for blocked tests only around the
@@ -622,6 +653,8 @@ class Problem:
             # steps per grid interval: the stability step while the valve is
             # open, the rest step (centre leakage only) elsewhere
             h_rest = rest_step(nominal, self.rest_spacing or step, self._tableau.stability)
+            if lag is not None:
+                h_rest = min(h_rest, REST_STABILITY_MARGIN * self._tableau.stability * lag)
             tg = t[grid]
             dtg = np.diff(tg)
             dense_iv = dense[grid[:-1]] | dense[grid[1:]]

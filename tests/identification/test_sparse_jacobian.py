@@ -19,6 +19,7 @@ from pneumafit.errors import PneumafitInputError
 from pneumafit.identification import LogLikelihood, ParameterSet, Problem, fit_structure
 from pneumafit.identification.optimise import _fd_steps, _Whitened, fit_least_squares
 from pneumafit.identification.staged import with_initial_states
+from pneumafit.simulation import counter
 
 HEAT = ("xi", "beta")
 FRICTION = (
@@ -96,7 +97,9 @@ def test_the_jacobian_and_a_solve_are_unchanged_bit_for_bit(small: tuple) -> Non
     z = ps.to_internal()
     wh.set_state(z)
     n0 = like.problem.n_evaluations
+    sims0 = counter.simulations()
     r_sparse, j_sparse = wh.fun_and_jac(z)
+    simulated = counter.simulations() - sims0
     # the same batch without the shortcut
     h_batch = np.repeat(z[None], z.size + 1, axis=0)
 
@@ -108,6 +111,11 @@ def test_the_jacobian_and_a_solve_are_unchanged_bit_for_bit(small: tuple) -> Non
     assert r_sparse.tobytes() == full[0].tobytes()
     assert j_sparse.tobytes() == j_full.tobytes()
     assert like.problem.n_evaluations - n0 == 2 * (z.size + 1)
+    # the shortcut was taken: the (set, recording) pairs the rules excuse were
+    # not simulated (the full batch simulates every pair)
+    n_rec = len(like.problem.experiments)
+    excused = int(like.problem.unaffected(ps.free_names).sum())
+    assert excused > 0 and simulated == (z.size + 1) * n_rec - excused
     # a short solve from a moved start: the same estimate either way
     start = {"xi": 0.5, "friction_coulomb": 25.0}
     a = fit_least_squares(like, starts=[start], max_reweight=1, max_nfev=4)

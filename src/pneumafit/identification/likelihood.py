@@ -130,9 +130,8 @@ class LogLikelihood:
             same = np.zeros((n, self._unaffected.shape[1]), dtype=bool)
             one = idx >= 0
             same[one] = self._unaffected[idx[one]]
-            # a set outside the bounds is simulated at the set's values: not set 0's
+            # a set outside the bounds is simulated at the defaults: not set 0's
             same[~inside] = False
-            same[0] = False
             if not inside[0]:
                 same = None  # set 0 is simulated at the defaults: nothing to share
         pred = (

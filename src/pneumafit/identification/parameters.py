@@ -678,18 +678,18 @@ class ParameterSet:
         total = np.zeros(zz.shape[0])
         for j, p in enumerate(self.free):
             total = total + p.log_prior_internal(zz[:, j])
-        if self._rough_laws() and np.any(np.isfinite(total)):
+        laws = self._rough_laws()
+        if laws and np.any(np.isfinite(total)):
             with np.errstate(invalid="ignore", divide="ignore"):
-                r = self._roughness(zz)
+                r = self._roughness(zz, laws)
                 total = total - 0.5 * np.sum(r * r, axis=1)
             total = np.where(np.isnan(total), -np.inf, total)
         return total
 
-    def _roughness(self, zz: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Whitened residuals (n, n_terms) of the smoothness priors of the
-        valve laws with a free parameter here, at internal vectors (n, n_free);
-        (n, 0) without such a law."""
-        laws = self._rough_laws()
+    def _roughness(self, zz: NDArray[np.float64], laws: Sequence[ValveLaw]) -> NDArray[np.float64]:
+        """Whitened residuals (n, n_terms) of the smoothness priors of
+        ``laws`` (:meth:`_rough_laws`) at internal vectors (n, n_free);
+        (n, 0) without a law."""
         if not laws:
             return np.zeros((zz.shape[0], 0))
         values = self.to_values(zz)
@@ -729,7 +729,7 @@ class ParameterSet:
                 r = p.prior.residual(p.to_value(zz[:, j]))
                 if r is not None:
                     res.append(np.asarray(r, dtype=float).reshape(zz.shape[0], -1))
-        res.append(self._roughness(zz))
+        res.append(self._roughness(zz, self._rough_laws()))
         # C order, as rows stacked one by one. The least-squares residual
         # matrix takes its blocks' layout: a Fortran-ordered block (the map's
         # roughness is a transpose) made it Fortran-ordered and the Jacobian

@@ -71,9 +71,8 @@ from pneumafit.models.structure import (
     ModelStructure,
     get_structure,
 )
-from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step
+from pneumafit.simulation import DEFAULT_STEP, Experiment, Simulator, choose_step, spool_lag
 from pneumafit.simulation.sensor import first_order_lag
-from pneumafit.simulation.simulator import STABILITY_MARGIN
 
 __all__ = [
     "COMPARABLE_CHANNELS",
@@ -292,13 +291,13 @@ def valve_lag_floor(structure: ModelStructure, nominal: NDArray[np.float64]) -> 
     """Shortest first-order spool time constant (s) a problem must integrate.
 
     With the ``valve_dynamics`` effect at order 1 the spool position relaxes
-    at rate 1 / tau, a mode the rate bound of
-    :func:`~pneumafit.simulation.choose_step` does not see, and a fit moves
-    tau down to its fitting range's lower bound: the step has to be stable
-    there, not only at the nominal tau (on the demo a start at 2 ms failed in
-    every simulation: the 4-ms step and the blocked tests' rest steps were
-    stable for the 15-ms nominal lag only). The floor is the smaller of that
-    bound (the effect's ``FitRange``) and a positive nominal tau; None
+    at rate 1 / tau (:func:`~pneumafit.simulation.choose_step`'s
+    ``valve_lag``), and a fit moves tau down to its fitting range's lower
+    bound: the steps have to be stable there, not only at the nominal tau (on
+    the demo a start at 2 ms failed in every simulation: the 4-ms step and
+    the blocked tests' rest steps were stable for the 15-ms nominal lag
+    only). The floor is the smaller of that bound (the effect's ``FitRange``)
+    and the nominal tau (:func:`~pneumafit.simulation.spool_lag`); None
     without a first-order spool lag.
     """
     if structure.effects.get("valve_dynamics") != 1:
@@ -307,8 +306,8 @@ def valve_lag_floor(structure: ModelStructure, nominal: NDArray[np.float64]) -> 
     for fr in EFFECTS["valve_dynamics"].fit:
         if fr.parameter == "valve_time_constant":
             floor = fr.lower
-    tau = float(nominal[P["valve_time_constant"]])
-    if tau > 0.0:
+    tau = spool_lag(structure, nominal)
+    if tau is not None:
         floor = min(floor, tau)
     return floor if math.isfinite(floor) else None
 
@@ -580,21 +579,19 @@ class Problem:
             y_range = (float(np.min(rec.channels["y"])), float(np.max(rec.channels["y"])))
         else:
             y_range = None
-        lag = valve_lag_floor(self.structure, nominal)
         # the spool lag's own mode, stable down to the floor (see valve_lag_floor)
-        lag_step = math.inf if lag is None else STABILITY_MARGIN * self._tableau.stability * lag
+        lag = valve_lag_floor(self.structure, nominal)
         if self.max_step is None:
             step = choose_step(
                 nominal, default=DEFAULT_STEP, y_range=y_range, valve=self.structure.valve,
-                friction=self.structure.friction,
+                friction=self.structure.friction, valve_lag=lag,
             )  # fmt: skip
             idx = np.arange(n)
-            return _Layout(exp, min(step, lag_step), idx, idx, None, None)
+            return _Layout(exp, step, idx, idx, None, None)
         step = choose_step(
             nominal, default=self.max_step, y_range=y_range, valve=self.structure.valve,
-            friction=self.structure.friction,
+            friction=self.structure.friction, valve_lag=lag,
         )  # fmt: skip
-        step = min(step, lag_step)
         dt = float(np.median(np.diff(t)))
         k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
         # dense samples: everywhere, or for blocked tests only around the

@@ -9,6 +9,7 @@ from pneumafit.simulation.simulator import (
     Simulation,
     Simulator,
     choose_step,
+    spool_lag,
     substeps,
 )
 from pneumafit.simulation.tableau import DP5, HEUN, KUTTA3, RK4, Tableau
@@ -29,5 +30,6 @@ __all__ = [
     "Tableau",
     "choose_step",
     "simulate_sampled",
+    "spool_lag",
     "substeps",
 ]

@@ -407,6 +407,7 @@ def choose_step(
     method: str | Tableau = DEFAULT_METHOD,
     valve: str = "iso6358",
     friction: str = "switch",
+    valve_lag: float | None = None,
 ) -> float:
     """Largest fixed step (s) that is stable for a parameter set.
 
@@ -433,6 +434,9 @@ def choose_step(
     friction : {"switch", "lugre"}
         Friction law of the model (:attr:`ModelStructure.friction`): LuGre
         adds its bristle mode (stiffness and damping over the moving mass).
+    valve_lag : float, optional
+        Time constant (s) of a first-order spool lag (:func:`spool_lag`): its
+        mode, rate 1 / tau, is not in the model's rate bound. None: no lag.
     """
     if valve not in VALVE_LAWS:
         raise PneumafitInputError(
@@ -453,7 +457,19 @@ def choose_step(
     rate = kernel.stiffness_bound(
         vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve], FRICTION_LAWS[friction]
     )
+    if valve_lag is not None and valve_lag > 0.0:
+        rate = max(rate, 1.0 / valve_lag)
     return float(min(default, STABILITY_MARGIN * tableau.stability / rate))
+
+
+def spool_lag(structure: ModelStructure, parameters: np.ndarray) -> float | None:
+    """Time constant (s) of the structure's first-order spool lag (effect
+    ``valve_dynamics``, option 1) in a full parameter vector, for
+    :func:`choose_step`; None without one (or with tau <= 0)."""
+    if structure.effects.get("valve_dynamics") != 1:
+        return None
+    tau = float(parameters[P["valve_time_constant"]])
+    return tau if tau > 0.0 else None
 
 
 def _balanced_jobs(run: np.ndarray, offsets: np.ndarray, nsub_all: np.ndarray) -> np.ndarray:

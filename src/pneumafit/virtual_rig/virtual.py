@@ -50,7 +50,7 @@ from pneumafit.models import (
     parameter_vector,
 )
 from pneumafit.physics.geometry import piston_areas
-from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_step
+from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_step, spool_lag
 from pneumafit.virtual_rig.effects import resolve_effects
 from pneumafit.virtual_rig.protocol import (
     FLOW_COMPUTE_RATE,
@@ -274,7 +274,8 @@ class VirtualRig:
         except ValueError as exc:
             raise PneumafitInputError(str(exc)) from None
         self.structure = self.structure.with_effects()  # name lists the effects
-        self.step = float(min(step, choose_step(vector, default=step)))
+        lag = spool_lag(self.structure, vector)
+        self.step = float(min(step, choose_step(vector, default=step, valve_lag=lag)))
         self.method = method
         try:
             self.simulator = Simulator(self.structure, step=self.step, method=method)

@@ -585,7 +585,7 @@ def write_fmu(
     """
     from pneumafit.models import kernel
     from pneumafit.models.parameters import parameter_vector
-    from pneumafit.simulation import choose_step
+    from pneumafit.simulation import choose_step, spool_lag
 
     check_structure(structure, source)
     try:
@@ -603,7 +603,10 @@ def write_fmu(
             "with valve_time_constant 0); cannot export an FMU"
         )
     if integration_step is None:
-        integration_step = choose_step(vec, valve=structure.valve, friction=structure.friction)
+        integration_step = choose_step(
+            vec, valve=structure.valve, friction=structure.friction,
+            valve_lag=spool_lag(structure, vec),
+        )  # fmt: skip
     if not integration_step > 0:
         raise PneumafitInputError(
             f"integration step: expected a positive step in s, found {integration_step}"

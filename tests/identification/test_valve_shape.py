@@ -44,3 +44,22 @@ def test_a_curved_valve_gets_its_exponents() -> None:
     assert result.parameters["valve_n_exhaust"].value > 1.0
     (flow,) = [c for c in result.quality.channels if c.channel.startswith("qm_")]
     assert flow.ratio is not None and flow.ratio < 3.0
+
+
+def test_a_progressive_valve_is_not_left_on_the_ramps_overlap() -> None:
+    """The ``power-valve`` truth's paths open as a power of the stroke (index
+    1.55 supply, 1.7 exhaust, from 0.42 and 0.37 V). The linear ramp follows
+    the curve with an overlap of ~2.3 V, and the exponents freed from that
+    point stayed near 1 (0.95, 1.20) at 7x the meter noise; the exponent
+    starts (``SHAPE_STARTS``) reach the progressive optimum. The truth's
+    full opening at 9.1-9.6 V (the model's at 10 V) keeps the exponents
+    below the truth's, so only their side of 1.2 is asserted; 3x is the
+    quality check's threshold."""
+    result = identify(_flow_only(VirtualRig(truth="power-valve", seed=1)),
+                      options=FitOptions(mcmc=False), seed=1)  # fmt: skip
+    assert "kept" in result.stage("valve").note
+    assert result.parameters["valve_n_supply"].value > 1.2
+    assert result.parameters["valve_n_exhaust"].value > 1.2
+    assert result.parameters["valve_overlap"].value < 1.0
+    (flow,) = [c for c in result.quality.channels if c.channel.startswith("qm_")]
+    assert flow.ratio is not None and flow.ratio < 3.0

@@ -214,6 +214,25 @@ SHAPE_PARAMETERS = {"supply": "valve_n_supply", "exhaust": "valve_n_exhaust"}
 SHAPE_CONFIDENCE = 0.999
 
 
+#: Starting exponents of the shaped valve law besides the linear ramp's
+#: optimum. The ramp's optimum is a poor start for a progressive opening: it
+#: fits the curve's convexity with an overlap far past the real dead band
+#: (2.34 V for a power law n 1.55 starting at 0.42 V), and from there the
+#: exponents stay near 1 (a local optimum at 7x the flow meter's noise).
+SHAPE_STARTS = (0.7, 1.5, 2.2)
+
+
+def _shape_starts(values: Mapping[str, float], shapes: Sequence[str]) -> list[dict[str, float]]:
+    """Starts of the shaped valve law: the ramp's optimum, then each of
+    :data:`SHAPE_STARTS` for every free exponent with the overlap at the
+    generic dead band of :func:`valve_starts` (0.5 V) or the ramp's if smaller."""
+    first = dict(values)
+    overlap = min(float(values["valve_overlap"]), 0.5)
+    return [first] + [
+        {**first, "valve_overlap": overlap, **{n: float(e) for n in shapes}} for e in SHAPE_STARTS
+    ]
+
+
 def _informed_valve(
     campaign: Campaign, values: Mapping[str, float], names: Sequence[str]
 ) -> tuple[str, ...]:
@@ -1003,7 +1022,7 @@ def identify(
             # the flow tests ask for them (likelihood-ratio test), so a valve
             # that is a linear ramp keeps the linear law and its fewer parameters
             ramp, ramp_values, ramp_seconds = stage.estimate, dict(values), stage.seconds
-            run_stage(stage, flows, valve_free, [dict(values)], seeds[0])
+            run_stage(stage, flows, valve_free, _shape_starts(values, shapes), seeds[0])
             stage.seconds += ramp_seconds
             gain = stage.estimate.log_likelihood - ramp.log_likelihood
             needed = 2.0 * gain > chi2.ppf(SHAPE_CONFIDENCE, len(shapes))

@@ -23,7 +23,9 @@ each conditional on the other groups at the joint estimate
    one term per sample; AR(1): the innovations, the first sample from the
    stationary distribution; the sqrt(n) weights of averaged samples as
    log-Jacobians), with the noise scale profiled per draw;
-4. hands the pointwise matrix to ``arviz.waic`` and ``arviz.loo``.
+4. computes WAIC and PSIS-LOO of the pointwise matrix
+   (:mod:`pneumafit.comparison.elpd`: ArviZ's ``waic`` and ``loo`` estimators,
+   vectorised over the points; the same numbers to rounding).
 
 The values are on the deviance scale too (-2 elpd), comparable with AIC.
 The profiled noise scale and the projection of the nuisances make the
@@ -44,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign
+from pneumafit.comparison.elpd import WAIC_VARIANCE_LIMIT, psis_loo, waic
 from pneumafit.comparison.evaluate import fit_values
 from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.noise import AR1, Gaussian
@@ -188,8 +191,6 @@ def posterior_criteria(
         elpd arrays, which :func:`differences` uses and removes); or
         ``reason`` when not available.
     """
-    import warnings
-
     if not document.get("mcmc"):
         return _unavailable("the fit has no MCMC (made with --no-mcmc): no posterior draws")
     if chains is None or not Path(chains).is_file():
@@ -240,32 +241,37 @@ def posterior_criteria(
     if good.sum() < 4:
         return _unavailable("fewer than 4 posterior draws simulated successfully")
     ll = ll[good]
-    import arviz as az  # slow to import (seconds): only when there are draws
-
-    posterior = {name: np.asarray(v)[good][None, :] for name, v in draws.items()}
-    data = az.from_dict(posterior=posterior, log_likelihood={"y": ll[None, :, :]})
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        waic = az.waic(data, pointwise=True)
-        loo = az.loo(data, pointwise=True, reff=1.0)  # thinned draws: nearly independent
-    k_high = int(np.sum(np.asarray(loo.pareto_k) > 0.7))
-    notes = sorted({str(w.message).splitlines()[0] for w in caught})
+    waic_ = waic(ll)
+    loo = psis_loo(ll, reff=1.0)  # thinned draws: nearly independent
+    assert loo.pareto_k is not None and loo.good_k is not None
+    k_high = int(np.sum(loo.pareto_k > 0.7))
+    notes = []
+    if waic_.n_unreliable:
+        notes.append(
+            f"WAIC: the posterior variance of the log predictive density exceeds "
+            f"{WAIC_VARIANCE_LIMIT} at {waic_.n_unreliable} of {ll.shape[1]} points, where WAIC "
+            "may fail (Vehtari, Gelman and Gabry 2017)"
+        )
+    if loo.n_unreliable:
+        notes.append(
+            f"PSIS-LOO: Pareto k above {loo.good_k:.2f} at {loo.n_unreliable} of {ll.shape[1]} "
+            "points, where the importance-sampling estimate is unreliable"
+        )
     return {
         "available": True,
         "model": model,
         "waic": {
-            "elpd": float(waic.elpd_waic), "se": float(waic.se), "p": float(waic.p_waic),
-            "deviance": -2.0 * float(waic.elpd_waic),
+            "elpd": waic_.elpd, "se": waic_.se, "p": waic_.p, "deviance": -2.0 * waic_.elpd,
         },
         "loo": {
-            "elpd": float(loo.elpd_loo), "se": float(loo.se), "p": float(loo.p_loo),
-            "deviance": -2.0 * float(loo.elpd_loo), "pareto_k_above_0.7": k_high,
+            "elpd": loo.elpd, "se": loo.se, "p": loo.p, "deviance": -2.0 * loo.elpd,
+            "pareto_k_above_0.7": k_high,
         },
         "n_draws": int(good.sum()),
         # pointwise elpd (not written to JSON): for the standard error of differences
         "_pointwise": {
-            "waic": np.asarray(waic.waic_i).ravel(),
-            "loo": np.asarray(loo.loo_i).ravel(),
+            "waic": waic_.pointwise,
+            "loo": loo.pointwise,
         },
         "n_points": int(ll.shape[1]),
         "groups": groups,

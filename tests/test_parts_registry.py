@@ -421,6 +421,9 @@ def test_a_toy_heat_law_reaches_the_model_lists(clean_registry: None) -> None:
         ({"fit": (parts.FitRange("chamber_leak_conductance", 1e-13, 1.0),)}, "physical bounds"),
         ({"options": {0: ("chamber_leak_conductance",)}}, "option 0"),
         ({"phases": ("boiling",)}, "phases"),  # the catalog refuses it
+        ({"moves": frozenset({"flow"})}, "moves"),  # the kernel's flow tests read no effect
+        ({"moves": frozenset()}, "moves"),
+        ({"moves": {"motion"}}, "moves"),  # a set, not a frozenset: parts are frozen
     ],
 )
 def test_bad_effects_are_refused(

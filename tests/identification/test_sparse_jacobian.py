@@ -11,6 +11,8 @@ They are exactness tests of the code, not recovery claims.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -29,11 +31,29 @@ FRICTION = (
 VALVE = ("valve_C_supply", "valve_overlap")
 
 
+#: Effects switched on in the effects test, and a value of each parameter
+#: away from its default (SI): friction-like terms that declare
+#: ``moves={"motion"}`` and chamber effects that move blocked tests too.
+EFFECT_VALUES = {
+    "seal_friction": {"seal_friction_coefficient": 1.5e-5},
+    "friction_asymmetry": {"friction_asymmetry": 0.1},
+    "effective_area": {"area_factor": 1.02},
+    "external_leakage": {"external_leak_conductance": 1e-11},
+}
+
+
 def _likelihood(
-    small: tuple[object, Campaign, dict[str, float]], lag: bool = False
+    small: tuple[object, Campaign, dict[str, float]],
+    lag: bool = False,
+    effects: bool = False,
 ) -> tuple[LogLikelihood, ParameterSet]:
     _, campaign, truth = small
     structure = fit_structure("convection", friction="lugre")
+    extra: dict[str, float] = {}
+    if effects:
+        structure = dataclasses.replace(structure, effects=dict.fromkeys(EFFECT_VALUES, 1))
+        extra = {k: v for d in EFFECT_VALUES.values() for k, v in d.items()}
+        truth = {**truth, **extra}
     channels = ("p_P", "p_N", "y", "qm_P", "qm_N") + (("T_P",) if lag else ())
     kw = {"sensor_lags": {"T_P": "temperature_sensor_lag"}} if lag else {}
     prob = Problem(campaign.by_role("fit"), structure, truth, channels=channels, **kw)
@@ -41,13 +61,19 @@ def _likelihood(
         structure, campaign.rig.as_parameters(), nuisance=("temperature_sensor_lag",) if lag else ()
     )
     ps = ps.with_values({k: v for k, v in truth.items() if k in ps.names})
-    free = HEAT + FRICTION + VALVE + (("temperature_sensor_lag",) if lag else ())
+    free = HEAT + FRICTION + VALVE + (("temperature_sensor_lag",) if lag else ()) + tuple(extra)
     ps = with_initial_states(ps.only_free(free), prob, {}, free=True)
     return LogLikelihood(prob, ps), ps
 
 
-def test_each_rule_holds_in_full_simulations(small: tuple) -> None:
-    like, ps = _likelihood(small, lag=True)
+def _rules_against_full_simulations(
+    like: LogLikelihood, ps: ParameterSet
+) -> tuple[dict[str, np.ndarray], list[str], np.ndarray]:
+    """Each rule of ``unaffected`` checked bit for bit against a full batch.
+
+    Returns the rules by name, the recordings' kinds and which recordings
+    some parameter not excused from them did move.
+    """
     prob = like.problem
     names = ps.free_names
     rules = prob.unaffected(names)
@@ -76,10 +102,16 @@ def test_each_rule_holds_in_full_simulations(small: tuple) -> None:
                 assert same, f"{name} is said not to affect {kinds[r]} {r}, but does"
             else:
                 moved_any[r] |= not same
+    return dict(zip(names, rules, strict=True)), kinds, moved_any
+
+
+def test_each_rule_holds_in_full_simulations(small: tuple) -> None:
+    like, ps = _likelihood(small, lag=True)
+    by_name, kinds, moved_any = _rules_against_full_simulations(like, ps)
+    names = ps.free_names
     # the rules are not vacuous: friction excused from flow and blocked tests,
     # heat from flow tests, an initial state from every other recording, the lag
     # (it acts after the simulation) from all
-    by_name = dict(zip(names, rules, strict=True))
     blocked_or_flow = np.array([k != "step" for k in kinds])
     assert np.array_equal(by_name["friction_damping"], blocked_or_flow)
     assert np.array_equal(by_name["xi"], np.array([k == "flow" for k in kinds]))
@@ -88,6 +120,22 @@ def test_each_rule_holds_in_full_simulations(small: tuple) -> None:
     initial = [n for n in names if n.startswith("initial:")]
     assert initial and all(by_name[n].sum() == len(kinds) - 1 for n in initial)
     # and each recording is moved by some parameter the rules leave to it
+    assert moved_any.all()
+
+
+def test_effects_declare_what_they_move(small: tuple) -> None:
+    """Effects on: a friction-like effect (``moves={"motion"}``) is excused
+    from blocked tests as well as flow tests, a chamber effect only from flow
+    tests (the static characteristic reads the valve laws alone); each rule
+    holds bit for bit in full simulations."""
+    like, ps = _likelihood(small, effects=True)
+    by_name, kinds, moved_any = _rules_against_full_simulations(like, ps)
+    flow = np.array([k == "flow" for k in kinds])
+    not_step = np.array([k != "step" for k in kinds])
+    assert np.array_equal(by_name["seal_friction_coefficient"], not_step)
+    assert np.array_equal(by_name["friction_asymmetry"], not_step)
+    assert np.array_equal(by_name["area_factor"], flow)
+    assert np.array_equal(by_name["external_leak_conductance"], flow)
     assert moved_any.all()
 
 

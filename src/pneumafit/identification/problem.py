@@ -173,6 +173,20 @@ def fit_sensor_lag(
     return float(math.exp(sol.x))
 
 
+def _force_balance_only() -> frozenset[str]:
+    """Model parameters that enter only the piston's force balance.
+
+    The friction laws' parameters and those of effects that move only tests
+    with motion (:attr:`Effect.moves`), less any name another part (a heat
+    law, an effect that moves blocked tests) also reads.
+    """
+    friction = {n for law in FRICTION_PARAMETERS.values() for n in law}
+    only = {n for e in EFFECTS.values() if e.moves == {"motion"} for n in e.parameters}
+    other = {n for law in HEAT_PARAMETERS.values() for n in law}
+    other |= {n for e in EFFECTS.values() if e.moves != {"motion"} for n in e.parameters}
+    return frozenset((friction | only) - other)
+
+
 @dataclass(frozen=True)
 class Observation:
     """One compared (recording, channel) block.
@@ -723,10 +737,13 @@ class Problem:
         By the model's structure, not by numbers: a parameter that is not
         a model parameter (a sensor lag: it acts after the simulation) moves
         no simulation; an initial state (``initial:<file>:<state>``) only its
-        own recording's; a friction-law parameter neither a blocked test's
-        (the piston is clamped and the kernel never evaluates the friction)
-        nor a flow test's (the static characteristic); a heat-law parameter
-        not a flow test's. :meth:`predict` then takes those simulations from
+        own recording's; a flow test's only the parameters its static
+        characteristic reads (:data:`pneumafit.models.kernel.STATIC_FLOW_PARAMETERS`:
+        the valve laws', supply, exhaust and ambient); a blocked test's none
+        that enters only the piston's force balance (the friction laws' and
+        those of effects that declare ``moves={"motion"}``,
+        :attr:`pneumafit.models.parts.Effect.moves`: with the piston clamped
+        the kernel never evaluates them). :meth:`predict` then takes those simulations from
         the batch's first set (``same_as_first``);
         ``tests/identification/test_sparse_jacobian.py`` checks every rule
         against full simulations.
@@ -740,10 +757,9 @@ class Problem:
         -------
         ndarray of bool, shape (len(names), n_recordings)
         """
-        friction = {n for law in FRICTION_PARAMETERS for n in FRICTION_PARAMETERS[law]}
-        heat = {n for law in HEAT_PARAMETERS for n in HEAT_PARAMETERS[law]}
         flow = np.array([e.kind == "flow" for e in self.experiments])
-        clamped = np.array([e.blocked or e.kind == "flow" for e in self.experiments])
+        blocked = np.array([e.blocked and e.kind != "flow" for e in self.experiments])
+        force_only = _force_balance_only()
         out = np.zeros((len(names), len(self.experiments)), dtype=bool)
         for k, name in enumerate(names):
             if name in self.initial_parameters:
@@ -751,10 +767,10 @@ class Problem:
                 out[k, self.initial_parameters[name][0]] = False
             elif name not in P:
                 out[k] = True
-            elif name in friction:
-                out[k] = clamped
-            elif name in heat:
-                out[k] = flow
+            else:
+                out[k] = flow & (name not in kernel.STATIC_FLOW_PARAMETERS)
+                if name in force_only:
+                    out[k] |= blocked
         return out
 
     def predict(

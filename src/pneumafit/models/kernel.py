@@ -127,6 +127,7 @@ from pneumafit.models.layout import (
     P_WOUT,
     P_XI,
     P_XLAM,
+    PARAMETER_SPECS,
     X_DUN,
     X_DUP,
     X_ME,
@@ -403,6 +404,16 @@ def _valve(
         # linear opening (the default): no pow in this path (flows_core's linear)
         return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], True)
     return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], False)
+
+
+#: Parameters a flow test's simulation reads (``C_STATIC_FLOW``: the static
+#: characteristic q_m(P, u) at the measured pressure, :func:`integrate`): the
+#: valve laws' and the supply, exhaust and ambient conditions. No other
+#: parameter moves a flow test (:meth:`pneumafit.identification.Problem.unaffected`).
+STATIC_FLOW_PARAMETERS: frozenset[str] = frozenset(
+    [s.name for s in PARAMETER_SPECS if s.group in ("valve", "valve_map")]
+    + ["supply_pressure", "exhaust_pressure", "ambient_temperature"]
+)
 
 
 @njit(cache=True)

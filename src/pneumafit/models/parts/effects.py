@@ -297,6 +297,7 @@ def seal_effect_part(
     coefficient_unit: str,
     signature: tuple[SignatureTerm, ...],
     phases: tuple[str, ...],
+    moves: frozenset[str] = frozenset({"blocked", "motion"}),
 ) -> Effect:
     """The :class:`Effect` of a shared seal or barrel effect (:data:`SEAL_EFFECTS`)."""
     e = SEAL_EFFECTS[name]
@@ -321,6 +322,7 @@ def seal_effect_part(
         coefficient_unit=coefficient_unit,
         signature=signature,
         phases=phases,
+        moves=moves,
     )
 
 
@@ -338,6 +340,8 @@ register_effect(
             ),
         ),
         ("motion",),
+        # a friction term: the kernel skips it with the piston clamped
+        frozenset({"motion"}),
     )
 )
 register_effect(
@@ -355,6 +359,8 @@ register_effect(
             ),
         ),
         ("motion",),
+        # a friction term: the kernel skips it with the piston clamped
+        frozenset({"motion"}),
     )
 )
 register_effect(

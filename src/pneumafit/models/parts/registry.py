@@ -37,6 +37,7 @@ __all__ = [
     "EFFECTS",
     "FRICTION_LAWS",
     "HEAT_LAWS",
+    "MOVED_RECORDINGS",
     "PRIOR_KINDS",
     "VALVE_LAWS",
     "Effect",
@@ -59,6 +60,10 @@ __all__ = [
     "unregister_heat_law",
     "unregister_valve_law",
 ]
+
+#: What an effect's parameters can move (:attr:`Effect.moves`): charge/discharge
+#: tests with the piston clamped, and tests where the piston moves.
+MOVED_RECORDINGS: frozenset[str] = frozenset({"blocked", "motion"})
 
 #: Prior kinds of a :class:`FitRange` (the discovery catalog's ``EffectPrior``).
 PRIOR_KINDS: tuple[str, ...] = ("log-uniform", "half-normal", "uniform")
@@ -292,6 +297,16 @@ class Effect:
     start_floor : float
         Smallest refit start of the principal parameter taken from a
         coefficient (SI; 0: none).
+    moves : frozenset of str
+        Recordings whose simulation its parameters can change, among
+        :data:`MOVED_RECORDINGS`: ``"blocked"`` (charge/discharge tests,
+        piston clamped) and ``"motion"`` (step tests). Flow tests are never
+        moved by an effect: the kernel evaluates their static
+        characteristic from the valve law alone. Default: both; an effect
+        that acts only on the piston's force balance (a friction term)
+        declares ``{"motion"}``, so a finite-difference Jacobian does not
+        re-simulate the blocked tests for it
+        (:meth:`pneumafit.identification.Problem.unaffected`).
     """
 
     name: str
@@ -308,6 +323,7 @@ class Effect:
     phases: tuple[str, ...] = ()
     inverse_coefficient: bool = False
     start_floor: float = 0.0
+    moves: frozenset[str] = frozenset({"blocked", "motion"})
 
     def __post_init__(self) -> None:
         options = {int(k): tuple(v) for k, v in self.options.items()} or {1: self.parameters}
@@ -476,6 +492,13 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
         registered.
     """
     where = f"register effect {effect.name!r}"
+    if not (
+        isinstance(effect.moves, frozenset) and effect.moves and effect.moves <= MOVED_RECORDINGS
+    ):
+        raise PneumafitInputError(
+            f"{where}: moves: expected a non-empty frozenset of {sorted(MOVED_RECORDINGS)}, "
+            f"found {effect.moves!r}"
+        )
     if not effect.name.isidentifier():
         raise PneumafitInputError(
             f"register effect: name: expected an identifier, found {effect.name!r}"

@@ -10,6 +10,7 @@ from pneumafit.simulation.simulator import (
     Simulator,
     choose_step,
     spool_lag,
+    spool_mode,
     substeps,
 )
 from pneumafit.simulation.tableau import DP5, HEUN, KUTTA3, RK4, Tableau
@@ -31,5 +32,6 @@ __all__ = [
     "choose_step",
     "simulate_sampled",
     "spool_lag",
+    "spool_mode",
     "substeps",
 ]

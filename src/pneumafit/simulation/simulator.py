@@ -408,6 +408,7 @@ def choose_step(
     valve: str = "iso6358",
     friction: str = "switch",
     valve_lag: float | None = None,
+    spool: tuple[float, float] | None = None,
 ) -> float:
     """Largest fixed step (s) that is stable for a parameter set.
 
@@ -437,6 +438,11 @@ def choose_step(
     valve_lag : float, optional
         Time constant (s) of a first-order spool lag (:func:`spool_lag`): its
         mode, rate 1 / tau, is not in the model's rate bound. None: no lag.
+    spool : (float, float), optional
+        The spool's fastest mode as (|lambda| in 1/s, direction in rad)
+        (:func:`spool_mode`; a second-order spool's is oscillatory): the step
+        keeps h |lambda| within the method's stability radius in that
+        direction (:meth:`Tableau.stability_radius`). None: no such mode.
     """
     if valve not in VALVE_LAWS:
         raise PneumafitInputError(
@@ -459,7 +465,17 @@ def choose_step(
     )
     if valve_lag is not None and valve_lag > 0.0:
         rate = max(rate, 1.0 / valve_lag)
-    return float(min(default, STABILITY_MARGIN * tableau.stability / rate))
+    step = min(default, STABILITY_MARGIN * tableau.stability / rate)
+    if spool is not None and spool[0] > 0.0:
+        radius = tableau.stability_radius(spool[1])
+        if radius < 1e-2:
+            raise PneumafitInputError(
+                f"choose_step: method {tableau.name!r} is unstable for the spool's mode at "
+                f"{math.degrees(spool[1]):.1f} deg (an undamped oscillation): expected a "
+                "method stable on the imaginary axis (kutta3, rk4) or a damped spool"
+            )
+        step = min(step, STABILITY_MARGIN * radius / spool[0])
+    return float(step)
 
 
 def spool_lag(structure: ModelStructure, parameters: np.ndarray) -> float | None:
@@ -470,6 +486,32 @@ def spool_lag(structure: ModelStructure, parameters: np.ndarray) -> float | None
         return None
     tau = float(parameters[P["valve_time_constant"]])
     return tau if tau > 0.0 else None
+
+
+def spool_mode(structure: ModelStructure, parameters: np.ndarray) -> tuple[float, float] | None:
+    """The fastest mode of a second-order spool, for :func:`choose_step`'s ``spool``.
+
+    With ``valve_dynamics`` = 2, u_s'' = w_n^2 (u - u_s) - 2 zeta w_n u_s'
+    has the eigenvalues w_n (-zeta +- i sqrt(1 - zeta^2)) (modulus w_n,
+    angle pi - arccos zeta) when zeta < 1, and -w_n (zeta +- sqrt(zeta^2 - 1))
+    on the real axis otherwise (the faster one is returned). A first-order
+    lag's mode is :func:`spool_lag`'s (``valve_lag``).
+
+    Returns
+    -------
+    (float, float) or None
+        (|lambda| in 1/s, angle in rad); None without a second-order spool or
+        with a non-positive natural frequency.
+    """
+    if structure.effects.get("valve_dynamics") != 2:
+        return None
+    w_n = float(parameters[P["valve_natural_frequency"]])
+    zeta = max(float(parameters[P["valve_damping_ratio"]]), 0.0)
+    if not w_n > 0.0:
+        return None
+    if zeta >= 1.0:
+        return w_n * (zeta + math.sqrt(zeta * zeta - 1.0)), math.pi
+    return w_n, math.pi - math.acos(zeta)
 
 
 def _balanced_jobs(run: np.ndarray, offsets: np.ndarray, nsub_all: np.ndarray) -> np.ndarray:

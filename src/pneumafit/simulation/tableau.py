@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+#: Stability radii already computed, by (method, angle).
+_RADII: dict[tuple[str, float], float] = {}
 
 
 @dataclass(frozen=True)
@@ -21,6 +25,51 @@ class Tableau:
     c: np.ndarray
     order: int
     stability: float
+
+    def amplification(self, z: complex) -> complex:
+        """R(z) = 1 + z b^T (I - z A)^-1 1: one step's factor on y' = lambda y, z = h lambda."""
+        n = self.b.size
+        k = np.linalg.solve(np.eye(n) - z * self.a, np.ones(n, dtype=complex))
+        return complex(1.0 + z * (self.b @ k))
+
+    def stability_radius(self, angle: float) -> float:
+        """Largest r with |R(rho e^(i angle))| <= 1 for every rho in (0, r].
+
+        The stable h |lambda| of a mode lambda = |lambda| e^(i angle): on the
+        negative real axis (angle pi) the method's real-axis limit
+        (:attr:`stability`, to its three digits), on the imaginary axis
+        (pi / 2, an undamped oscillation) sqrt(3) for Kutta's RK3, 2 sqrt(2)
+        for RK4 and 0 for Heun's method. Found on a 1e-3 grid up to 8, then
+        by bisection to 1e-10.
+
+        Parameters
+        ----------
+        angle : float
+            Direction of the mode in the complex plane (rad), in [pi / 2, pi].
+        """
+        key = (self.name, round(float(angle), 12))
+        if key in _RADII:
+            return _RADII[key]
+        ray = complex(math.cos(angle), math.sin(angle))
+
+        def stable(rho: float) -> bool:
+            return abs(self.amplification(rho * ray)) <= 1.0 + 1e-12
+
+        lo = 0.0
+        hi = math.nan
+        for rho in np.arange(1e-3, 8.0, 1e-3):
+            if not stable(float(rho)):
+                hi = float(rho)
+                break
+            lo = float(rho)
+        if math.isnan(hi):
+            _RADII[key] = lo
+            return lo
+        while hi - lo > 1e-10:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+        _RADII[key] = lo
+        return lo
 
 
 RK4 = Tableau(

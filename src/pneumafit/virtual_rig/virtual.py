@@ -50,7 +50,15 @@ from pneumafit.models import (
     parameter_vector,
 )
 from pneumafit.physics.geometry import piston_areas
-from pneumafit.simulation import PD, Experiment, Simulation, Simulator, choose_step, spool_lag
+from pneumafit.simulation import (
+    PD,
+    Experiment,
+    Simulation,
+    Simulator,
+    choose_step,
+    spool_lag,
+    spool_mode,
+)
 from pneumafit.virtual_rig.effects import resolve_effects
 from pneumafit.virtual_rig.protocol import (
     FLOW_COMPUTE_RATE,
@@ -274,8 +282,8 @@ class VirtualRig:
         except ValueError as exc:
             raise PneumafitInputError(str(exc)) from None
         self.structure = self.structure.with_effects()  # name lists the effects
-        lag = spool_lag(self.structure, vector)
-        self.step = float(min(step, choose_step(vector, default=step, valve_lag=lag)))
+        lag, mode = spool_lag(self.structure, vector), spool_mode(self.structure, vector)
+        self.step = float(min(step, choose_step(vector, default=step, valve_lag=lag, spool=mode)))
         self.method = method
         try:
             self.simulator = Simulator(self.structure, step=self.step, method=method)

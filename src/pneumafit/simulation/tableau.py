@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Stability radii already computed, by (method, angle).
-_RADII: dict[tuple[str, float], float] = {}
+#: Stability radii already computed, by (method's coefficients, angle).
+_RADII: dict[tuple[bytes, bytes, float], float] = {}
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,8 @@ class Tableau:
         angle : float
             Direction of the mode in the complex plane (rad), in [pi / 2, pi].
         """
-        key = (self.name, round(float(angle), 12))
+        # keyed by the coefficients, not the name: a user's tableau may reuse one
+        key = (self.a.tobytes(), self.b.tobytes(), round(float(angle), 12))
         if key in _RADII:
             return _RADII[key]
         ray = complex(math.cos(angle), math.sin(angle))

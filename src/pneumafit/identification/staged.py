@@ -223,9 +223,12 @@ SHAPE_STARTS = (0.7, 1.5, 2.2)
 
 
 def _shape_starts(values: Mapping[str, float], shapes: Sequence[str]) -> list[dict[str, float]]:
-    """Starts of the shaped valve law: the ramp's optimum, then each of
-    :data:`SHAPE_STARTS` for every free exponent with the overlap at the
-    generic dead band of :func:`valve_starts` (0.5 V) or the ramp's if smaller."""
+    """Starts of the shaped valve law, the linear ramp's optimum first.
+
+    Then each exponent of :data:`SHAPE_STARTS` for every free exponent in
+    ``shapes``, with the overlap at the generic dead band of
+    :func:`valve_starts` (0.5 V) or the ramp's if smaller (V).
+    """
     first = dict(values)
     overlap = min(float(values["valve_overlap"]), 0.5)
     return [first] + [

@@ -600,22 +600,23 @@ class Problem:
             y_range = (float(np.min(rec.channels["y"])), float(np.max(rec.channels["y"])))
         else:
             y_range = None
-        # the spool lag's own mode, stable down to the floor (see valve_lag_floor);
-        # a second-order spool's at its nominal w_n and zeta only (its fitting
-        # range reaches 1e4 rad/s, a step 25x below the usual): a fit that
-        # moves past them meets failed simulations, which the solver avoids
+        # the spool's own mode: a first-order lag's at its floor (see
+        # valve_lag_floor), a second-order spool's at its nominal w_n and zeta
+        # only (its fitting range reaches 1e4 rad/s, a step 25x below the
+        # usual): a fit that moves past them meets failed simulations, which
+        # the solver avoids
         lag = valve_lag_floor(self.structure, nominal)
-        mode = spool_mode(self.structure, nominal)
+        mode = (1.0 / lag, math.pi) if lag is not None else spool_mode(self.structure, nominal)
         if self.max_step is None:
             step = choose_step(
                 nominal, default=DEFAULT_STEP, y_range=y_range, valve=self.structure.valve,
-                friction=self.structure.friction, valve_lag=lag, spool=mode,
+                friction=self.structure.friction, spool=mode,
             )  # fmt: skip
             idx = np.arange(n)
             return _Layout(exp, step, idx, idx, None, None)
         step = choose_step(
             nominal, default=self.max_step, y_range=y_range, valve=self.structure.valve,
-            friction=self.structure.friction, valve_lag=lag, spool=mode,
+            friction=self.structure.friction, spool=mode,
         )  # fmt: skip
         dt = float(np.median(np.diff(t)))
         k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
@@ -675,8 +676,6 @@ class Problem:
             # steps per grid interval: the stability step while the valve is
             # open, the rest step (centre leakage only) elsewhere
             h_rest = rest_step(nominal, self.rest_spacing or step, self._tableau.stability)
-            if lag is not None:
-                h_rest = min(h_rest, REST_STABILITY_MARGIN * self._tableau.stability * lag)
             if mode is not None:
                 radius = self._tableau.stability_radius(mode[1])
                 h_rest = min(h_rest, REST_STABILITY_MARGIN * radius / mode[0])

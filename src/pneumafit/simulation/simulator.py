@@ -407,7 +407,6 @@ def choose_step(
     method: str | Tableau = DEFAULT_METHOD,
     valve: str = "iso6358",
     friction: str = "switch",
-    valve_lag: float | None = None,
     spool: tuple[float, float] | None = None,
 ) -> float:
     """Largest fixed step (s) that is stable for a parameter set.
@@ -435,14 +434,13 @@ def choose_step(
     friction : {"switch", "lugre"}
         Friction law of the model (:attr:`ModelStructure.friction`): LuGre
         adds its bristle mode (stiffness and damping over the moving mass).
-    valve_lag : float, optional
-        Time constant (s) of a first-order spool lag (:func:`spool_lag`): its
-        mode, rate 1 / tau, is not in the model's rate bound. None: no lag.
     spool : (float, float), optional
         The spool's fastest mode as (|lambda| in 1/s, direction in rad)
-        (:func:`spool_mode`; a second-order spool's is oscillatory): the step
-        keeps h |lambda| within the method's stability radius in that
-        direction (:meth:`Tableau.stability_radius`). None: no such mode.
+        (:func:`spool_mode`: a first-order lag's is 1 / tau on the negative
+        real axis, a second-order spool's is oscillatory), which the model's
+        rate bound leaves out: the step keeps h |lambda| within the method's
+        stability radius in that direction (:meth:`Tableau.stability_radius`,
+        the real-axis limit at pi). None: no such mode.
     """
     if valve not in VALVE_LAWS:
         raise PneumafitInputError(
@@ -463,8 +461,6 @@ def choose_step(
     rate = kernel.stiffness_bound(
         vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve], FRICTION_LAWS[friction]
     )
-    if valve_lag is not None and valve_lag > 0.0:
-        rate = max(rate, 1.0 / valve_lag)
     step = min(default, STABILITY_MARGIN * tableau.stability / rate)
     if spool is not None and spool[0] > 0.0:
         radius = tableau.stability_radius(spool[1])
@@ -489,21 +485,26 @@ def spool_lag(structure: ModelStructure, parameters: np.ndarray) -> float | None
 
 
 def spool_mode(structure: ModelStructure, parameters: np.ndarray) -> tuple[float, float] | None:
-    """The fastest mode of a second-order spool, for :func:`choose_step`'s ``spool``.
+    """The spool's fastest mode, for :func:`choose_step`'s ``spool``.
 
-    With ``valve_dynamics`` = 2, u_s'' = w_n^2 (u - u_s) - 2 zeta w_n u_s'
-    has the eigenvalues w_n (-zeta +- i sqrt(1 - zeta^2)) (modulus w_n,
-    angle pi - arccos zeta) when zeta < 1, and -w_n (zeta +- sqrt(zeta^2 - 1))
-    on the real axis otherwise (the faster one is returned). A first-order
-    lag's mode is :func:`spool_lag`'s (``valve_lag``).
+    With ``valve_dynamics`` = 1, u_s' = (u - u_s) / tau has the eigenvalue
+    -1 / tau (modulus 1 / tau, angle pi; :func:`spool_lag` gives tau). With
+    ``valve_dynamics`` = 2, u_s'' = w_n^2 (u - u_s) - 2 zeta w_n u_s' has
+    the eigenvalues w_n (-zeta +- i sqrt(1 - zeta^2)) (modulus w_n, angle
+    pi - arccos zeta) when zeta < 1, and -w_n (zeta +- sqrt(zeta^2 - 1))
+    on the real axis otherwise (the faster one is returned).
 
     Returns
     -------
     (float, float) or None
-        (|lambda| in 1/s, angle in rad); None without a second-order spool or
-        with a non-positive natural frequency.
+        (|lambda| in 1/s, angle in rad); None without spool dynamics, with a
+        non-positive time constant or a non-positive natural frequency.
     """
-    if structure.effects.get("valve_dynamics") != 2:
+    order = structure.effects.get("valve_dynamics")
+    if order == 1:
+        tau = spool_lag(structure, parameters)
+        return None if tau is None else (1.0 / tau, math.pi)
+    if order != 2:
         return None
     w_n = float(parameters[P["valve_natural_frequency"]])
     zeta = max(float(parameters[P["valve_damping_ratio"]]), 0.0)

@@ -46,7 +46,12 @@ class Tableau:
         ----------
         angle : float
             Direction of the mode in the complex plane (rad), in [pi / 2, pi].
+            At pi (a decaying real mode, e.g. a first-order spool lag) the
+            radius is :attr:`stability` by definition, so that every real
+            mode is held to the same limit as the model's own rate bound.
         """
+        if abs(angle - math.pi) < 1e-12:
+            return self.stability
         # keyed by the coefficients, not the name: a user's tableau may reuse one
         key = (self.a.tobytes(), self.b.tobytes(), round(float(angle), 12))
         if key in _RADII:

@@ -56,7 +56,6 @@ from pneumafit.simulation import (
     Simulation,
     Simulator,
     choose_step,
-    spool_lag,
     spool_mode,
 )
 from pneumafit.virtual_rig.effects import resolve_effects
@@ -282,8 +281,8 @@ class VirtualRig:
         except ValueError as exc:
             raise PneumafitInputError(str(exc)) from None
         self.structure = self.structure.with_effects()  # name lists the effects
-        lag, mode = spool_lag(self.structure, vector), spool_mode(self.structure, vector)
-        self.step = float(min(step, choose_step(vector, default=step, valve_lag=lag, spool=mode)))
+        mode = spool_mode(self.structure, vector)
+        self.step = float(min(step, choose_step(vector, default=step, spool=mode)))
         self.method = method
         try:
             self.simulator = Simulator(self.structure, step=self.step, method=method)

@@ -585,7 +585,7 @@ def write_fmu(
     """
     from pneumafit.models import kernel
     from pneumafit.models.parameters import parameter_vector
-    from pneumafit.simulation import choose_step, spool_lag, spool_mode
+    from pneumafit.simulation import choose_step, spool_mode
 
     check_structure(structure, source)
     try:
@@ -605,7 +605,7 @@ def write_fmu(
     if integration_step is None:
         integration_step = choose_step(
             vec, valve=structure.valve, friction=structure.friction,
-            valve_lag=spool_lag(structure, vec), spool=spool_mode(structure, vec),
+            spool=spool_mode(structure, vec),
         )  # fmt: skip
     if not integration_step > 0:
         raise PneumafitInputError(

@@ -109,3 +109,36 @@ def test_noise_model_by_name() -> None:
     assert isinstance(noise_model("ar1"), AR1)
     with pytest.raises(ValueError, match="expected one of"):
         noise_model("laplace")
+
+
+def test_pooled_sigma_maximises_the_joint_tempered_likelihood() -> None:
+    """pool_sigma gives the sigma that maximises sum_b t_b logpdf_b(sigma) over
+    a group (Gaussian and AR(1) blocks, phi held per block), found here by a
+    bounded scalar search; a block in group -1 keeps its own sigma."""
+    from scipy.optimize import minimize_scalar
+
+    from pneumafit.identification.noise import pool_sigma
+
+    blocks = [RNG.normal(0.0, 1.0, size=(1, 40)), RNG.normal(0.0, 3.0, size=(1, 90))]
+    ar = RNG.normal(0.0, 2.0, size=(1, 60)).cumsum(axis=1) * 0.1
+    models = [Gaussian(), Gaussian(), AR1()]
+    data = [*blocks, ar]
+    powers = np.array([1.0, 0.4, 0.7])
+    own = [m.estimate(r) for m, r in zip(models, data, strict=True)]
+    pooled = pool_sigma(own, np.array([0, 0, 0]), np.array([40.0, 90.0, 60.0]), powers)
+
+    def minus(log_s: float) -> float:
+        s = np.array([np.exp(log_s)])
+        total = 0.0
+        for m, r, t, e in zip(models, data, powers, own, strict=True):
+            extra = {"phi": e["phi"]} if "phi" in e else {}
+            total += t * float(m.logpdf(r, s, **extra)[0])
+        return -total
+
+    best = minimize_scalar(minus, bounds=(-5.0, 5.0), method="bounded", options={"xatol": 1e-10})
+    for e in pooled:
+        assert float(e["sigma"][0]) == pytest.approx(np.exp(best.x), rel=1e-6)
+    assert pooled[2]["phi"] is own[2]["phi"]
+    alone = pool_sigma(own, np.array([0, -1, 0]), np.array([40.0, 90.0, 60.0]), powers)
+    assert alone[1]["sigma"] is own[1]["sigma"]
+    assert float(alone[0]["sigma"][0]) != pytest.approx(float(pooled[0]["sigma"][0]))

@@ -230,3 +230,66 @@ def test_a_spool_lag_at_its_fitting_floor_is_simulated(small: tuple) -> None:
     # the cap applies only with the lag
     assert valve_lag_floor(STRUCTURE, prob.base) is None
     assert max(Problem(campaign.by_role("fit"), STRUCTURE, truth).steps) > max(prob.steps)
+
+
+def test_noise_pooled_per_sensor_shares_one_sigma(small: tuple) -> None:
+    """With ``noise_pooling="sensor"`` the blocks of one channel (one sensor
+    across the recordings) share the sigma of their joint profile, the
+    likelihood is the blocks' log densities at that sigma, and the shared
+    sigma is counted once among the profiled parameters; "recording" keeps
+    a sigma per block (the default, unchanged)."""
+    from pneumafit.identification.noise import Gaussian
+
+    own, ps, _ = _setup(small, ("charge", "discharge", "step"))
+    pooled, _, _ = _setup(small, ("charge", "discharge", "step"), noise_pooling="sensor")
+    assert own.noise_groups is None and pooled.noise_groups is not None
+    z = np.tile(ps.to_internal(), (2, 1))
+    z[1, 0] += 0.05  # another xi: another residual, another pooled sigma
+    ev_own = LogLikelihood(own, ps).evaluate(z)
+    ev = LogLikelihood(pooled, ps).evaluate(z)
+    p_blocks = [j for j, o in enumerate(pooled.observations) if o.channel == "p_P"]
+    assert len(p_blocks) >= 3
+    sizes = np.array([pooled.observations[j].n for j in p_blocks], dtype=float)
+    own_sigma = np.array([ev_own.noise[j]["sigma"] for j in p_blocks])  # (blocks, sets)
+    expected = np.sqrt(np.sum(sizes[:, None] * own_sigma**2, axis=0) / sizes.sum())
+    for j in p_blocks:
+        np.testing.assert_allclose(ev.noise[j]["sigma"], expected, rtol=1e-12)
+        obs = pooled.observations[j]
+        r = np.nan_to_num(ev.residuals[j])
+        direct = Gaussian().logpdf(r, expected) + pooled.log_weight(j)
+        np.testing.assert_allclose(ev.blocks[:, j], direct, rtol=1e-12)
+        assert obs.noise == Gaussian()
+    n_p = len(p_blocks)
+    assert pooled.n_noise_parameters <= own.n_noise_parameters - (n_p - 1)
+    # the pooled profile never beats the blocks' own profiles (fewer noise parameters)
+    assert np.all(ev.log_likelihood <= ev_own.log_likelihood + 1e-6)
+    with pytest.raises(ValueError, match="noise_pooling"):
+        _setup(small, ("charge",), noise_pooling="channel")
+
+
+def test_the_noise_pooling_goes_with_the_fit() -> None:
+    """fit.json records FitOptions.noise_pooling; discovery's refits read it
+    (a fit.json written before the option existed was pooled per recording),
+    and the fit's command line says it when it is not the default."""
+    import json
+    from types import SimpleNamespace
+
+    from pneumafit.discovery.refit import BaseFit
+    from pneumafit.identification import FitOptions
+    from pneumafit.identification.fitfile import fit_document
+    from pneumafit.identification.staged import FitResult
+    from pneumafit.services.fit import fit_command_line
+
+    result = FitResult(
+        model="convection", structure=STRUCTURE, parameters=ParameterSet.for_model(STRUCTURE),
+        laplace=None, stages=[], metrics={}, options=FitOptions(noise_pooling="sensor"),
+    )  # fmt: skip
+    camp = SimpleNamespace(name="test", path=None, sha256={})
+    doc = json.loads(json.dumps(fit_document(result, camp, seed=0)))
+    assert doc["provenance"]["options"]["noise_pooling"] == "sensor"
+    assert BaseFit.from_document(doc).noise_pooling == "sensor"
+    del doc["provenance"]["options"]["noise_pooling"]
+    assert BaseFit.from_document(doc).noise_pooling == "recording"
+    line = fit_command_line("c", "convection", "o", None, None, 0, False, noise_pooling="sensor")
+    assert line.endswith("--noise-pooling sensor")
+    assert "--noise-pooling" not in fit_command_line("c", "convection", "o", None, None, 0, False)

@@ -132,10 +132,15 @@ def pointwise_log_likelihood(
     pred = problem.predict(values, n_sets)
     residuals = problem.residuals(pred)
     columns: list[NDArray[np.float64]] = []
-    for obs, r in zip(problem.observations, residuals, strict=True):
-        r = np.where(pred.ok[:, None], r, 0.0)
-        est = obs.noise.estimate(r, obs.floor)
-        sigma = est["sigma"][:, None]
+    clean = [np.where(pred.ok[:, None], r, 0.0) for r in residuals]
+    estimates = [
+        o.noise.estimate(r, o.floor) for o, r in zip(problem.observations, clean, strict=True)
+    ]
+    # the fit's noise levels: one per sensor where it pooled them
+    if hasattr(problem, "pool"):  # (a duck-typed problem: none)
+        estimates = problem.pool(estimates)
+    for obs, r, est in zip(problem.observations, clean, estimates, strict=True):
+        sigma = np.asarray(est["sigma"], dtype=float).reshape(-1)[:, None]
         if isinstance(obs.noise, AR1):
             phi = est["phi"][:, None]
             e = np.concatenate([np.sqrt(1.0 - phi * phi) * r[:, :1], r[:, 1:] - phi * r[:, :-1]], 1)
@@ -215,6 +220,7 @@ def posterior_criteria(
             sensor_lags=lags, max_step=options.get("max_step", MAX_STEP),
             offsets=tuple(options.get("offsets") or ("pressure",)), initial_nuisance=True,
             nominal=_common_nominal(campaign),
+            noise_pooling=str(options.get("noise_pooling") or "recording"),
         )  # fmt: skip
     except ValueError as exc:
         return _unavailable(f"cannot set up the likelihood of the fit recordings: {exc}")

@@ -66,7 +66,7 @@ from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares, information_stall
 from pneumafit.identification.parameters import ParameterSet
-from pneumafit.identification.problem import MAX_STEP, Problem
+from pneumafit.identification.problem import MAX_STEP, NOISE_POOLING, Problem
 from pneumafit.identification.quality import campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
 from pneumafit.identification.staged import (
@@ -180,6 +180,9 @@ class BaseFit:
         Largest integration step (s).
     correct_solver : bool
         Whether the base fit used the solver's defect correction.
+    noise_pooling : str
+        How the base fit profiled the noise (``FitOptions.noise_pooling``;
+        ``recording`` for a fit.json written before the option existed).
     temperature_sensor_lag : float or None
         Temperature sensor time constant (s) of fit.json's metrics, used for
         the temperature RMSEs.
@@ -192,6 +195,7 @@ class BaseFit:
     offsets: tuple[str, ...] = ("pressure",)
     max_step: float | None = MAX_STEP
     correct_solver: bool = True
+    noise_pooling: str = NOISE_POOLING
     temperature_sensor_lag: float | None = None
 
     @classmethod
@@ -213,6 +217,7 @@ class BaseFit:
             offsets=tuple(opts.get("offsets") or ("pressure",)),
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
+            noise_pooling=str(opts.get("noise_pooling") or "recording"),
             temperature_sensor_lag=fit.metrics.get("temperature_sensor_lag"),
         )
 
@@ -375,6 +380,7 @@ def _problem(
     return Problem(
         campaign.by_role("fit"), structure, values, channels=chans, sensor_lags=lags,
         max_step=base.max_step, offsets=base.offsets, initial_nuisance=False,
+        noise_pooling=base.noise_pooling,
     )  # fmt: skip
 
 

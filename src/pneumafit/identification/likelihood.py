@@ -142,14 +142,16 @@ class LogLikelihood:
         residuals = self.problem.residuals(pred)
         ok = pred.ok & inside
         blocks = np.empty((n, len(residuals)))
-        noise: list[dict[str, NDArray[np.float64]]] = []
-        for j, (obs, r) in enumerate(zip(self.problem.observations, residuals, strict=True)):
-            r_ok = np.where(ok[:, None], r, 0.0)
-            est = obs.noise.estimate(r_ok, obs.floor)
+        observations = self.problem.observations
+        clean = [np.where(ok[:, None], r, 0.0) for r in residuals]
+        noise = [o.noise.estimate(r, o.floor) for o, r in zip(observations, clean, strict=True)]
+        # one sigma per sensor where the problem pools (duck-typed problems: none)
+        if hasattr(self.problem, "pool"):
+            noise = self.problem.pool(noise)
+        for j, (obs, r_ok) in enumerate(zip(observations, clean, strict=True)):
             blocks[:, j] = self.problem.tempering[j] * (
-                obs.noise.logpdf(r_ok, **est) + self.problem.log_weight(j)
+                obs.noise.logpdf(r_ok, **noise[j]) + self.problem.log_weight(j)
             )
-            noise.append(est)
         with np.errstate(invalid="ignore"):
             total = np.sum(blocks, axis=1)
         ok &= np.isfinite(total)

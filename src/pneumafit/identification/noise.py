@@ -48,6 +48,7 @@ __all__ = [
     "correlation_time",
     "detect_resolution",
     "noise_model",
+    "pool_sigma",
 ]
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -404,6 +405,62 @@ def correlation_time(r: ArrayLike, window: float = CORRELATION_WINDOW) -> float:
     ok = lags >= window * taus
     m = int(np.argmax(ok)) if ok.any() else n - 1
     return float(np.clip(taus[m], 1.0, n))
+
+
+#: Noise models whose sigma, for its other parameters held, is the root mean
+#: square of a block's whitened innovations: the joint profile of one sigma
+#: over several blocks is then exact (:func:`pool_sigma`).
+POOLABLE: tuple[type[NoiseModel], ...] = (Gaussian, AR1)
+
+
+def pool_sigma(
+    estimates: list[dict[str, NDArray[np.float64]]],
+    groups: NDArray[np.int64],
+    sizes: NDArray[np.float64],
+    powers: NDArray[np.float64],
+) -> list[dict[str, NDArray[np.float64]]]:
+    """One sigma per group of blocks: the joint profile of a shared noise level.
+
+    For a Gaussian or AR(1) block b with n_b samples, its likelihood raised
+    to the power t_b (tempering), the profile over one sigma shared by the
+    blocks of a group (their other noise parameters, AR(1) phi, held per
+    block) maximises sum_b t_b (-n_b log sigma - S_b / (2 sigma^2)), S_b
+    the block's sum of squared innovations = n_b sigma_b^2, so
+
+        sigma^2 = sum_b t_b n_b sigma_b^2 / sum_b t_b n_b.
+
+    Parameters
+    ----------
+    estimates : list of dict
+        Per block, its own profile estimates (``sigma`` (n_sets,) and, for
+        AR(1), ``phi``), e.g. from :meth:`NoiseModel.estimate`.
+    groups : ndarray of int (n_blocks,)
+        Group of each block; -1 keeps the block's own sigma.
+    sizes : ndarray (n_blocks,)
+        Samples per block.
+    powers : ndarray (n_blocks,)
+        Tempering power of each block (1: none).
+
+    Returns
+    -------
+    list of dict
+        The estimates with ``sigma`` replaced by its group's (new dicts; the
+        other entries shared).
+    """
+    out = [dict(e) for e in estimates]
+    for g in np.unique(groups[groups >= 0]):
+        members = np.flatnonzero(groups == g)
+        if members.size < 2:
+            continue
+        w = powers[members] * sizes[members]
+        var = sum(
+            w[i] * np.asarray(estimates[b]["sigma"], dtype=float) ** 2
+            for i, b in enumerate(members)
+        ) / float(np.sum(w))
+        sigma = np.sqrt(var)
+        for b in members:
+            out[b]["sigma"] = sigma if np.ndim(estimates[b]["sigma"]) else float(sigma)
+    return out
 
 
 _BY_NAME: dict[str, type[NoiseModel]] = {

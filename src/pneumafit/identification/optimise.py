@@ -113,6 +113,11 @@ class _Whitened:
         for o, r in zip(self.like.problem.observations, ev.residuals, strict=True):
             rr = np.nan_to_num(r[0], nan=0.0)
             states.append(o.noise.whitening_state(rr, o.floor))
+        # a sigma shared by a sensor's blocks: the evaluation's pooled one
+        groups = getattr(self.like.problem, "noise_groups", None)
+        if groups is not None:
+            for j in np.flatnonzero(groups >= 0):
+                states[j]["sigma"] = float(np.asarray(ev.noise[j]["sigma"]).reshape(-1)[0])
         self.states = states
         return float(ev.log_likelihood[0])
 

@@ -55,11 +55,13 @@ from pneumafit.campaign.model import Recording
 from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.noise import (
     AR1,
+    POOLABLE,
     Gaussian,
     NoiseModel,
     Quantized,
     detect_resolution,
     noise_model,
+    pool_sigma,
 )
 from pneumafit.models import kernel
 from pneumafit.models.layout import X_PN, X_PP, X_TN, X_TP, X_Y, P
@@ -117,6 +119,9 @@ DEFAULT_NOISE: dict[str, NoiseModel] = {
     "flow": Gaussian(),
 }
 
+#: How the noise level is profiled (:class:`Problem`'s ``noise_pooling``).
+NOISE_POOLINGS: tuple[str, ...] = ("recording", "sensor")
+NOISE_POOLING = "recording"
 #: Largest integration step (s) of a problem's recordings (RK4; see module doc).
 MAX_STEP = 4.0e-3
 #: Flow-test samples this soon (s) after a change of command or pressure are
@@ -401,6 +406,13 @@ class Problem:
     flow_average : bool
         Compare one mean per settled level of a flow test (else every
         settled sample).
+    noise_pooling : {"recording", "sensor"}
+        ``recording``: each (recording, channel) block has its own noise
+        level, profiled on its own residual. ``sensor``: the blocks of one
+        channel (one sensor across the recordings) share one sigma,
+        profiled jointly (:func:`~pneumafit.identification.noise.pool_sigma`;
+        Gaussian and AR(1) blocks, phi still per block). Empty:
+        :data:`NOISE_POOLING`.
 
     Raises
     ------
@@ -425,8 +437,15 @@ class Problem:
         initial_nuisance: bool = True,
         rest_spacing: float | None = REST_SPACING,
         flow_average: bool = True,
+        noise_pooling: str = "",
     ) -> None:
         recs = list(recordings)
+        pooling = noise_pooling or NOISE_POOLING
+        if pooling not in NOISE_POOLINGS:
+            raise PneumafitInputError(
+                f"problem: noise_pooling: expected one of {NOISE_POOLINGS}, found {pooling!r}"
+            )
+        self.noise_pooling = pooling
         if not recs:
             raise PneumafitInputError("problem: expected at least one recording, found none")
         self.structure = get_structure(model)
@@ -523,6 +542,7 @@ class Problem:
         self.experiments = [experiments[i] for i in keep_idx]
         self.steps = [steps[i] for i in keep_idx]
         self.observations = [dataclasses.replace(o, index=remap[o.index]) for o in observations]
+        self.noise_groups = self._noise_groups()
         sim_channels = sorted({o.channel for o in self.observations}, key=COMPARABLE_CHANNELS.index)
         self.simulator = Simulator(self.structure, channels=sim_channels)
         self._channel_col = {c: j for j, c in enumerate(sim_channels)}
@@ -726,10 +746,39 @@ class Problem:
         """Number of compared samples, all blocks."""
         return int(sum(o.n for o in self.observations))
 
+    def _noise_groups(self) -> NDArray[np.int64] | None:
+        """Block -> group of blocks sharing one sigma (-1: its own); None
+        when no block shares (``noise_pooling="recording"``)."""
+        if self.noise_pooling != "sensor":
+            return None
+        groups = np.full(len(self.observations), -1, dtype=np.int64)
+        by_channel: dict[str, int] = {}
+        for j, o in enumerate(self.observations):
+            if isinstance(o.noise, POOLABLE):
+                groups[j] = by_channel.setdefault(
+                    f"{o.channel}:{type(o.noise).__name__}", len(by_channel)
+                )
+        return groups if np.any(np.bincount(groups[groups >= 0]) > 1) else None
+
+    def pool(
+        self, estimates: list[dict[str, NDArray[np.float64]]]
+    ) -> list[dict[str, NDArray[np.float64]]]:
+        """Per-block noise estimates with sigma shared within each sensor's
+        blocks (:attr:`noise_pooling`); unchanged without sharing."""
+        if self.noise_groups is None:
+            return estimates
+        sizes = np.array([o.n for o in self.observations], dtype=float)
+        return pool_sigma(estimates, self.noise_groups, sizes, np.asarray(self.tempering))
+
     @property
     def n_noise_parameters(self) -> int:
-        """Noise parameters and linear nuisances profiled out, all blocks."""
-        return int(sum(o.noise.n_parameters for o in self.observations)) + self.n_nuisance
+        """Noise parameters and linear nuisances profiled out, all blocks
+        (a sigma shared by a sensor's blocks counted once)."""
+        n = int(sum(o.noise.n_parameters for o in self.observations)) + self.n_nuisance
+        if self.noise_groups is not None:
+            counts = np.bincount(self.noise_groups[self.noise_groups >= 0])
+            n -= int(np.sum(np.maximum(counts - 1, 0)))
+        return n
 
     @property
     def model_parameter_names(self) -> tuple[str, ...]:

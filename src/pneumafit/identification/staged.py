@@ -59,6 +59,7 @@ from pneumafit.identification.optimise import (
 from pneumafit.identification.parameters import Normal, Parameter, ParameterSet
 from pneumafit.identification.problem import (
     MAX_STEP,
+    NOISE_POOLING,
     Problem,
 )
 from pneumafit.identification.quality import (
@@ -409,8 +410,18 @@ class FitOptions:
     channels : tuple of str
         Channels compared (:data:`DEFAULT_CHANNELS`).
     noise : NoiseModel, str or mapping, optional
-        Noise model(s), see :class:`Problem` (default AR(1) for pressures,
-        position and temperatures, Gaussian for flows).
+        Noise model(s), see :class:`Problem` (default Gaussian for
+        pressures, temperatures and flows, AR(1) for the position).
+    noise_pooling : {"recording", "sensor"}
+        ``recording`` (default): one noise level per (recording, channel),
+        each profiled on its own residual, so that a recording the model
+        cannot follow costs only the log of its own misfit and the
+        recordings it follows keep their weight; ``sensor``: one noise level
+        per channel, shared by every recording that channel's sensor
+        measured, profiled jointly, so that no recording is given up for the
+        others (see :class:`Problem`; the trade-off measured on the
+        mismatched truths: docs/identification.md, "One noise level per
+        sensor").
     air_properties : str
         For the convection structure (see :func:`fit_structure`).
     max_step : float or None
@@ -479,6 +490,7 @@ class FitOptions:
     temper: bool = True
     early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
+    noise_pooling: str = NOISE_POOLING
 
 
 @dataclass
@@ -721,6 +733,7 @@ def _problem(
     return Problem(
         recs, structure, values, channels=chans, noise=options.noise, sensor_lags=lags,
         max_step=options.max_step, offsets=options.offsets, initial_nuisance=initial_nuisance,
+        noise_pooling=options.noise_pooling,
     )  # fmt: skip
 
 

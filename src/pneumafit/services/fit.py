@@ -179,6 +179,7 @@ def fit_command_line(
     campaign: str | os.PathLike[str], model: str, out: str | os.PathLike[str],
     walkers: int | None, steps: int | None, seed: int, mcmc: bool, *, strict: bool = False,
     valve: str = "iso6358", friction: str = "auto", seal: str = "off",
+    noise_pooling: str = "recording",
 ) -> str:  # fmt: skip
     """The ``pneumafit fit`` command line of these options (fit.json's
     ``provenance.command``): the defaults are left out."""
@@ -192,6 +193,7 @@ def fit_command_line(
         + (f" --valve {valve}" if valve != "iso6358" else "")
         + (f" --friction {friction}" if friction != "auto" else "")
         + (f" --seal-friction {seal}" if seal != "off" else "")
+        + (f" --noise-pooling {noise_pooling}" if noise_pooling != "recording" else "")
     )
 
 

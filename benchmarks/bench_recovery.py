@@ -84,6 +84,7 @@ def run_case(
     mcmc: bool,
     friction: str = "auto",
     seal: str = "off",
+    noise_pooling: str = "recording",
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.virtual_rig.truth import reference_quantities
@@ -96,7 +97,9 @@ def run_case(
         truth_ref = reference_quantities(rig.truth, rig.parameters)
         camp = read_campaign(folder)
         t_rec = time.perf_counter() - t0
-        options = FitOptions(mcmc=mcmc, valve=valve, friction=friction, seal=seal)
+        options = FitOptions(
+            mcmc=mcmc, valve=valve, friction=friction, seal=seal, noise_pooling=noise_pooling
+        )
         result = identify(camp, "convection", options=options, seed=seed)
     p = result.parameters
     q = result.quality
@@ -193,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--valve", default="iso6358", choices=("iso6358", "map"))
     ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
     ap.add_argument("--seal", default="off", choices=("off", "auto", "on"))
+    ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")
@@ -205,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             print(f"{preset}/{protocol}/seed {seed}: recording and fitting ...", file=sys.stderr)
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
-                           friction=args.friction, seal=args.seal)  # fmt: skip
+                           friction=args.friction, seal=args.seal,
+                           noise_pooling=args.noise_pooling)  # fmt: skip
             rows.append(row)
             if args.json is not None:  # every finished case kept, also if interrupted
                 _write_atomic(args.json, json.dumps(rows, indent=1, default=float))
@@ -225,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         "control_cases": len(control),
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
-        "friction": args.friction, "seal": args.seal,
+        "friction": args.friction, "seal": args.seal, "noise_pooling": args.noise_pooling,
         "mcmc": args.mcmc,
         "worst_pressure_ratio": max(ratios, default=math.nan),
         "median_pressure_ratio": float(np.median(ratios)) if ratios else math.nan,

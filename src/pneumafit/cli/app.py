@@ -280,6 +280,15 @@ def fit(
             "on.",
         ),
     ] = "off",
+    noise_pooling: Annotated[
+        str,
+        typer.Option(
+            "--noise-pooling",
+            help="recording (one noise level per recording and channel, profiled on its own "
+            "residual) or sensor (one per channel, shared by the recordings: no recording "
+            "is given up for the others).",
+        ),
+    ] = "recording",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -291,7 +300,7 @@ def fit(
 
     code = fit_command(
         campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve,
-        friction, seal_friction,
+        friction, seal_friction, noise_pooling,
     )  # fmt: skip
     raise typer.Exit(code)
 

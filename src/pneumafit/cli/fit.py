@@ -48,6 +48,7 @@ from pneumafit.cli.console import (
     report_problems,
     run_guarded,
 )
+from pneumafit.identification.problem import NOISE_POOLINGS
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
@@ -91,6 +92,7 @@ def fit_command(
     valve: str = "iso6358",
     friction: str = "auto",
     seal: str = "off",
+    noise_pooling: str = "recording",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -118,6 +120,9 @@ def fit_command(
         Friction law (:class:`FitOptions`).
     seal : {"auto", "on", "off"}
         Pressure-dependent seal friction (:class:`FitOptions`).
+    noise_pooling : {"recording", "sensor"}
+        Noise level per recording and channel, or per sensor
+        (:class:`FitOptions`).
 
     Returns
     -------
@@ -151,6 +156,11 @@ def fit_command(
         )
     if seal not in ("auto", "on", "off"):
         problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
+    if noise_pooling not in NOISE_POOLINGS:
+        problems.append(
+            f"option --noise-pooling: expected one of {', '.join(NOISE_POOLINGS)}, "
+            f"found {noise_pooling!r}"
+        )
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -161,10 +171,11 @@ def fit_command(
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
     command = fit_command_line(campaign, model, out, walkers, steps, seed, mcmc, strict=strict,
-                               valve=valve, friction=friction, seal=seal)  # fmt: skip
+                               valve=valve, friction=friction, seal=seal,
+                               noise_pooling=noise_pooling)  # fmt: skip
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
-        friction=friction, seal=seal,
+        friction=friction, seal=seal, noise_pooling=noise_pooling,
     )  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)

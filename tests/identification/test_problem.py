@@ -259,8 +259,14 @@ def test_noise_pooled_per_sensor_shares_one_sigma(small: tuple) -> None:
         direct = Gaussian().logpdf(r, expected) + pooled.log_weight(j)
         np.testing.assert_allclose(ev.blocks[:, j], direct, rtol=1e-12)
         assert obs.noise == Gaussian()
-    n_p = len(p_blocks)
-    assert pooled.n_noise_parameters <= own.n_noise_parameters - (n_p - 1)
+    # one sigma per channel instead of one per block: each channel with k
+    # Gaussian or AR(1) blocks has k - 1 fewer profiled parameters
+    per_channel: dict[str, int] = {}
+    for o in pooled.observations:
+        per_channel[o.channel] = per_channel.get(o.channel, 0) + 1
+    shared = sum(k - 1 for k in per_channel.values())
+    assert shared >= len(p_blocks) - 1
+    assert pooled.n_noise_parameters == own.n_noise_parameters - shared
     # the pooled profile never beats the blocks' own profiles (fewer noise parameters)
     assert np.all(ev.log_likelihood <= ev_own.log_likelihood + 1e-6)
     with pytest.raises(ValueError, match="noise_pooling"):

@@ -217,7 +217,7 @@ class BaseFit:
             offsets=tuple(opts.get("offsets") or ("pressure",)),
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
-            noise_pooling=str(opts.get("noise_pooling") or "recording"),
+            noise_pooling=fit.noise_pooling,
             temperature_sensor_lag=fit.metrics.get("temperature_sensor_lag"),
         )
 

@@ -63,7 +63,10 @@ except ``friction``, which came with the LuGre law):
 - ``parameters`` (present in every fit written; a reader that needs
   values, such as a parameter-file reader, refuses a file without them),
   ``nuisance``, ``metrics``, ``stages``, ``provenance``, ``campaign``:
-  empty; ``mcmc``, ``quality``: null; ``warnings``: none.
+  empty; ``mcmc``, ``quality``: null; ``warnings``: none;
+- ``provenance.options.noise_pooling`` absent: ``"recording"`` (every fit
+  written before the option profiled a noise level per recording and
+  channel; :func:`noise_pooling_of`).
 """
 
 from __future__ import annotations
@@ -103,6 +106,7 @@ __all__ = [
     "fit_document",
     "is_fit_document",
     "load_fit",
+    "noise_pooling_of",
     "write_fit_json",
 ]
 
@@ -112,6 +116,14 @@ FIT_VERSION = 1
 FIT_FILE = "fit.json"
 #: The emcee chains beside fit.json, when ``mcmc.chains.file`` names none.
 CHAINS_FILE = "chains.h5"
+
+
+def noise_pooling_of(options: Mapping[str, Any] | None) -> str:
+    """How a fit profiled its noise levels, from its ``provenance.options``
+    (``FitOptions.noise_pooling``); ``"recording"`` when absent (the module
+    doc's fallback)."""
+    pooling = (options or {}).get("noise_pooling")
+    return str(pooling) if pooling else "recording"
 
 
 def _version() -> str:
@@ -451,6 +463,11 @@ class SavedFit:
         """``provenance.options``: the settings the fit was made with (JSON form)."""
         options = self.provenance.get("options")
         return dict(options) if isinstance(options, Mapping) else None
+
+    @property
+    def noise_pooling(self) -> str:
+        """``provenance.options.noise_pooling`` (:func:`noise_pooling_of`)."""
+        return noise_pooling_of(self.options)
 
     @property
     def chains_path(self) -> Path | None:

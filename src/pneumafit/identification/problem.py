@@ -411,7 +411,7 @@ class Problem:
         level, profiled on its own residual. ``sensor``: the blocks of one
         channel (one sensor across the recordings) share one sigma,
         profiled jointly (:func:`~pneumafit.identification.noise.pool_sigma`;
-        Gaussian and AR(1) blocks, phi still per block). Empty:
+        Gaussian and AR(1) blocks, phi still per block). Default
         :data:`NOISE_POOLING`.
 
     Raises
@@ -437,15 +437,14 @@ class Problem:
         initial_nuisance: bool = True,
         rest_spacing: float | None = REST_SPACING,
         flow_average: bool = True,
-        noise_pooling: str = "",
+        noise_pooling: str = NOISE_POOLING,
     ) -> None:
         recs = list(recordings)
-        pooling = noise_pooling or NOISE_POOLING
-        if pooling not in NOISE_POOLINGS:
+        if noise_pooling not in NOISE_POOLINGS:
             raise PneumafitInputError(
-                f"problem: noise_pooling: expected one of {NOISE_POOLINGS}, found {pooling!r}"
+                f"problem: noise_pooling: expected one of {NOISE_POOLINGS}, found {noise_pooling!r}"
             )
-        self.noise_pooling = pooling
+        self.noise_pooling = noise_pooling
         if not recs:
             raise PneumafitInputError("problem: expected at least one recording, found none")
         self.structure = get_structure(model)
@@ -543,6 +542,7 @@ class Problem:
         self.steps = [steps[i] for i in keep_idx]
         self.observations = [dataclasses.replace(o, index=remap[o.index]) for o in observations]
         self.noise_groups = self._noise_groups()
+        self._block_sizes = np.array([o.n for o in self.observations], dtype=float)
         sim_channels = sorted({o.channel for o in self.observations}, key=COMPARABLE_CHANNELS.index)
         self.simulator = Simulator(self.structure, channels=sim_channels)
         self._channel_col = {c: j for j, c in enumerate(sim_channels)}
@@ -767,8 +767,9 @@ class Problem:
         blocks (:attr:`noise_pooling`); unchanged without sharing."""
         if self.noise_groups is None:
             return estimates
-        sizes = np.array([o.n for o in self.observations], dtype=float)
-        return pool_sigma(estimates, self.noise_groups, sizes, np.asarray(self.tempering))
+        return pool_sigma(
+            estimates, self.noise_groups, self._block_sizes, np.asarray(self.tempering)
+        )
 
     @property
     def n_noise_parameters(self) -> int:

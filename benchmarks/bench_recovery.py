@@ -85,6 +85,7 @@ def run_case(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
+    inputs: str = "linear",
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.virtual_rig.truth import reference_quantities
@@ -98,7 +99,12 @@ def run_case(
         camp = read_campaign(folder)
         t_rec = time.perf_counter() - t0
         options = FitOptions(
-            mcmc=mcmc, valve=valve, friction=friction, seal=seal, noise_pooling=noise_pooling
+            mcmc=mcmc,
+            valve=valve,
+            friction=friction,
+            seal=seal,
+            noise_pooling=noise_pooling,
+            inputs=inputs,
         )
         result = identify(camp, "convection", options=options, seed=seed)
     p = result.parameters
@@ -197,6 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
     ap.add_argument("--seal", default="off", choices=("off", "auto", "on"))
     ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
+    ap.add_argument("--inputs", default="linear", choices=("linear", "hold"))
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")
@@ -210,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{preset}/{protocol}/seed {seed}: recording and fitting ...", file=sys.stderr)
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
                            friction=args.friction, seal=args.seal,
-                           noise_pooling=args.noise_pooling)  # fmt: skip
+                           noise_pooling=args.noise_pooling, inputs=args.inputs)  # fmt: skip
             rows.append(row)
             if args.json is not None:  # every finished case kept, also if interrupted
                 _write_atomic(args.json, json.dumps(rows, indent=1, default=float))
@@ -231,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
         "friction": args.friction, "seal": args.seal, "noise_pooling": args.noise_pooling,
-        "mcmc": args.mcmc,
+        "inputs": args.inputs, "mcmc": args.mcmc,
         "worst_pressure_ratio": max(ratios, default=math.nan),
         "median_pressure_ratio": float(np.median(ratios)) if ratios else math.nan,
         "pressure_within_3x": float(np.mean([x <= RATIO_TARGET for x in ratios])) if ratios

@@ -7,6 +7,7 @@ the round trip of a real fit is in test_command.py.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -62,17 +63,26 @@ def test_missing_structure_keys_read_as_the_version_1_writer_wrote_them(
     tmp_path: Path, model: str, air: str
 ) -> None:
     """No ``friction`` (fits before the LuGre law): switch; no ``air_properties``:
-    what fit_structure gave every version-1 fit (Sutherland for convection)."""
+    what fit_structure gave every version-1 fit (Sutherland for convection);
+    no ``inputs`` (fits before the option): linear interpolation; a held
+    structure is written and read back as such."""
     from pneumafit.identification import fit_structure
 
     doc = fit_document(_result(fit_structure(model)))
     assert doc["structure"]["air_properties"] == air  # what the writer writes
+    held = dataclasses.replace(fit_structure(model), inputs="hold")
+    doc_held = fit_document(_result(held))
+    assert doc_held["structure"]["inputs"] == "hold"
+    assert load_fit(_write(tmp_path / "held.json", doc_held)).structure == held
+    old = fit_structure(model)
+    assert old.inputs == "linear"
     del doc["structure"]["friction"], doc["structure"]["air_properties"]
+    del doc["structure"]["inputs"]
     fit = load_fit(_write(tmp_path / "fit.json", doc))
-    assert fit.structure == fit_structure(model)
+    assert fit.structure == old
     assert fit.structure.air_properties == air and fit.friction == "switch"
-    del doc["structure"]  # no structure at all: the model's
-    assert SavedFit.from_document(doc).structure == fit_structure(model)
+    del doc["structure"]  # no structure at all: the model's, as version 1 replayed it
+    assert SavedFit.from_document(doc).structure == old
     for key in ("version", "nuisance", "metrics", "provenance", "campaign", "mcmc"):
         doc.pop(key)
     fit = SavedFit.from_document(doc)

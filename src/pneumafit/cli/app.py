@@ -289,6 +289,15 @@ def fit(
             "is given up for the others).",
         ),
     ] = "recording",
+    inputs: Annotated[
+        str,
+        typer.Option(
+            "--inputs",
+            help="How the recorded commands and set-points vary between samples: linear "
+            "(interpolated) or hold (held until the next sample, as a digital controller "
+            "outputs them).",
+        ),
+    ] = "linear",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -300,7 +309,7 @@ def fit(
 
     code = fit_command(
         campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve,
-        friction, seal_friction, noise_pooling,
+        friction, seal_friction, noise_pooling, inputs,
     )  # fmt: skip
     raise typer.Exit(code)
 

@@ -55,7 +55,7 @@ from pneumafit.identification.staged import (
     FitResult,
 )
 from pneumafit.models.layout import FRICTION_LAWS, VALVE_LAWS
-from pneumafit.models.structure import MODELS
+from pneumafit.models.structure import INPUT_MODES, MODELS
 from pneumafit.progress import Reporter
 from pneumafit.services.fit import (
     fit_command_line,
@@ -93,6 +93,7 @@ def fit_command(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
+    inputs: str = "linear",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -123,6 +124,8 @@ def fit_command(
     noise_pooling : {"recording", "sensor"}
         Noise level per recording and channel, or per sensor
         (:class:`FitOptions`).
+    inputs : {"linear", "hold"}
+        ``--inputs``: the recorded commands and set-points between samples.
 
     Returns
     -------
@@ -161,6 +164,10 @@ def fit_command(
             f"option --noise-pooling: expected one of {', '.join(NOISE_POOLINGS)}, "
             f"found {noise_pooling!r}"
         )
+    if inputs not in INPUT_MODES:
+        problems.append(
+            f"option --inputs: expected one of {', '.join(INPUT_MODES)}, found {inputs!r}"
+        )
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -172,10 +179,10 @@ def fit_command(
         return EXIT_BAD_INPUT
     command = fit_command_line(campaign, model, out, walkers, steps, seed, mcmc, strict=strict,
                                valve=valve, friction=friction, seal=seal,
-                               noise_pooling=noise_pooling)  # fmt: skip
+                               noise_pooling=noise_pooling, inputs=inputs)  # fmt: skip
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
-        friction=friction, seal=seal, noise_pooling=noise_pooling,
+        friction=friction, seal=seal, noise_pooling=noise_pooling, inputs=inputs,
     )  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)

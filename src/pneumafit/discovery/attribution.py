@@ -521,7 +521,25 @@ def model_rates(
     if exp.blocked:
         modes[:] = 0
     cmds = np.ascontiguousarray(inp[:, :2])
-    base = _rates_along(xs, modes, cmds, p, d, cfg)
+    # The measured rates are slopes of the samples: p_k+1 - p_k integrates
+    # the rate over [t_k, t_k+1]. With the inputs held between samples
+    # (ModelStructure.inputs) that is the rate at the held u_k, so a slope
+    # centred on t_k weighs the intervals k-1 and k alike: the model's rate at
+    # t_k is then the mean of its rates at u_k-1 and u_k (interpolated
+    # inputs: the rate at u_k is already centred there).
+    held = structure.inputs == "hold"
+    cmds_before = np.ascontiguousarray(np.vstack([cmds[:1], cmds[:-1]]))
+
+    def rates_along(
+        xs_: NDArray[np.float64], q: NDArray[np.float64], dq: NDArray[np.float64],
+        cfg_: NDArray[np.int64],
+    ) -> NDArray[np.float64]:  # fmt: skip
+        r = _rates_along(xs_, modes, cmds, q, dq, cfg_)
+        if held:
+            r = 0.5 * (r + _rates_along(xs_, modes, cmds_before, q, dq, cfg_))
+        return r
+
+    base = rates_along(xs, p, d, cfg)
     out: dict[str, NDArray[np.float64]] = {
         "dp_P": base[:, 0], "dp_N": base[:, 1], "qm_P": base[:, 2], "qm_N": base[:, 3],
         "lambda_P": base[:, 4], "lambda_N": base[:, 5],
@@ -531,10 +549,9 @@ def model_rates(
         hi, lo = xs.copy(), xs.copy()
         hi[:, slot] += SENS_STEP
         lo[:, slot] -= SENS_STEP
-        out[key] = (
-            _rates_along(hi, modes, cmds, p, d, cfg)[:, col]
-            - _rates_along(lo, modes, cmds, p, d, cfg)[:, col]
-        ) / (2.0 * SENS_STEP)
+        out[key] = (rates_along(hi, p, d, cfg)[:, col] - rates_along(lo, p, d, cfg)[:, col]) / (
+            2.0 * SENS_STEP
+        )
     # the acceleration at the measured pressures as recorded: the median
     # offset above also takes in any constant pressure shift the missing
     # effect caused in closed loop, and a constant force offset is what a
@@ -545,7 +562,7 @@ def model_rates(
     xr = xs.copy()
     xr[:, X_PP] = raw["p_P"]
     xr[:, X_PN] = raw["p_N"]
-    out["dv"] = base[:, 6] if exp.blocked else _rates_along(xr, modes, cmds, p, d, cfg)[:, 6]
+    out["dv"] = base[:, 6] if exp.blocked else rates_along(xr, p, d, cfg)[:, 6]
     out["v"] = vel
     # sensitivities to the base model's own parameters (Pa/s per unit)
     from pneumafit.models.layout import SPECS
@@ -562,7 +579,7 @@ def model_rates(
             q[j] += sign * h
             dq = np.empty(kernel.ND)
             kernel.derive(q, dq)
-            rates.append(_rates_along(xs, modes, cmds, q, dq, cfg))
+            rates.append(rates_along(xs, q, dq, cfg))
         out[f"param:{name}:P"] = (rates[0][:, 0] - rates[1][:, 0]) / (2.0 * h)
         out[f"param:{name}:N"] = (rates[0][:, 1] - rates[1][:, 1]) / (2.0 * h)
         out[f"param:{name}:v"] = (rates[0][:, 6] - rates[1][:, 6]) / (2.0 * h)
@@ -590,7 +607,7 @@ def model_rates(
             q[j] = value
             dq = np.empty(kernel.ND)
             kernel.derive(q, dq)
-            rates.append(_rates_along(xs, modes, cmds, q, dq, cfg_e))
+            rates.append(rates_along(xs, q, dq, cfg_e))
         span = points[0] - points[1]
         for col, key in ((0, "P"), (1, "N"), (6, "v")):
             out[f"effect:{name}:{key}"] = (rates[0][:, col] - rates[1][:, col]) / span

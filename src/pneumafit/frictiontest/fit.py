@@ -119,6 +119,7 @@ class FrictionStructure:
     heat: str | None = None
     air_properties: str | None = None
     valve: str | None = None
+    inputs: str | None = None
 
 
 class FrictionTestProblem:

@@ -58,8 +58,10 @@ except ``friction``, which came with the LuGre law):
   convection law and ``"constant"`` for the others (what every version-1
   writer wrote: the convection structure has been fitted with Sutherland
   air since the first fit.json, git e932d63), ``valve`` ``"iso6358"``,
-  ``friction`` ``"switch"``, ``effects`` none, ``name`` the heat law (with
-  the effects, as :meth:`ModelStructure.with_effects` names them);
+  ``friction`` ``"switch"``, ``inputs`` ``"linear"`` (every fit written
+  before the option interpolated the sampled inputs), ``effects`` none,
+  ``name`` the heat law (with the effects, as
+  :meth:`ModelStructure.with_effects` names them);
 - ``parameters`` (present in every fit written; a reader that needs
   values, such as a parameter-file reader, refuses a file without them),
   ``nuisance``, ``metrics``, ``stages``, ``provenance``, ``campaign``:
@@ -95,7 +97,7 @@ from pneumafit.identification.staged import (
     fit_structure,
 )
 from pneumafit.models.layout import FRICTION_LAWS, SPECS, VALVE_LAWS
-from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
+from pneumafit.models.structure import EFFECT_SLOTS, INPUT_MODES, MODELS, ModelStructure
 
 __all__ = [
     "CHAINS_FILE",
@@ -283,6 +285,7 @@ def fit_document(
             "air_properties": result.structure.air_properties,
             "valve": result.structure.valve,
             "friction": result.structure.friction,
+            "inputs": result.structure.inputs,
             "effects": dict(result.structure.effects),
         },
         "campaign": {
@@ -636,6 +639,7 @@ def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructur
         ("valve", tuple(VALVE_LAWS), base.valve),
         ("friction", tuple(FRICTION_LAWS), base.friction),
         ("air_properties", ("constant", "sutherland"), base.air_properties),
+        ("inputs", INPUT_MODES, base.inputs),
     )
     chosen: dict[str, str] = {}
     for key, allowed, default in checks:

@@ -361,8 +361,9 @@ def fit_structure(
     air_properties: str = "sutherland",
     valve: str = "iso6358",
     friction: str = "switch",
+    inputs: str = "linear",
 ) -> ModelStructure:
-    """The structure fitted for a model name.
+    """The structure fitted for a model name (``inputs``: :class:`ModelStructure`).
 
     The convection model is fitted with Sutherland air properties (viscosity
     and conductivity of air at the gas temperature in the Grashof number):
@@ -374,7 +375,7 @@ def fit_structure(
     """
     if isinstance(model, ModelStructure):
         return model
-    base = replace(MODELS[model], valve=valve, friction=friction)
+    base = replace(MODELS[model], valve=valve, friction=friction, inputs=inputs)
     if base.heat == "convection":
         return replace(base, air_properties=air_properties)
     return base
@@ -422,6 +423,11 @@ class FitOptions:
         others (see :class:`Problem`; the trade-off measured on the
         mismatched truths: docs/identification.md, "One noise level per
         sensor").
+    inputs : {"linear", "hold"}
+        How the commands and set-points replayed from the recordings vary
+        between samples (:attr:`ModelStructure.inputs`): ``linear``
+        (default) or ``hold`` (zero-order hold, a digital controller's
+        output; docs/identification.md, "Held inputs").
     air_properties : str
         For the convection structure (see :func:`fit_structure`).
     max_step : float or None
@@ -491,6 +497,7 @@ class FitOptions:
     early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
     noise_pooling: str = NOISE_POOLING
+    inputs: str = "linear"
 
 
 @dataclass
@@ -910,7 +917,7 @@ def identify(
     if opts.seal not in ("auto", "on", "off"):
         raise PneumafitInputError(f"seal: expected one of auto, on, off, found {opts.seal!r}")
     law = "switch" if opts.friction == "auto" else opts.friction
-    structure = fit_structure(model, opts.air_properties, opts.valve, law)
+    structure = fit_structure(model, opts.air_properties, opts.valve, law, opts.inputs)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
     friction_names = tuple(structure.friction_parameter_names)
     rig = campaign.rig.as_parameters()

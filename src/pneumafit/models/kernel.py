@@ -59,6 +59,7 @@ from pneumafit.models.layout import (
     C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
+    C_INPUT_HOLD,
     C_SEAL_FRICTION,
     C_STATIC_FLOW,
     C_SUPPLY_DROP,
@@ -717,15 +718,20 @@ def commands(
 ) -> tuple[float, float]:
     """Valve commands (u_P, u_N) (V) at fraction w of sample interval k.
 
-    Open loop: measured commands interpolated linearly between samples.
+    Sampled inputs (the measured commands, y_ref) are held between samples
+    when ``cfg[C_INPUT_HOLD]`` is 1 (zero-order hold: sample k's value over
+    [t_k, t_k+1], as a digital controller's output and set-point are), else
+    interpolated linearly. Open loop: the measured commands.
     Closed loop, ``pd`` law: u_P = clip(u0 + kp (y_ref - y) - kd v, -umax,
     umax); state feedback: u_P = clip(c(v), -umax, umax), v = v_e - K (x - x_e)
     over x = [y, v, P_N, P_P, T_N, T_P] with the position of x_e following
     y_ref, and c the dead-band compensation c(v) = v + a tanh(v / w) (a, w in
     the ctrl slots CTRL_DB_AMPLITUDE, CTRL_DB_WIDTH; c(v) = v when w = 0);
-    u_N = -u_P, y_ref interpolated linearly (campaign format).
+    u_N = -u_P.
     """
     k1 = k + 1 if k + 1 < inp.shape[0] else k
+    if cfg[C_INPUT_HOLD] == 1:
+        w = 0.0
     law = cfg[C_INPUT]
     if law != 0:
         y_ref = (1.0 - w) * inp[k, 2] + w * inp[k1, 2]

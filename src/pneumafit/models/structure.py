@@ -24,6 +24,7 @@ from pneumafit.models.layout import (
     C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
+    C_INPUT_HOLD,
     C_STATIC_FLOW,
     C_VALVE_LAW,
     NCFG,
@@ -34,6 +35,8 @@ from pneumafit.models.parts import Effect, FrictionLaw, HeatLaw, RegistryView, V
 HEAT_LAWS = parts.HEAT_LAW_CODES
 VALVE_LAWS = parts.VALVE_LAW_CODES
 FRICTION_LAWS = parts.FRICTION_LAW_CODES
+#: How sampled inputs vary between samples (:attr:`ModelStructure.inputs`).
+INPUT_MODES = ("linear", "hold")
 
 # The tables below are live read-only views of the parts registries
 # (pneumafit.models.parts, one object per law or effect): a part registered
@@ -89,6 +92,12 @@ class ModelStructure:
         :mod:`pneumafit.physics.friction`) or LuGre (Canudas de Wit et al.
         1995, a bristle state z_f; :func:`pneumafit.physics.friction.lugre_friction`).
         Like ``valve``, it does not change ``name``.
+    inputs : {"linear", "hold"}
+        How the sampled inputs replayed from a recording (valve commands,
+        the controller's set-point y_ref) vary between samples: interpolated
+        linearly (the default, an analog signal) or held (zero-order hold,
+        a digital controller's output and set-point). Like ``valve``, it
+        does not change ``name``.
     """
 
     heat: str
@@ -97,6 +106,7 @@ class ModelStructure:
     name: str = ""
     valve: str = "iso6358"
     friction: str = "switch"
+    inputs: str = "linear"
 
     def __post_init__(self) -> None:
         if self.heat not in HEAT_LAWS:
@@ -118,6 +128,11 @@ class ModelStructure:
             raise PneumafitInputError(
                 f"model structure: friction: expected one of {sorted(FRICTION_LAWS)}, "
                 f"found {self.friction!r}"
+            )
+        if self.inputs not in INPUT_MODES:
+            raise PneumafitInputError(
+                f"model structure: inputs: expected one of {list(INPUT_MODES)}, "
+                f"found {self.inputs!r}"
             )
         for name, value in self.effects.items():
             if name not in EFFECT_SLOTS:
@@ -207,6 +222,7 @@ class ModelStructure:
         cfg[C_STATIC_FLOW] = int(static_flow)
         cfg[C_VALVE_LAW] = VALVE_LAWS[self.valve]
         cfg[C_FRICTION_LAW] = FRICTION_LAWS[self.friction]
+        cfg[C_INPUT_HOLD] = int(self.inputs == "hold")
         for name, value in self.effects.items():
             slot = EFFECT_SLOTS[name][0]
             if slot is None:

@@ -67,7 +67,7 @@ def pure_python(fn: Callable) -> Callable:
 @njit(cache=True)
 def _evaluate(
     tt: float, xx: np.ndarray, mode: int, t: np.ndarray, inp: np.ndarray, cfg: np.ndarray,
-    ctrl: np.ndarray, p: np.ndarray, d: np.ndarray, aux: np.ndarray,
+    ctrl: np.ndarray, p: np.ndarray, d: np.ndarray, aux: np.ndarray, k_lo: int, k_hi: int,
 ) -> np.ndarray:  # fmt: skip
     """dx/dt at time ``tt`` in friction mode ``mode``, in one compiled call.
 
@@ -75,10 +75,12 @@ def _evaluate(
     :func:`solve_reference` (sample interval, linear interpolation weight,
     :func:`~pneumafit.models.kernel.commands`, :func:`~pneumafit.models.kernel.rhs`);
     fills ``aux`` (friction forces for the event functions) and returns a new
-    array, as scipy keeps what the RHS returns.
+    array, as scipy keeps what the RHS returns. The sample interval is kept in
+    [k_lo, k_hi], the segment being integrated: held inputs jump at its ends,
+    and the solver's evaluations there belong to it.
     """
     k = np.searchsorted(t, tt, side="right") - 1
-    k = min(max(k, 0), t.size - 2)
+    k = min(max(k, k_lo), k_hi)
     w = (tt - t[k]) / (t[k + 1] - t[k])
     u_p, u_n = kernel.commands(xx, inp, k, w, cfg, ctrl)
     dx = np.empty(xx.size)
@@ -86,8 +88,12 @@ def _evaluate(
     return dx
 
 
-def _breakpoints(t: np.ndarray, inp: np.ndarray) -> np.ndarray:
-    """Sample indices where a linearly interpolated input changes slope."""
+def _breakpoints(t: np.ndarray, inp: np.ndarray, hold: bool) -> np.ndarray:
+    """Sample indices where an input held between samples jumps (``hold``)
+    or a linearly interpolated one changes slope."""
+    if hold:
+        idx = np.flatnonzero(np.any(np.diff(inp, axis=0) != 0.0, axis=1)) + 1
+        return np.unique(np.concatenate([[0], idx, [t.size - 1]]))
     slope = np.diff(inp, axis=0) / np.diff(t)[:, None]
     kink = np.any(np.abs(np.diff(slope, axis=0)) > 1e-12 * (1 + np.abs(slope[1:])), axis=1)
     idx = np.flatnonzero(kink) + 1
@@ -170,16 +176,17 @@ def solve_reference(
     else:
         atol_v = np.full(NX, atol)
 
+    span = [0, t.size - 2]  # the sample intervals evaluate() may use
     if compiled:
         inp_c = np.ascontiguousarray(inp, dtype=float)
 
         def evaluate(tt: float, xx: np.ndarray, mode: int) -> np.ndarray:
-            return _evaluate(tt, xx, mode, t, inp_c, cfg, ctrl, p, d, aux)
+            return _evaluate(tt, xx, mode, t, inp_c, cfg, ctrl, p, d, aux, span[0], span[1])
 
     else:
 
         def evaluate(tt: float, xx: np.ndarray, mode: int) -> np.ndarray:
-            k = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 2))
+            k = int(np.clip(np.searchsorted(t, tt, side="right") - 1, span[0], span[1]))
             w = (tt - t[k]) / (t[k + 1] - t[k])
             u_p, u_n = commands(xx, inp, k, w, cfg, ctrl)
             rhs(xx, mode, u_p, u_n, p, d, cfg, dx, aux)
@@ -201,10 +208,13 @@ def solve_reference(
 
     out = np.full((t.size, NX), np.nan)
     out[0] = x
-    bps = _breakpoints(t, inp[:, :3])
+    hold = structure.inputs == "hold"
+    bps = _breakpoints(t, inp[:, :3], hold)
     t_now = t[0]
     for seg in range(bps.size - 1):
         t_end = t[bps[seg + 1]]
+        if hold:  # the segment's own held value, also at its end
+            span[0], span[1] = int(bps[seg]), int(bps[seg + 1]) - 1
         while t_now < t_end:
             current = mode
 

@@ -27,6 +27,7 @@ from pneumafit.models.layout import (
     C_FRICTION_LAW,
     C_HEAT,
     C_INPUT,
+    C_INPUT_HOLD,
     C_STATIC_FLOW,
     C_VALVE_LAW,
     NCFG,
@@ -78,6 +79,7 @@ _RESERVED_SLOTS = {
     C_STATIC_FLOW: "static flow",
     C_VALVE_LAW: "valve law",
     C_FRICTION_LAW: "friction law",
+    C_INPUT_HOLD: "input hold",
 }
 
 

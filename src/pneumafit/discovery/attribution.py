@@ -522,12 +522,13 @@ def model_rates(
         modes[:] = 0
     cmds = np.ascontiguousarray(inp[:, :2])
     # The measured rates are slopes of the samples: p_k+1 - p_k integrates
-    # the rate over [t_k, t_k+1]. With the inputs held between samples
-    # (ModelStructure.inputs) that is the rate at the held u_k, so a slope
-    # centred on t_k weighs the intervals k-1 and k alike: the model's rate at
-    # t_k is then the mean of its rates at u_k-1 and u_k (interpolated
-    # inputs: the rate at u_k is already centred there).
-    held = structure.inputs == "hold"
+    # the rate over [t_k, t_k+1]. With commands held between samples
+    # (ModelStructure.inputs, open-loop replays) that is the rate at the held
+    # u_k, so a slope centred on t_k weighs the intervals k-1 and k alike:
+    # the model's rate at t_k is then the mean of its rates at u_k-1 and u_k.
+    # Interpolated commands, and a controller's (continuous in the closed
+    # loop, which only holds y_ref), are centred on t_k already.
+    held = structure.inputs == "hold" and not exp.closed_loop
     cmds_before = np.ascontiguousarray(np.vstack([cmds[:1], cmds[:-1]]))
 
     def rates_along(

@@ -85,7 +85,7 @@ def run_case(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
-    inputs: str = "linear",
+    inputs: str = "hold",
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.virtual_rig.truth import reference_quantities
@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
     ap.add_argument("--seal", default="off", choices=("off", "auto", "on"))
     ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
-    ap.add_argument("--inputs", default="linear", choices=("linear", "hold"))
+    ap.add_argument("--inputs", default="hold", choices=("hold", "linear"))
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")

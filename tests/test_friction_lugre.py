@@ -257,14 +257,17 @@ def test_switch_model_results_unchanged(step_experiment, charge_experiment) -> N
     """Default structures (convection, Kutta3 at 1 ms): the closed-loop step test
     (stick-slip, events), the same with seal friction and second-order spool
     dynamics (every state slot active) and the charge test, against sums
-    recorded before the LuGre law existed (see SWITCH_SUMS)."""
+    recorded before the LuGre law existed (see SWITCH_SUMS), with the sampled
+    inputs interpolated linearly as they were then (``inputs="linear"``)."""
+    lin = {"inputs": "linear"}
     cases = {
-        "step": (ModelStructure("convection"), step_experiment, {}),
+        "step": (ModelStructure("convection", **lin), step_experiment, {}),
         "step_seal_valve_dynamics": (
-            ModelStructure("constant-lambda").with_effects(seal_friction=1, valve_dynamics=2),
+            ModelStructure("constant-lambda", **lin).with_effects(seal_friction=1,
+                                                                  valve_dynamics=2),
             step_experiment, {"seal_friction_coefficient": 2e-5},
         ),
-        "charge": (ModelStructure("convection"), charge_experiment, {}),
+        "charge": (ModelStructure("convection", **lin), charge_experiment, {}),
     }  # fmt: skip
     for name, (structure, experiment, params) in cases.items():
         r = Simulator(structure).simulate(params, experiment)
@@ -365,8 +368,9 @@ def test_open_loop_test_matches_the_truth(truth_pair: tuple[dict, dict, dict]) -
     and 1.7 um: that floor is the two codes' valve and chamber parts
     (kernel and truth differ only within 0.1 V of the dead-band edge; the
     blocked cross-check's budget is 30 Pa); commands are fed as in that
-    cross-check (kernel on a 40x finer grid, ramps centred on the truth's
-    switch instants). A wrong law is far outside: sigma1 + 10 % gives 127 Pa
+    cross-check did before the kernel held its inputs (kernel on a 40x
+    finer grid, interpolated, ``inputs="linear"``, ramps centred on the
+    truth's switch instants). A wrong law is far outside: sigma1 + 10 % gives 127 Pa
     and 48 um, sigma0 + 10 % 321 Pa, F_s + 2 % 896 Pa, the switch model
     6.6 kPa and 2.5 mm.
     """
@@ -386,7 +390,8 @@ def test_open_loop_test_matches_the_truth(truth_pair: tuple[dict, dict, dict]) -
     fine = 40
     t_k = np.concatenate([[0.0], (np.arange(1, (t.size - 1) * fine + 1) - 0.5) * dt / fine])
     u_k = u[np.minimum(np.floor(t_k / dt + 1e-9).astype(int), t.size - 1)]
-    structure = ModelStructure("convection", air_properties="sutherland", friction="lugre")
+    structure = ModelStructure("convection", air_properties="sutherland", friction="lugre",
+                               inputs="linear")  # fmt: skip
     kernel_run = Simulator(structure, step=2e-5, method="dp5")
     ref = kernel_run.simulate(values, Experiment(t_k, "free", u_P=u_k, initial=initial))
     assert ref.ok, ref.message

@@ -318,9 +318,13 @@ def test_iso_default_unchanged():
     2. The map parameters do not reach an ISO simulation: random map knots
        leave it bit for bit equal.
     3. The default configuration selects the ISO law (slot 0).
+
+    The recorded values interpolate the sampled inputs linearly, as the
+    kernel did then (``inputs="linear"``).
     """
     params = parameter_vector({"supply_line_resistance": 1e7, "valve_C_leak": 5e-11})
-    sim = Simulator(ModelStructure("convection"), channels=["y", "p_P", "qm_P"])
+    sim = Simulator(ModelStructure("convection", inputs="linear"),
+                    channels=["y", "p_P", "qm_P"])  # fmt: skip
     step = _step_experiment()
     r = sim.simulate(params, step)
     idx = [250, 500, 1000, 2000, 2200, 3000, 4000]

@@ -53,13 +53,13 @@ def test_truth_matches_the_kernel_with_the_fitted_laws(
     """Pressures agree within 30 Pa (0.005 % of supply), temperatures within 0.05 K.
 
     Error budget. Both hold the commands constant between samples (the
-    kernel with ``inputs="hold"``), so both switch the valve at the same
-    instants. The kernel's fixed-step DP5 at 20 us and the truth's
+    kernel's default ``inputs="hold"``), so both switch the valve at the
+    same instants. The kernel's fixed-step DP5 at 20 us and the truth's
     LSODA at rtol 1e-9 contribute < 1 Pa each. The laminar tails differ
     within 70 Pa of supply (charge end), a few pascals on the approach.
     30 Pa leaves margin without hiding a wrong law (a 1 % conductance error
     gives 2.4..3.4 kPa). A control: with the samples interpolated linearly
-    (``inputs="linear"``, the default) the kernel opens the
+    (``inputs="linear"``, the kernel before 2026-11-28) the kernel opens the
     valve half a sample early, kilopascals off during the filling.
     """
     par, truth, kernel = pair

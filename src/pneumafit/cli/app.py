@@ -293,11 +293,11 @@ def fit(
         str,
         typer.Option(
             "--inputs",
-            help="How the recorded commands and set-points vary between samples: linear "
-            "(interpolated) or hold (held until the next sample, as a digital controller "
-            "outputs them).",
+            help="How the recorded commands and set-points vary between samples: hold (held "
+            "until the next sample, as a digital controller outputs them) or linear "
+            "(interpolated, an analog signal).",
         ),
-    ] = "linear",
+    ] = "hold",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 

@@ -93,7 +93,7 @@ def fit_command(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
-    inputs: str = "linear",
+    inputs: str = "hold",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -124,7 +124,7 @@ def fit_command(
     noise_pooling : {"recording", "sensor"}
         Noise level per recording and channel, or per sensor
         (:class:`FitOptions`).
-    inputs : {"linear", "hold"}
+    inputs : {"hold", "linear"}
         ``--inputs``: the recorded commands and set-points between samples.
 
     Returns

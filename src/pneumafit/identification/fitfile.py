@@ -59,7 +59,7 @@ except ``friction``, which came with the LuGre law):
   writer wrote: the convection structure has been fitted with Sutherland
   air since the first fit.json, git e932d63), ``valve`` ``"iso6358"``,
   ``friction`` ``"switch"``, ``inputs`` ``"linear"`` (every fit written
-  before the option interpolated the sampled inputs), ``effects`` none,
+  before the held inputs interpolated the sampled inputs), ``effects`` none,
   ``name`` the heat law (with the effects, as
   :meth:`ModelStructure.with_effects` names them);
 - ``parameters`` (present in every fit written; a reader that needs
@@ -639,7 +639,8 @@ def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructur
         ("valve", tuple(VALVE_LAWS), base.valve),
         ("friction", tuple(FRICTION_LAWS), base.friction),
         ("air_properties", ("constant", "sutherland"), base.air_properties),
-        ("inputs", INPUT_MODES, base.inputs),
+        # fits written before the held inputs interpolated them
+        ("inputs", INPUT_MODES, "linear"),
     )
     chosen: dict[str, str] = {}
     for key, allowed, default in checks:

@@ -361,7 +361,7 @@ def fit_structure(
     air_properties: str = "sutherland",
     valve: str = "iso6358",
     friction: str = "switch",
-    inputs: str = "linear",
+    inputs: str = "hold",
 ) -> ModelStructure:
     """The structure fitted for a model name (``inputs``: :class:`ModelStructure`).
 
@@ -423,11 +423,12 @@ class FitOptions:
         others (see :class:`Problem`; the trade-off measured on the
         mismatched truths: docs/identification.md, "One noise level per
         sensor").
-    inputs : {"linear", "hold"}
+    inputs : {"hold", "linear"}
         How the commands and set-points replayed from the recordings vary
-        between samples (:attr:`ModelStructure.inputs`): ``linear``
-        (default) or ``hold`` (zero-order hold, a digital controller's
-        output; docs/identification.md, "Held inputs").
+        between samples (:attr:`ModelStructure.inputs`): ``hold``
+        (default: zero-order hold, a digital controller's output) or
+        ``linear`` (an analog signal; docs/identification.md, "Held
+        inputs").
     air_properties : str
         For the convection structure (see :func:`fit_structure`).
     max_step : float or None
@@ -497,7 +498,7 @@ class FitOptions:
     early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
     noise_pooling: str = NOISE_POOLING
-    inputs: str = "linear"
+    inputs: str = "hold"
 
 
 @dataclass

@@ -36,7 +36,7 @@ HEAT_LAWS = parts.HEAT_LAW_CODES
 VALVE_LAWS = parts.VALVE_LAW_CODES
 FRICTION_LAWS = parts.FRICTION_LAW_CODES
 #: How sampled inputs vary between samples (:attr:`ModelStructure.inputs`).
-INPUT_MODES = ("linear", "hold")
+INPUT_MODES = ("hold", "linear")
 
 # The tables below are live read-only views of the parts registries
 # (pneumafit.models.parts, one object per law or effect): a part registered
@@ -92,12 +92,13 @@ class ModelStructure:
         :mod:`pneumafit.physics.friction`) or LuGre (Canudas de Wit et al.
         1995, a bristle state z_f; :func:`pneumafit.physics.friction.lugre_friction`).
         Like ``valve``, it does not change ``name``.
-    inputs : {"linear", "hold"}
+    inputs : {"hold", "linear"}
         How the sampled inputs replayed from a recording (valve commands,
-        the controller's set-point y_ref) vary between samples: interpolated
-        linearly (the default, an analog signal) or held (zero-order hold,
-        a digital controller's output and set-point). Like ``valve``, it
-        does not change ``name``.
+        the controller's set-point y_ref) vary between samples: held
+        (zero-order hold, the default: a digital controller's output and
+        set-point) or interpolated linearly (an analog signal; every fit
+        saved before 2026-11-28). Like ``valve``, it does not change
+        ``name``.
     """
 
     heat: str
@@ -106,7 +107,7 @@ class ModelStructure:
     name: str = ""
     valve: str = "iso6358"
     friction: str = "switch"
-    inputs: str = "linear"
+    inputs: str = "hold"
 
     def __post_init__(self) -> None:
         if self.heat not in HEAT_LAWS:

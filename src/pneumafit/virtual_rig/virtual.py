@@ -229,6 +229,11 @@ class VirtualRig:
         simulates the truth with the fitting kernel, as before.
     truth_rtol : float
         Relative tolerance of the independent truth's integrator.
+    inputs : {"hold", "linear"}
+        How the fitting kernel, when it is the truth (``truth`` None), reads
+        the tests' sampled commands and set-points between samples
+        (:attr:`pneumafit.models.ModelStructure.inputs`); an independent
+        truth always holds them.
 
     Raises
     ------
@@ -250,6 +255,7 @@ class VirtualRig:
         air_properties: str = "sutherland",
         truth: TruthConfig | str | None = None,
         truth_rtol: float = 1e-8,
+        inputs: str = "hold",
     ) -> None:
         if seed is None:
             seed = int(np.random.SeedSequence().entropy)  # type: ignore[arg-type]
@@ -276,7 +282,10 @@ class VirtualRig:
         self.parameters: dict[str, float] = parameter_dict(vector)
         try:
             self.structure = ModelStructure(
-                "convection", air_properties=air_properties, effects=resolved.structure
+                "convection",
+                air_properties=air_properties,
+                effects=resolved.structure,
+                inputs=inputs,
             )
         except ValueError as exc:
             raise PneumafitInputError(str(exc)) from None

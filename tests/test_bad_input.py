@@ -456,14 +456,15 @@ def bad_option(draw: st.DrawFn) -> tuple[str, list[str], str]:
     command = draw(st.sampled_from(["fit", "compare", "discover"]))
     choices = {
         "fit": ["--steps", "--walkers", "--seed", "--model", "--valve", "--friction",
-                "--seal-friction", "--noise-pooling"],
+                "--seal-friction", "--noise-pooling", "--inputs"],
         "compare": ["--steps", "--walkers", "--seed"],
         "discover": ["--rounds", "--per-round", "--seed"],
     }[command]  # fmt: skip
     option = draw(st.sampled_from(choices))
-    if option in ("--model", "--valve", "--friction", "--seal-friction", "--noise-pooling"):
+    if option in ("--model", "--valve", "--friction", "--seal-friction", "--noise-pooling",
+                  "--inputs"):  # fmt: skip
         known = (*MODELS, "iso6358", "map", "auto", "switch", "lugre", "on", "off", "recording",
-                 "sensor")  # fmt: skip
+                 "sensor", "hold", "linear")  # fmt: skip
         value = draw(WORD.filter(lambda w: w not in known))
     elif option == "--walkers":
         value = str(draw(st.integers(-1000, 2 * MAX_SAMPLED - 1)))

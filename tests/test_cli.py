@@ -135,6 +135,12 @@ def test_run_refuses_an_unknown_valve_law_before_fitting(tmp_path):
     assert "--valve" in text and "linear" in text and "iso6358" in text and "map" in text
     assert "Traceback" not in text
     assert not (tmp_path / "run" / "fits").exists()
+    res = cli("run", str(DEMO), "--no-mcmc", "--inputs", "zoh", "--out", str(tmp_path / "run"))
+    text = res.stdout + res.stderr
+    assert res.returncode == 2
+    assert "--inputs" in text and "zoh" in text and "hold" in text and "linear" in text
+    assert "Traceback" not in text
+    assert not (tmp_path / "run" / "fits").exists()
 
 
 def test_linear_and_export_use_a_fitted_valve_map(tmp_path):

@@ -122,6 +122,9 @@ def test_a_changed_fit_reruns_the_stages_that_read_it(finished_run: tuple, tmp_p
     # a run with the other valve law (run --valve map) fits again
     assert fit_is_reusable(conv.parent, camp, "convection", "iso6358")
     assert not fit_is_reusable(conv.parent, camp, "convection", "map")
+    # ... and with the inputs read the other way (run --inputs linear)
+    assert fit_is_reusable(conv.parent, camp, "convection", "iso6358", "hold")
+    assert not fit_is_reusable(conv.parent, camp, "convection", "iso6358", "linear")
 
 
 def test_an_invalid_campaign_runs_nothing(tmp_path: Path) -> None:

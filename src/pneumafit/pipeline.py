@@ -73,6 +73,7 @@ from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import VALVE_LAWS
 from pneumafit.models.parts import MODEL_NAMES
+from pneumafit.models.structure import INPUT_MODES
 from pneumafit.outputs.residual_file import RESIDUALS_FILE
 from pneumafit.progress import Reporter
 from pneumafit.simulation import counter
@@ -116,9 +117,14 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def fit_is_reusable(folder: Path, campaign: Campaign, model: str, valve: str | None = None) -> bool:
+def fit_is_reusable(
+    folder: Path, campaign: Campaign, model: str, valve: str | None = None,
+    inputs: str | None = None,
+) -> bool:  # fmt: skip
     """True when ``folder/fit.json`` is a finished fit of ``model`` on this
-    campaign (and with the valve law ``valve``, when given)."""
+    campaign (and with the valve law ``valve`` and the input reading
+    ``inputs``, when given: a fit.json without ``structure.inputs``
+    interpolated them)."""
     from pneumafit.identification.staged import FitResult
 
     try:
@@ -130,6 +136,7 @@ def fit_is_reusable(folder: Path, campaign: Campaign, model: str, valve: str | N
         and isinstance(fit.document.get("campaign"), dict)
         and fit.campaign_sha256 == campaign.sha256
         and (valve is None or fit.structure.valve == valve)
+        and (inputs is None or fit.structure.inputs == inputs)
     )
 
 
@@ -178,6 +185,7 @@ def run(
     steps: int | None = None,
     strict: bool = False,
     valve: str = "iso6358",
+    inputs: str = "hold",
 ) -> int:
     """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input,
     3 a fit is not trustworthy under ``strict``).
@@ -202,6 +210,10 @@ def run(
         Valve law of the three fits (``pneumafit fit --valve``); every later
         stage reads it from the fits. A finished fit of the other law is
         not reused.
+    inputs : {"hold", "linear"}
+        How the fits read the recorded commands and set-points between
+        samples (``pneumafit fit --inputs``); a finished fit read the other
+        way (a fit.json without the key interpolated) is not reused.
     """
     started = time.perf_counter()
     path = Path(campaign_path) if campaign_path is not None else DEMO
@@ -225,6 +237,9 @@ def run(
         None
         if valve in VALVE_LAWS
         else f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}",
+        None
+        if inputs in INPUT_MODES
+        else f"option --inputs: expected one of {', '.join(INPUT_MODES)}, found {inputs!r}",
     ]
     if report_problems(console, problems):
         return EXIT_BAD_INPUT
@@ -251,7 +266,7 @@ def run(
 
     try:
         fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings,
-                          sims, valve)  # fmt: skip
+                          sims, valve, inputs)  # fmt: skip
         for model, file in fit_files.items():  # fit times, for the report
             seconds = timings.get(f"fit {model}")
             if seconds:
@@ -317,7 +332,7 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
 def _fits(
     campaign: Campaign, path: Path, out: Path, console: Console, seed: int, mcmc: bool,
     walkers: int | None, steps: int | None, timings: dict[str, float], sims: dict[str, int],
-    valve: str = "iso6358",
+    valve: str = "iso6358", inputs: str = "hold",
 ) -> dict[str, Path]:  # fmt: skip
     """Fit the three models (or reuse finished fits); fit.json path per model.
     Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
@@ -332,13 +347,18 @@ def _fits(
 
     say = console_log(console)
     options = FitOptions(
-        mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve
+        mcmc=mcmc,
+        walkers=walkers,
+        steps=steps,
+        progress=console.is_terminal,
+        valve=valve,
+        inputs=inputs,
     )
     files = {}
     for model in RUN_MODELS:
         folder = out / "fits" / model
         name = f"fit {model}"
-        if fit_is_reusable(folder, campaign, model, valve):
+        if fit_is_reusable(folder, campaign, model, valve, inputs):
             console.print(f"[dim]{name}: reused {folder / 'fit.json'}[/dim]")
             timings[name] = 0.0
         else:
@@ -347,7 +367,7 @@ def _fits(
             console.print(f"fitting {model} to {campaign.name} "
                           f"({len(campaign.by_role('fit'))} fit recordings)")  # fmt: skip
             command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc,
-                                       valve=valve)  # fmt: skip
+                                       valve=valve, inputs=inputs)  # fmt: skip
             result = run_service(
                 console, name,
                 lambda m=model, f=folder, c=command: fit_folder(

@@ -213,6 +213,14 @@ def run(
             "every later stage uses the fits' law.",
         ),
     ] = "iso6358",
+    inputs: Annotated[
+        str,
+        typer.Option(
+            "--inputs",
+            help="How the three fits read the recorded commands and set-points between "
+            "samples: hold or linear (see pneumafit fit).",
+        ),
+    ] = "hold",
 ) -> None:
     """The main job: check, fit the three models, compare, discover, design, report, export.
 
@@ -226,7 +234,7 @@ def run(
 
     check_output(out, "folder")
     code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
-                        steps=steps, strict=strict, valve=valve)  # fmt: skip
+                        steps=steps, strict=strict, valve=valve, inputs=inputs)  # fmt: skip
     raise typer.Exit(code)
 
 

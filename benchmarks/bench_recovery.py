@@ -39,6 +39,7 @@ import numpy as np
 
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify
+from pneumafit.models.structure import INPUT_MODE, INPUT_MODES
 from pneumafit.virtual_rig import VirtualRig
 
 #: (truth preset, protocol) pairs of the matrix.
@@ -85,7 +86,7 @@ def run_case(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
-    inputs: str = "hold",
+    inputs: str = INPUT_MODE,
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.virtual_rig.truth import reference_quantities
@@ -203,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
     ap.add_argument("--seal", default="off", choices=("off", "auto", "on"))
     ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
-    ap.add_argument("--inputs", default="hold", choices=("hold", "linear"))
+    ap.add_argument("--inputs", default=INPUT_MODE, choices=INPUT_MODES)
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")

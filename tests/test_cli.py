@@ -125,20 +125,18 @@ def test_run_on_a_missing_campaign_is_a_message(tmp_path):
     assert not (tmp_path / "run" / "fits").exists()
 
 
-def test_run_refuses_an_unknown_valve_law_before_fitting(tmp_path):
-    """``pneumafit run --valve`` takes the fit command's laws; another value
-    is bad input (exit 2) naming the option, the laws and the value, and
-    nothing is fitted."""
-    res = cli("run", str(DEMO), "--no-mcmc", "--valve", "linear", "--out", str(tmp_path / "run"))
+@pytest.mark.parametrize(
+    ("option", "value", "allowed"),
+    [("--valve", "linear", ("iso6358", "map")), ("--inputs", "zoh", ("hold", "linear"))],
+)
+def test_run_refuses_an_unknown_law_before_fitting(tmp_path, option, value, allowed):
+    """``pneumafit run --valve`` and ``--inputs`` take the fit command's
+    values; another value is bad input (exit 2) naming the option, the
+    allowed values and the value, and nothing is fitted."""
+    res = cli("run", str(DEMO), "--no-mcmc", option, value, "--out", str(tmp_path / "run"))
     text = res.stdout + res.stderr
     assert res.returncode == 2
-    assert "--valve" in text and "linear" in text and "iso6358" in text and "map" in text
-    assert "Traceback" not in text
-    assert not (tmp_path / "run" / "fits").exists()
-    res = cli("run", str(DEMO), "--no-mcmc", "--inputs", "zoh", "--out", str(tmp_path / "run"))
-    text = res.stdout + res.stderr
-    assert res.returncode == 2
-    assert "--inputs" in text and "zoh" in text and "hold" in text and "linear" in text
+    assert option in text and value in text and all(a in text for a in allowed)
     assert "Traceback" not in text
     assert not (tmp_path / "run" / "fits").exists()
 

@@ -73,7 +73,7 @@ from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import VALVE_LAWS
 from pneumafit.models.parts import MODEL_NAMES
-from pneumafit.models.structure import INPUT_MODES
+from pneumafit.models.structure import INPUT_MODE, INPUT_MODES
 from pneumafit.outputs.residual_file import RESIDUALS_FILE
 from pneumafit.progress import Reporter
 from pneumafit.simulation import counter
@@ -185,7 +185,7 @@ def run(
     steps: int | None = None,
     strict: bool = False,
     valve: str = "iso6358",
-    inputs: str = "hold",
+    inputs: str = INPUT_MODE,
 ) -> int:
     """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input,
     3 a fit is not trustworthy under ``strict``).
@@ -332,7 +332,7 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
 def _fits(
     campaign: Campaign, path: Path, out: Path, console: Console, seed: int, mcmc: bool,
     walkers: int | None, steps: int | None, timings: dict[str, float], sims: dict[str, int],
-    valve: str = "iso6358", inputs: str = "hold",
+    valve: str = "iso6358", inputs: str = INPUT_MODE,
 ) -> dict[str, Path]:  # fmt: skip
     """Fit the three models (or reuse finished fits); fit.json path per model.
     Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""

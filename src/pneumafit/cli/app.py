@@ -38,6 +38,7 @@ from pneumafit.cli.console import (
 )
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.models.parts import Friction, Model, Valve
+from pneumafit.models.structure import INPUT_MODE
 
 if TYPE_CHECKING:
     import numpy as np
@@ -220,7 +221,7 @@ def run(
             help="How the three fits read the recorded commands and set-points between "
             "samples: hold or linear (see pneumafit fit).",
         ),
-    ] = "hold",
+    ] = INPUT_MODE,
 ) -> None:
     """The main job: check, fit the three models, compare, discover, design, report, export.
 
@@ -305,7 +306,7 @@ def fit(
             "until the next sample, as a digital controller outputs them) or linear "
             "(interpolated, an analog signal).",
         ),
-    ] = "hold",
+    ] = INPUT_MODE,
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 

@@ -55,7 +55,7 @@ from pneumafit.identification.staged import (
     FitResult,
 )
 from pneumafit.models.layout import FRICTION_LAWS, VALVE_LAWS
-from pneumafit.models.structure import INPUT_MODES, MODELS
+from pneumafit.models.structure import INPUT_MODE, INPUT_MODES, MODELS
 from pneumafit.progress import Reporter
 from pneumafit.services.fit import (
     fit_command_line,
@@ -93,7 +93,7 @@ def fit_command(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
-    inputs: str = "hold",
+    inputs: str = INPUT_MODE,
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 

@@ -529,7 +529,7 @@ def model_rates(
     # Interpolated commands, and a controller's (continuous in the closed
     # loop, which only holds y_ref), are centred on t_k already.
     held = structure.inputs == "hold" and not exp.closed_loop
-    cmds_before = np.ascontiguousarray(np.vstack([cmds[:1], cmds[:-1]]))
+    cmds_before = np.ascontiguousarray(np.vstack([cmds[:1], cmds[:-1]])) if held else cmds
 
     def rates_along(
         xs_: NDArray[np.float64], q: NDArray[np.float64], dq: NDArray[np.float64],

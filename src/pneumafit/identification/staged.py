@@ -79,7 +79,13 @@ from pneumafit.identification.starts import (
     valve_starts,
 )
 from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS
-from pneumafit.models.structure import EFFECT_SLOTS, HEAT_PARAMETERS, MODELS, ModelStructure
+from pneumafit.models.structure import (
+    EFFECT_SLOTS,
+    HEAT_PARAMETERS,
+    INPUT_MODE,
+    MODELS,
+    ModelStructure,
+)
 from pneumafit.models.structure import FRICTION_PARAMETERS as STRUCTURE_FRICTION
 from pneumafit.physics.valve_map import (
     CENTRE_KNOT,
@@ -361,7 +367,7 @@ def fit_structure(
     air_properties: str = "sutherland",
     valve: str = "iso6358",
     friction: str = "switch",
-    inputs: str = "hold",
+    inputs: str = INPUT_MODE,
 ) -> ModelStructure:
     """The structure fitted for a model name (``inputs``: :class:`ModelStructure`).
 
@@ -498,7 +504,7 @@ class FitOptions:
     early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
     noise_pooling: str = NOISE_POOLING
-    inputs: str = "hold"
+    inputs: str = INPUT_MODE
 
 
 @dataclass

@@ -37,6 +37,8 @@ VALVE_LAWS = parts.VALVE_LAW_CODES
 FRICTION_LAWS = parts.FRICTION_LAW_CODES
 #: How sampled inputs vary between samples (:attr:`ModelStructure.inputs`).
 INPUT_MODES = ("hold", "linear")
+#: The default of :attr:`ModelStructure.inputs` (and of every option that sets it).
+INPUT_MODE = "hold"
 
 # The tables below are live read-only views of the parts registries
 # (pneumafit.models.parts, one object per law or effect): a part registered
@@ -107,7 +109,7 @@ class ModelStructure:
     name: str = ""
     valve: str = "iso6358"
     friction: str = "switch"
-    inputs: str = "hold"
+    inputs: str = INPUT_MODE
 
     def __post_init__(self) -> None:
         if self.heat not in HEAT_LAWS:

@@ -30,6 +30,7 @@ from pneumafit.campaign.model import Campaign
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
 from pneumafit.identification.staged import FitOptions, FitResult, identify
+from pneumafit.models.structure import INPUT_MODE
 from pneumafit.progress import Reporter
 
 __all__ = [
@@ -179,7 +180,7 @@ def fit_command_line(
     campaign: str | os.PathLike[str], model: str, out: str | os.PathLike[str],
     walkers: int | None, steps: int | None, seed: int, mcmc: bool, *, strict: bool = False,
     valve: str = "iso6358", friction: str = "auto", seal: str = "off",
-    noise_pooling: str = "recording", inputs: str = "hold",
+    noise_pooling: str = "recording", inputs: str = INPUT_MODE,
 ) -> str:  # fmt: skip
     """The ``pneumafit fit`` command line of these options (fit.json's
     ``provenance.command``): the defaults are left out."""
@@ -194,7 +195,7 @@ def fit_command_line(
         + (f" --friction {friction}" if friction != "auto" else "")
         + (f" --seal-friction {seal}" if seal != "off" else "")
         + (f" --noise-pooling {noise_pooling}" if noise_pooling != "recording" else "")
-        + (f" --inputs {inputs}" if inputs != "hold" else "")
+        + (f" --inputs {inputs}" if inputs != INPUT_MODE else "")
     )
 
 

@@ -49,6 +49,7 @@ from pneumafit.models import (
     parameter_dict,
     parameter_vector,
 )
+from pneumafit.models.structure import INPUT_MODE
 from pneumafit.physics.geometry import piston_areas
 from pneumafit.simulation import (
     PD,
@@ -255,7 +256,7 @@ class VirtualRig:
         air_properties: str = "sutherland",
         truth: TruthConfig | str | None = None,
         truth_rtol: float = 1e-8,
-        inputs: str = "hold",
+        inputs: str = INPUT_MODE,
     ) -> None:
         if seed is None:
             seed = int(np.random.SeedSequence().entropy)  # type: ignore[arg-type]

@@ -67,7 +67,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
@@ -80,6 +79,7 @@ from pneumafit.identification.replay import replay
 from pneumafit.models import kernel, layout, parts
 from pneumafit.models.parts import RegistryView
 from pneumafit.models.structure import ModelStructure
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.air import GAMMA, R_AIR  # the kernel's constants (docs/physics.md)
 from pneumafit.simulation import Experiment
 

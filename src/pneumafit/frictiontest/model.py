@@ -46,12 +46,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.identification.parameters import Parameter, ParameterSet
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.seal_effects import SEAL_EFFECTS, SealEffect
 
 __all__ = [

@@ -33,11 +33,12 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import gammaln
 
 from pneumafit.errors import PneumafitInputError
+from pneumafit.numba_stamp import njit
 
 __all__ = [
     "AR1",

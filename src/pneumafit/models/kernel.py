@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from pneumafit.models.layout import (
     C_AIRPROPS,
@@ -145,6 +145,7 @@ from pneumafit.models.layout import (
     X_Y,
     X_Z,
 )
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.air import G0, GAMMA, R_AIR, RHO0, T_REF, conductivity, viscosity
 from pneumafit.physics.friction import (
     FASTMATH,

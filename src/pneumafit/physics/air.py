@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from pneumafit.numba_stamp import njit
 
 #: Specific gas constant of dry air, r (J/kg/K).
 R_AIR = 287.058

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from pneumafit.numba_stamp import njit
 
 #: LLVM fast-math flags for the compiled physics. Only fused multiply-add:
 #: "afn" (approximate sqrt/exp) made two uses of one flow differ by 1e-5 and

@@ -20,8 +20,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.friction import FASTMATH
 
 

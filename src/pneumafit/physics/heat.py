@@ -18,8 +18,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.air import G0, R_AIR
 from pneumafit.physics.friction import FASTMATH
 

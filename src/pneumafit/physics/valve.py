@@ -67,8 +67,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.air import RHO0, T_REF
 from pneumafit.physics.friction import FASTMATH
 

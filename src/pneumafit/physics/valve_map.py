@@ -69,10 +69,10 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from pneumafit.errors import PneumafitInputError
+from pneumafit.numba_stamp import njit
 from pneumafit.physics.air import RHO0
 from pneumafit.physics.friction import FASTMATH
 from pneumafit.physics.valve import (

@@ -27,7 +27,6 @@ import types
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from numba import njit
 from numba.core.dispatcher import Dispatcher
 from scipy.integrate import solve_ivp
 
@@ -36,6 +35,7 @@ from pneumafit.models import kernel
 from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.numba_stamp import njit
 from pneumafit.simulation.experiment import Experiment
 
 

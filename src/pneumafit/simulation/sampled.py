@@ -24,7 +24,6 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-from numba import njit
 
 from pneumafit.models import kernel
 from pneumafit.models.kernel import (
@@ -59,6 +58,7 @@ from pneumafit.models.layout import (
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.structure import ModelStructure, get_structure
+from pneumafit.numba_stamp import njit
 from pneumafit.simulation import counter
 from pneumafit.simulation.simulator import (
     DEFAULT_METHOD,

@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
+
+from pneumafit.numba_stamp import njit
 
 __all__ = ["first_order_lag"]
 

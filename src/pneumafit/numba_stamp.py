@@ -1,0 +1,151 @@
+"""Keep numba's on-disk cache consistent across the package's compiled modules.
+
+numba caches each ``@njit(cache=True)`` function under a hash of the file
+that defines it, and a cached function holds the machine code of every
+compiled function it calls, from whatever file. When a callee's file
+changes (``git pull`` in an editable install, an edit) and the caller's
+does not, numba keeps loading the caller's cache and runs the old callee.
+Measured: after the valve law gained two parameters (which shifts every
+later index of the parameter vector) the reference solver's compiled
+right-hand side (``simulation/reference.py``, unchanged) still ran the old
+kernel, and a 3-s charge ended 110 kPa away from the kernel's own run.
+
+:func:`install` (called by :func:`njit`, the decorator every compiled
+module of the package uses instead of numba's) gives numba a cache locator
+for the package's own files whose freshness stamp is the defining file's
+(numba's) together with one hash of every compiled source file of the
+package: a change to any of them
+invalidates the cache of all of them (one recompilation, about a minute;
+``python -m pneumafit.warmup`` does it ahead). Other packages' functions
+keep numba's own locators. The locator list is numba's private API
+(``numba.core.caching.CacheImpl._locator_classes``, numba 0.58-0.68); where
+it is missing, nothing is installed and numba's behaviour is unchanged.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from pathlib import Path
+from typing import Any
+
+__all__ = ["compiled_sources", "install", "njit", "package_stamp"]
+
+#: The package directory.
+_ROOT = Path(__file__).resolve().parent
+#: What marks a module with cached compiled functions.
+_MARK = re.compile(r"njit\([^)]*cache=True")
+_STAMP: list[bytes] = []
+
+
+def compiled_sources(root: Path | None = None) -> list[Path]:
+    """The package's source files that define cached numba functions.
+
+    Parameters
+    ----------
+    root : Path, optional
+        The package directory; this module's own by default.
+
+    Returns
+    -------
+    list of Path
+        Sorted; this module is not one of them.
+    """
+    base = _ROOT if root is None else root
+    here = Path(__file__).resolve()
+    out = []
+    for path in sorted(base.rglob("*.py")):
+        if path.resolve() == here:
+            continue
+        try:
+            if _MARK.search(path.read_text(encoding="utf-8")):
+                out.append(path)
+        except OSError:
+            continue
+    return out
+
+
+def package_stamp() -> bytes:
+    """SHA-256 over the names and contents of :func:`compiled_sources` (computed once)."""
+    if not _STAMP:
+        digest = hashlib.sha256()
+        for path in compiled_sources():
+            digest.update(path.relative_to(_ROOT).as_posix().encode())
+            digest.update(path.read_bytes())
+        _STAMP.append(digest.digest())
+    return _STAMP[0]
+
+
+def _in_package(py_file: str) -> bool:
+    try:
+        return Path(py_file).resolve().is_relative_to(_ROOT)
+    except (OSError, ValueError):
+        return False
+
+
+def install() -> bool:
+    """Put the package-wide locator first in numba's list (idempotent).
+
+    Must run before the package's first ``@njit(cache=True)`` decorator
+    (:func:`njit` calls it): numba picks a function's locator when it is
+    decorated.
+
+    Returns
+    -------
+    bool
+        True when the locator is (now) installed.
+    """
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return False
+    impl = getattr(caching, "CacheImpl", None)
+    classes = getattr(impl, "_locator_classes", None)
+    base = getattr(caching, "_CacheLocator", None)
+    if not isinstance(classes, list) or base is None:
+        return False
+    if any(getattr(c, "_pneumafit", False) for c in classes):
+        return True
+    fallbacks = list(classes)
+
+    class PackageLocator(base):  # type: ignore[misc, valid-type]
+        """numba's locator for a package file, with the package-wide stamp."""
+
+        _pneumafit = True
+
+        def __init__(self, inner: Any) -> None:
+            self._inner = inner
+
+        def ensure_cache_path(self) -> None:
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self) -> str:
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self) -> Any:
+            return (self._inner.get_source_stamp(), package_stamp())
+
+        def get_disambiguator(self) -> str:
+            return self._inner.get_disambiguator()
+
+        @classmethod
+        def from_function(cls, py_func: Any, py_file: str) -> Any:
+            if not _in_package(py_file):
+                return None
+            for fallback in fallbacks:
+                inner = fallback.from_function(py_func, py_file)
+                if inner is not None:
+                    return cls(inner)
+            return None
+
+    classes.insert(0, PackageLocator)
+    return True
+
+
+def njit(*args: Any, **kwargs: Any) -> Any:
+    """``numba.njit``, after :func:`install`: the package's compiled modules
+    decorate with this one, so that their caches carry the package stamp."""
+    install()
+    from numba import njit as numba_njit
+
+    return numba_njit(*args, **kwargs)

@@ -75,6 +75,8 @@ PLANTS = {
             "xi": 0.45,
             "valve_n_supply": 1.4,
             "valve_n_exhaust": 0.8,
+            "valve_full_supply": 0.25,  # fully open from 2.5 V: the +3 V step saturates
+            "valve_full_exhaust": 0.6,
             "valve_m": 0.45,
             "friction_static": "60 N",
             "friction_stiffness": 2e5,

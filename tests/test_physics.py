@@ -131,6 +131,39 @@ def test_opening_shape_exponents_nest_the_linear_ramp():
     assert not kernel.check_parameters(vec)
 
 
+def test_full_opening_fractions_saturate_each_path_at_its_own_command():
+    """C_S = C_max min(ramp(u - u_0) / (f_S u_sat - u_0), 1)^n_S: f = 1 is the
+    earlier law bit for bit; with f_S = 0.8 the supply path is fully open from
+    8 V and its opening at 4.15 V is half, by hand; the exhaust path keeps
+    its own fraction; the compiled flow (valve_constants, flows_core) uses
+    the same law as conductances(); the kernel rejects f > 1 and a full
+    opening inside the dead band."""
+    base = (1e-8, 1.1e-8, 0.3, 10.0, 2e-11, 0.3, 1.5, 1.0)
+    for u in (-10.0, -6.0, -0.2, 0.0, 0.31, 2.0, 8.0, 10.0):
+        assert valve.conductances(u, *base) == valve.conductances(u, *base, 1.0, 1.0)
+    leak = valve.conductances(4.15, 0.0, 0.0, 0.3, 10.0, 2e-11, 0.3)
+    c_s, c_e = valve.conductances(4.15, *base, 0.8, 0.6)
+    assert c_s == pytest.approx(1e-8 * 0.5**1.5 + leak[0], rel=1e-14)
+    for u in (8.0, 9.0, 10.0):  # saturated: the full-opening conductance
+        c_s, _ = valve.conductances(u, *base, 0.8, 1.0)
+        assert c_s == pytest.approx(1e-8 + valve.conductances(u, 0.0, 0.0, 0.3, 10.0, 2e-11,
+                                                               0.3)[0], rel=1e-14)  # fmt: skip
+    _, c_e = valve.conductances(-3.15, *base, 1.0, 0.6)  # exhaust: (3.15 - 0.3) / (6 - 0.3)
+    leak_e = valve.conductances(-3.15, 0.0, 0.0, 0.3, 10.0, 2e-11, 0.3)[1]
+    assert c_e == pytest.approx(1.1e-8 * 0.5 + leak_e, rel=1e-14)
+    args = (7e5, 293.15, 1.013e5, 1e-8, 0.3, 1.1e-8, 0.3, 0.5, 0.995, 0.3, 10.0, 0.0, 0.3)
+    for u in (2.0, 4.15, 7.9, 9.5):
+        q = valve.valve_flows(u, 1.5e5, 293.15, *args, 1.5, 1.0, 0.8, 1.0)[2]
+        c_s, _ = valve.conductances(u, 1e-8, 1.1e-8, 0.3, 10.0, 0.0, 0.3, 1.5, 1.0, 0.8, 1.0)
+        assert q == pytest.approx(c_s * air.RHO0 * 7e5, rel=1e-12)
+    vec = parameter_vector({"valve_full_supply": 0.5, "valve_full_exhaust": 0.2})
+    assert kernel.check_parameters(vec)  # 2 V > the 0.3-V overlap
+    vec[P["valve_full_exhaust"]] = 0.02  # 0.2 V: inside the dead band
+    assert not kernel.check_parameters(vec)
+    vec[P["valve_full_exhaust"]] = 1.01
+    assert not kernel.check_parameters(vec)
+
+
 def test_convection_law_zero_at_wall_temperature_and_scaled_form():
     mu, k = air.viscosity(293.15), air.conductivity(293.15)
     assert heat.convection_coefficient(0.4, 0.27, 5e5, 293.15, 293.15, 0.032, mu, k) == 0.0

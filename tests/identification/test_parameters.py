@@ -105,6 +105,12 @@ def test_for_model_fixes_the_rig_and_frees_valve_heat_friction() -> None:
     assert set(ParameterSet.for_model("constant-lambda").names) <= set(PARAMETER_NAMES)
 
 
+def test_the_full_opening_fractions_are_free_and_at_most_one() -> None:
+    ps = ParameterSet.for_model("convection", RIG)
+    for name in ("valve_full_supply", "valve_full_exhaust"):
+        assert not ps[name].fixed and ps[name].upper == 1.0 and ps[name].value == 1.0
+
+
 @pytest.mark.parametrize(
     ("document", "message"),
     [

@@ -187,13 +187,16 @@ def test_an_estimate_on_a_constraint_is_flagged_like_a_bound() -> None:
     assert bound_problems([fs, fc], ["friction_coulomb"]) == []  # held: not an estimate
 
 
-def test_shape_exponents_are_freed_only_where_the_flow_levels_resolve_them(small: tuple) -> None:
+def test_shapes_and_full_openings_are_freed_only_where_the_flow_levels_resolve_them(
+    small: tuple,
+) -> None:
     """The small campaign's levels beyond 0.5 V are +-3 and +-10 V: two per
     side, one short of conductance, overlap and exponent; a sparse-protocol
-    campaign (+-0.6, 1.5, 4, 10 V) resolves both paths; held-out flow tests
-    do not count."""
+    campaign (+-0.6, 1.5, 4, 10 V) resolves both paths, exponent and full
+    opening; without its +1.5 V level the supply path has three levels, enough
+    for the exponent only; held-out flow tests do not count."""
     from pneumafit.campaign import Campaign
-    from pneumafit.identification.coverage import shape_informed
+    from pneumafit.identification.coverage import full_informed, shape_informed
     from pneumafit.virtual_rig import VirtualRig
 
     _, campaign, _ = small
@@ -206,3 +209,20 @@ def test_shape_exponents_are_freed_only_where_the_flow_levels_resolve_them(small
                     for r in sparse.recordings],
     )  # fmt: skip
     assert shape_informed(held_out, {"valve_u_sat": 10.0}) == {"supply": False, "exhaust": False}
+    # the full-opening fraction is the fourth unknown: four levels per side
+    assert full_informed(sparse, {"valve_u_sat": 10.0}) == {"supply": True, "exhaust": True}
+    assert full_informed(campaign, {"valve_u_sat": 10.0}) == {"supply": False, "exhaust": False}
+    three = Campaign(
+        path=None, name="three", description="", rig=sparse.rig,
+        recordings=[_without_level(r, 1.5) if r.kind == "flow" else r for r in sparse.recordings],
+    )  # fmt: skip
+    assert shape_informed(three, {"valve_u_sat": 10.0}) == {"supply": True, "exhaust": True}
+    assert full_informed(three, {"valve_u_sat": 10.0}) == {"supply": False, "exhaust": True}
+
+
+def _without_level(recording, level: float):
+    """The recording with the command level ``level`` (V) moved onto 4 V."""
+    u = np.asarray(recording.channels[f"u_{recording.chamber}"], float).copy()
+    u[np.isclose(u, level)] = 4.0
+    return dataclasses.replace(recording, channels={**recording.channels,
+                                                    f"u_{recording.chamber}": u})  # fmt: skip

@@ -67,19 +67,17 @@ def _covered(u: float, levels: np.ndarray, width: float, u_sat: float) -> bool:
 SHAPE_LEVELS = 3
 
 
-def shape_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str, bool]:
-    """Which paths' opening shapes (``valve_n_supply``, ``valve_n_exhaust``) the fit
-    flow tests resolve.
+def opening_levels(campaign: Campaign, values: Mapping[str, float]) -> dict[str, int]:
+    """Distinct opening levels of each path in the fit flow tests.
 
     Both valves share one characteristic, so the levels of every fit flow test
     count: positive commands open the supply path, negative ones the exhaust
-    path.
+    path; levels within the tolerance of 0 V count for neither.
 
     Returns
     -------
     dict
-        ``{"supply": bool, "exhaust": bool}``: at least :data:`SHAPE_LEVELS`
-        distinct levels on that side.
+        ``{"supply": int, "exhaust": int}``.
     """
     width = TOLERANCE * float(values.get("valve_u_sat", 10.0))
     levels: set[float] = set()
@@ -87,8 +85,38 @@ def shape_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str,
         if rec.kind == "flow" and f"u_{rec.chamber}" in rec.channels:
             levels.update(np.unique(np.round(np.asarray(rec.channels[f"u_{rec.chamber}"]), 3)))
     lv = np.array(sorted(levels))
-    return {"supply": int(np.sum(lv > width)) >= SHAPE_LEVELS,
-            "exhaust": int(np.sum(lv < -width)) >= SHAPE_LEVELS}  # fmt: skip
+    return {"supply": int(np.sum(lv > width)), "exhaust": int(np.sum(lv < -width))}
+
+
+def shape_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str, bool]:
+    """Which paths' opening shapes (``valve_n_supply``, ``valve_n_exhaust``) the fit
+    flow tests resolve.
+
+    Returns
+    -------
+    dict
+        ``{"supply": bool, "exhaust": bool}``: at least :data:`SHAPE_LEVELS`
+        distinct levels on that side (:func:`opening_levels`).
+    """
+    return {path: n >= SHAPE_LEVELS for path, n in opening_levels(campaign, values).items()}
+
+
+#: Distinct opening levels a path needs before its full-opening fraction
+#: (``valve_full_supply``, ``valve_full_exhaust``) is fitted: one more than
+#: the exponent, the fourth unknown of the path's C(u).
+FULL_LEVELS = SHAPE_LEVELS + 1
+
+
+def full_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str, bool]:
+    """Which paths' full-opening fractions the fit flow tests resolve.
+
+    Returns
+    -------
+    dict
+        ``{"supply": bool, "exhaust": bool}``: at least :data:`FULL_LEVELS`
+        distinct levels on that side (:func:`opening_levels`).
+    """
+    return {path: n >= FULL_LEVELS for path, n in opening_levels(campaign, values).items()}
 
 
 def centre_measured(campaign: Campaign, values: Mapping[str, float]) -> bool:

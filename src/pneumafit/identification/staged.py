@@ -43,6 +43,7 @@ from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.identification.coverage import (
     centre_measured,
+    full_informed,
     shape_informed,
     uncovered_commands,
 )
@@ -114,6 +115,7 @@ __all__ = [
 VALVE_PARAMETERS: tuple[str, ...] = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
     "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
+    "valve_full_supply", "valve_full_exhaust",
 )  # fmt: skip
 #: Friction parameters of the switch model (a structure's own list:
 #: :attr:`ModelStructure.friction_parameter_names`).
@@ -214,6 +216,14 @@ SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
 
 #: Opening shape exponent of each path (see :func:`coverage.shape_informed`).
 SHAPE_PARAMETERS = {"supply": "valve_n_supply", "exhaust": "valve_n_exhaust"}
+#: Full-opening fraction of each path (see :func:`coverage.full_informed`).
+FULL_PARAMETERS = {"supply": "valve_full_supply", "exhaust": "valve_full_exhaust"}
+#: Starting full-opening fractions of the saturating law, besides 1 (the
+#: law without them, whose optimum is at that bound).
+FULL_STARTS = (0.9, 0.75)
+#: A fitted full-opening fraction this close to 1 is held at 1: the path does
+#: not saturate within the flow levels, and the bound would be flagged.
+FULL_AT_ONE = 1e-3
 #: Level of the likelihood-ratio test that keeps the shape exponents (the
 #: linear ramp is the null hypothesis; chi-square with one degree of freedom
 #: per exponent): 0.999, so a linear valve keeps its linear law in all but
@@ -243,12 +253,24 @@ def _shape_starts(values: Mapping[str, float], shapes: Sequence[str]) -> list[di
     ]
 
 
+def _full_starts(values: Mapping[str, float], fulls: Sequence[str]) -> list[dict[str, float]]:
+    """Starts of the saturating valve law: every fraction of :data:`FULL_STARTS`
+    for the free full-opening fractions ``fulls``, the rest at ``values``.
+
+    A start whose path would open fully inside the dead band is left out.
+    """
+    floor = float(values["valve_overlap"]) / float(values["valve_u_sat"])
+    return [{**values, **{n: f for n in fulls}} for f in FULL_STARTS if f > floor + 0.05]
+
+
 def _informed_valve(
     campaign: Campaign, values: Mapping[str, float], names: Sequence[str]
 ) -> tuple[str, ...]:
-    """``names`` without the opening shape exponents the fit flow tests do not resolve."""
+    """``names`` without the opening shape exponents and full-opening fractions
+    the fit flow tests do not resolve."""
     known = shape_informed(campaign, values)
     drop = {SHAPE_PARAMETERS[path] for path, ok in known.items() if not ok}
+    drop |= {FULL_PARAMETERS[p] for p, ok in full_informed(campaign, values).items() if not ok}
     return tuple(n for n in names if n not in drop)
 
 
@@ -1045,28 +1067,43 @@ def identify(
         starts = valve_starts(flows, rig) if structure.valve == "iso6358" else [{}]
         values.update(starts[0])
         shapes = tuple(n for n in valve_free if n in SHAPE_PARAMETERS.values())
-        linear = tuple(n for n in valve_free if n not in shapes)
-        run_stage(stage, flows, linear if shapes else valve_free, starts, seeds[0])
-        if shapes:
-            # the linear ramp nests the shaped law: keep the exponents only when
-            # the flow tests ask for them (likelihood-ratio test), so a valve
-            # that is a linear ramp keeps the linear law and its fewer parameters
-            ramp, ramp_values, ramp_seconds = stage.estimate, dict(values), stage.seconds
-            run_stage(stage, flows, valve_free, _shape_starts(values, shapes), seeds[0])
-            stage.seconds += ramp_seconds
-            gain = stage.estimate.log_likelihood - ramp.log_likelihood
-            needed = 2.0 * gain > chi2.ppf(SHAPE_CONFIDENCE, len(shapes))
-            stage.note = (
-                f"opening shape exponents {'kept' if needed else 'not needed'}: log-likelihood "
-                f"gain {gain:.1f} over the linear ramp ({', '.join(shapes)})"
+        fulls = tuple(n for n in valve_free if n in FULL_PARAMETERS.values())
+        linear = tuple(n for n in valve_free if n not in shapes and n not in fulls)
+        run_stage(stage, flows, linear, starts, seeds[0])
+        valve_free, notes = linear, []
+        # the linear ramp nests the shaped law, and the shaped law the
+        # saturating one: each is kept only when the flow tests ask for it
+        # (likelihood-ratio tests), so a valve that is a linear ramp keeps the
+        # linear law and its fewer parameters
+        for extra, what, make_starts in (
+            (shapes, "opening shape exponents", _shape_starts),
+            (fulls, "full-opening fractions", _full_starts),
+        ):
+            if not extra:
+                continue
+            before, before_values, before_seconds = stage.estimate, dict(values), stage.seconds
+            run_stage(stage, flows, (*valve_free, *extra), make_starts(values, extra), seeds[0])
+            stage.seconds += before_seconds
+            gain = stage.estimate.log_likelihood - before.log_likelihood
+            needed = 2.0 * gain > chi2.ppf(SHAPE_CONFIDENCE, len(extra))
+            notes.append(
+                f"{what} {'kept' if needed else 'not needed'}: log-likelihood gain {gain:.1f} "
+                f"({', '.join(extra)})"
             )
-            if not needed:
-                stage.estimate = ramp
-                values.update(ramp_values)
-                values.update({n: 1.0 for n in shapes})
-                valve_free = linear
-                stage.free = linear
-            say(f"valve: {stage.note}")
+            if needed:
+                # a path that does not saturate within the flow levels ends
+                # at its bound 1: held there
+                at_one = tuple(n for n in extra if n in fulls and values[n] > 1.0 - FULL_AT_ONE)
+                values.update({n: 1.0 for n in at_one})
+                valve_free = (*valve_free, *(n for n in extra if n not in at_one))
+            else:
+                stage.estimate = before
+                values.update(before_values)
+                values.update({n: 1.0 for n in extra})
+            say(f"valve: {notes[-1]}")
+        stage.free = valve_free
+        if notes:
+            stage.note = "; ".join(notes)
         say(f"valve: {stage.seconds:.1f} s, log-likelihood {stage.estimate.log_likelihood:.1f}")
         if valve_key is not None:
             delta = {k: v for k, v in values.items() if valve_before.get(k) != v}

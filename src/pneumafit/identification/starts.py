@@ -57,7 +57,8 @@ def valve_starts(flows: Sequence[Recording], rig: Mapping[str, float]) -> list[d
     cl = float(np.clip(max(leak) if leak else 1e-3 * cs, 1e-14, 1e-9))
     common = {"valve_C_supply": cs, "valve_C_exhaust": ce, "valve_C_leak": cl,
               "valve_overlap": 0.5, "valve_leak_width": 1.0, "valve_n_supply": 1.0,
-              "valve_n_exhaust": 1.0}  # fmt: skip
+              "valve_n_exhaust": 1.0, "valve_full_supply": 1.0,
+              "valve_full_exhaust": 1.0}  # fmt: skip
     return [
         {**common, "valve_b_supply": 0.4, "valve_b_exhaust": 0.4, "valve_m": 0.5},
         {**common, "valve_b_supply": 0.2, "valve_b_exhaust": 0.2, "valve_m": 0.7},

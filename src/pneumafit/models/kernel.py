@@ -89,6 +89,8 @@ from pneumafit.models.layout import (
     P_FCG,
     P_FEXT,
     P_FS,
+    P_FULLE,
+    P_FULLS,
     P_FV,
     P_GCL,
     P_GEL,
@@ -240,6 +242,10 @@ def check_parameters(p: np.ndarray) -> bool:
         return False
     if p[P_XLAM] >= 1.0 or p[P_VM] <= 0.0 or p[P_USAT] <= p[P_OVERLAP] or p[P_OVERLAP] < 0.0:
         return False
+    if p[P_FULLS] > 1.0 or p[P_FULLE] > 1.0:
+        return False
+    if p[P_FULLS] * p[P_USAT] <= p[P_OVERLAP] or p[P_FULLE] * p[P_USAT] <= p[P_OVERLAP]:
+        return False
     if p[P_K] < 1.0 or p[P_LAMBDA] < 0.0 or p[P_XI] < 0.0 or p[P_BETA] <= 0.0:
         return False
     if p[P_FS] < p[P_FC] or p[P_FC] < 0.0 or p[P_FV] < 0.0 or p[P_VST] <= 0.0:
@@ -289,7 +295,8 @@ def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
     """
     valve_constants(
         p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
-        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc, p[P_NS], p[P_NE],
+        p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc, p[P_NS], p[P_NE], p[P_FULLS],
+        p[P_FULLE],
     )  # fmt: skip
     n = N_MAP_KNOTS
     map_constants(p[P_MAP_CS:P_MAP_CS + n], p[P_MAP_CE:P_MAP_CE + n], p[P_MAP_BS:P_MAP_BS + 3],

@@ -170,6 +170,10 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
                   "opening shape exponent of the supply path (1: linear ramp)"),
     ParameterSpec("valve_n_exhaust", "", 1.0, 0.34, 4.0, "valve",
                   "opening shape exponent of the exhaust path (1: linear ramp)"),
+    ParameterSpec("valve_full_supply", "", 1.0, 0.2, 1.0, "valve",
+                  "fraction of u_sat at which the supply path is fully open"),
+    ParameterSpec("valve_full_exhaust", "", 1.0, 0.2, 1.0, "valve",
+                  "fraction of u_sat at which the exhaust path is fully open"),
     # --- heat transfer ---
     ParameterSpec("k", "", 1.2, 1.0, 1.4, "heat", "polytropic index"),
     ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e6, "heat", "constant heat-transfer coeff."),
@@ -286,6 +290,8 @@ P_CLEAK = P["valve_C_leak"]
 P_LEAKW = P["valve_leak_width"]
 P_NS = P["valve_n_supply"]
 P_NE = P["valve_n_exhaust"]
+P_FULLS = P["valve_full_supply"]
+P_FULLE = P["valve_full_exhaust"]
 P_K = P["k"]
 P_LAMBDA = P["lambda"]
 P_XI = P["xi"]

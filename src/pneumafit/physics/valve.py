@@ -24,10 +24,10 @@ chamber exceeds supply pressure.
 Command dependence. For a command u (V), with overlap (dead band) u_0 and
 full opening at u_sat:
 
-    C_S(u) = C_S,max open(u)^n_S + 2 C_leak sigma(+u / w)
-    C_E(u) = C_E,max open(-u)^n_E + 2 C_leak sigma(-u / w)
+    C_S(u) = C_S,max open_S(u)^n_S + 2 C_leak sigma(+u / w)
+    C_E(u) = C_E,max open_E(-u)^n_E + 2 C_leak sigma(-u / w)
 
-    open(u) = min(ramp(u - u_0) / (u_sat - u_0), 1)
+    open_S(u) = min(ramp(u - u_0) / (f_S u_sat - u_0), 1)     (open_E likewise, f_E)
     sigma(z) = (1 + z / sqrt(1 + z^2)) / 2       (a smooth step from 0 to 1)
 
 where ramp is max(z, 0) with its corner rounded over |z| < eps = 0.05 V
@@ -48,8 +48,23 @@ the linear ramp at 0.47-0.57 g/s RMS on the flow-level means (20-30x the
 flow meter noise), the exponents at 0.04-0.13 g/s
 (``benchmarks/bench_recovery.py``, docs/identification.md). With n >= 1/3
 the slope of open^n stays finite at the rounded dead-band corner (open ~
-t^3 there). The second
-term is the centre leakage through the overlapped lands: equal to C_leak on
+t^3 there).
+
+The full-opening fractions f_S, f_E (1 by default: both paths open fully at
+u_sat) let a path reach its full area before u_sat, as a spool whose port is
+wholly uncovered before the end of its travel does; a servo-valve's supply
+and exhaust paths saturate at their own commands (7-9.8 V of 10 on the
+independently written rigs of ``benchmarks/bench_recovery.py``). Without
+them a progressive law must reach its full-opening level at u_sat, which
+bends it wrong between the flow test's levels (power-law paths saturating
+at 9.1 and 9.6 V, the sparse plan's levels 0.6, 1.5, 4 and 10 V: the fitted
+law 6-11 % low at 6-8 V). Above f u_sat the opening is clipped at 1, a
+corner in C(u) left sharp, unlike the dead band's: f = 1 must give the
+earlier law's values bit for bit, and the fixed-step error of a corner
+(about 1 Pa at 0.5 ms, as for the dead band's before it was rounded) is far
+below a pressure sensor's noise.
+
+The second term is the centre leakage through the overlapped lands: equal to C_leak on
 both paths at u = 0, and shifted towards the path that opens as the spool
 moves (the land on that side shortens, the other lengthens). It gives the
 valve its non-zero pressure gain at the centre, which sets the equilibrium
@@ -218,6 +233,8 @@ def conductances(
     leak_width: float,
     n_supply: float = 1.0,
     n_exhaust: float = 1.0,
+    full_supply: float = 1.0,
+    full_exhaust: float = 1.0,
 ) -> tuple[float, float]:
     """Sonic conductances (C_S(u), C_E(u)) of the supply and exhaust paths.
 
@@ -237,6 +254,9 @@ def conductances(
         Command scale w (V) over which the leakage shifts between paths.
     n_supply, n_exhaust : float
         Opening shape exponents of the two paths (-), > 0; 1 is the linear ramp.
+    full_supply, full_exhaust : float
+        Fractions of ``u_sat`` at which each path is fully open (-), in
+        (overlap / u_sat, 1]; 1 opens both fully at u_sat.
 
     Returns
     -------
@@ -246,8 +266,10 @@ def conductances(
     z = u / leak_width
     sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
     sig_e = 1.0 - sig_s
-    c_s = c_supply * _shaped(opening(u, overlap, u_sat), n_supply) + 2.0 * c_leak * sig_s
-    c_e = c_exhaust * _shaped(opening(-u, overlap, u_sat), n_exhaust) + 2.0 * c_leak * sig_e
+    o_s = opening(u, overlap, full_supply * u_sat)
+    o_e = opening(-u, overlap, full_exhaust * u_sat)
+    c_s = c_supply * _shaped(o_s, n_supply) + 2.0 * c_leak * sig_s
+    c_e = c_exhaust * _shaped(o_e, n_exhaust) + 2.0 * c_leak * sig_e
     return c_s, c_e
 
 
@@ -264,8 +286,8 @@ def _shaped(fraction: float, n: float) -> float:
 VC_CS, VC_CE, VC_BS, VC_BE, VC_IBS, VC_IBE, VC_M, VC_XLAM = 0, 1, 2, 3, 4, 5, 6, 7
 VC_AS, VC_QS, VC_AE, VC_QE, VC_OVER, VC_IRANGE, VC_LEAK2, VC_IW = 8, 9, 10, 11, 12, 13, 14, 15
 VC_PE, VC_IPE, VC_TA, VC_RTA = 16, 17, 18, 19
-VC_NS, VC_NE = 20, 21
-NVC = 22
+VC_NS, VC_NE, VC_IRANGE_E = 20, 21, 22  # VC_IRANGE is the supply path's
+NVC = 23
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -285,6 +307,8 @@ def valve_constants(
     vc: np.ndarray,
     n_supply: float = 1.0,
     n_exhaust: float = 1.0,
+    full_supply: float = 1.0,
+    full_exhaust: float = 1.0,
 ) -> None:
     """Fill ``vc`` (length NVC) with the constants of :func:`flows_core`.
 
@@ -304,7 +328,8 @@ def valve_constants(
     vc[VC_AS], vc[VC_QS] = laminar_tail(b_supply, m, x_lam)
     vc[VC_AE], vc[VC_QE] = laminar_tail(b_exhaust, m, x_lam)
     vc[VC_OVER] = overlap
-    vc[VC_IRANGE] = 1.0 / (u_sat - overlap)
+    vc[VC_IRANGE] = 1.0 / (full_supply * u_sat - overlap)
+    vc[VC_IRANGE_E] = 1.0 / (full_exhaust * u_sat - overlap)
     vc[VC_LEAK2] = 2.0 * c_leak
     vc[VC_IW] = 1.0 / leak_width
     vc[VC_PE] = p_exhaust
@@ -381,7 +406,7 @@ def flows_core(
     z = u * vc[VC_IW]
     sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
     o_s = _open(u, vc[VC_OVER], vc[VC_IRANGE])
-    o_e = _open(-u, vc[VC_OVER], vc[VC_IRANGE])
+    o_e = _open(-u, vc[VC_OVER], vc[VC_IRANGE_E])
     if not linear:
         o_s = _shaped(o_s, vc[VC_NS])
         o_e = _shaped(o_e, vc[VC_NE])
@@ -434,6 +459,8 @@ def valve_flows(
     leak_width: float,
     n_supply: float = 1.0,
     n_exhaust: float = 1.0,
+    full_supply: float = 1.0,
+    full_exhaust: float = 1.0,
 ) -> tuple[float, float, float]:
     """Flows of one 3-way servo-distributor into its chamber.
 
@@ -454,5 +481,5 @@ def valve_flows(
     vc = np.empty(NVC)
     valve_constants(c_supply, b_supply, c_exhaust, b_exhaust, m, x_lam, overlap, u_sat,
                     c_leak, leak_width, p_exhaust, t_ambient, vc, n_supply,
-                    n_exhaust)  # fmt: skip
+                    n_exhaust, full_supply, full_exhaust)  # fmt: skip
     return flows_core(u, p, 1.0 / p, t, math.sqrt(T_REF / t), p_supply, 1.0 / p_supply, vc)

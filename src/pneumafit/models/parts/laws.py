@@ -84,6 +84,8 @@ ISO6358 = register_valve_law(
             "valve_leak_width",
             "valve_n_supply",
             "valve_n_exhaust",
+            "valve_full_supply",
+            "valve_full_exhaust",
         ),
         description="parametric ISO 6358 law (pneumafit.physics.valve)",
     )

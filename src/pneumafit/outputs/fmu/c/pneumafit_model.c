@@ -42,6 +42,10 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters */
         p[PF_P_valve_C_leak] < 0.0 || p[PF_P_valve_leak_width] <= 0.0)
         return 0;
     if (p[PF_P_valve_n_supply] < 1.0 / 3.0 || p[PF_P_valve_n_exhaust] < 1.0 / 3.0) return 0;
+    if (p[PF_P_valve_full_supply] > 1.0 || p[PF_P_valve_full_exhaust] > 1.0 ||
+        p[PF_P_valve_full_supply] * p[PF_P_valve_u_sat] <= p[PF_P_valve_overlap] ||
+        p[PF_P_valve_full_exhaust] * p[PF_P_valve_u_sat] <= p[PF_P_valve_overlap])
+        return 0;
     if (p[PF_P_valve_b_supply] < 0.0 || p[PF_P_valve_b_exhaust] < 0.0 ||
         p[PF_P_valve_b_supply] >= p[PF_P_valve_x_laminar] ||
         p[PF_P_valve_b_exhaust] >= p[PF_P_valve_x_laminar])
@@ -143,7 +147,7 @@ static void valve_flows(const pf_model *m, double u, double pres, double inv_pre
     double z = u * m->v_iw;
     double sig_s = 0.5 * (1.0 + z / sqrt(1.0 + z * z));
     double o_s = shaped(open_fn(u, m->v_over, m->v_irange), m->v_ns);
-    double o_e = shaped(open_fn(-u, m->v_over, m->v_irange), m->v_ne);
+    double o_e = shaped(open_fn(-u, m->v_over, m->v_irange_e), m->v_ne);
     double c_s = m->v_cs * o_s + m->v_leak2 * sig_s;
     double c_e = m->v_ce * o_e + m->v_leak2 * (1.0 - sig_s);
     const double k = PF_RHO0;
@@ -394,7 +398,9 @@ void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants 
     laminar_tail(m->v_bs, m->v_m, m->v_xlam, &m->v_as, &m->v_qs);
     laminar_tail(m->v_be, m->v_m, m->v_xlam, &m->v_ae, &m->v_qe);
     m->v_over = p[PF_P_valve_overlap];
-    m->v_irange = 1.0 / (p[PF_P_valve_u_sat] - p[PF_P_valve_overlap]);
+    m->v_irange = 1.0 / (p[PF_P_valve_full_supply] * p[PF_P_valve_u_sat] - p[PF_P_valve_overlap]);
+    m->v_irange_e =
+        1.0 / (p[PF_P_valve_full_exhaust] * p[PF_P_valve_u_sat] - p[PF_P_valve_overlap]);
     m->v_leak2 = 2.0 * p[PF_P_valve_C_leak];
     m->v_iw = 1.0 / p[PF_P_valve_leak_width];
     m->v_pe = p[PF_P_exhaust_pressure];

@@ -105,8 +105,17 @@ def test_for_model_fixes_the_rig_and_frees_valve_heat_friction() -> None:
     assert set(ParameterSet.for_model("constant-lambda").names) <= set(PARAMETER_NAMES)
 
 
-def test_the_full_opening_fractions_are_free_and_at_most_one() -> None:
-    ps = ParameterSet.for_model("convection", RIG)
+def test_friction_levels_are_bounded_by_the_actuators_largest_force() -> None:
+    """Static and Coulomb friction may not exceed P_s pi D^2 / 4, the most the
+    air can push (the rig's supply pressure and bore): 7 bar on 32 mm is
+    563 N, 10 bar on 80 mm 5027 N; the valve's full-opening fractions are
+    free and bounded by 1 (fully open at u_sat at the latest)."""
+    for bore, ps_abs in ((0.032, 7.0e5), (0.080, 10.0e5)):
+        ps = ParameterSet.for_model("convection", {**RIG, "bore": bore, "supply_pressure": ps_abs})
+        ceiling = ps_abs * math.pi * bore**2 / 4.0
+        assert ps["friction_static"].upper == pytest.approx(ceiling, rel=1e-12)
+        assert ps["friction_coulomb"].upper == pytest.approx(ceiling, rel=1e-12)
+    assert ps["friction_viscous"].upper == 1e5  # not a force level
     for name in ("valve_full_supply", "valve_full_exhaust"):
         assert not ps[name].fixed and ps[name].upper == 1.0 and ps[name].value == 1.0
 

@@ -908,6 +908,8 @@ class ParameterSet:
                 continue
             scale = "log" if name in _LOG_SCALE or name.startswith(_MAP_C_PREFIX) else "linear"
             lower, upper = _FIT_BOUNDS.get(name, (spec.lower, spec.upper))
+            if name in _FORCE_BOUNDED:
+                upper = min(upper, max(force_ceiling(values), 2.0 * lower))
             value = float(np.clip(values[name], lower, upper))
             plist.append(
                 Parameter(
@@ -956,6 +958,28 @@ def _map_free() -> tuple[str, ...]:
     cs = [n for n, f in zip(MAP_CS_NAMES, MAP_KNOTS, strict=True) if f > -0.1]
     ce = [n for n, f in zip(MAP_CE_NAMES, MAP_KNOTS, strict=True) if f < 0.1]
     return (*cs, *ce, *MAP_BS_NAMES, *MAP_BE_NAMES, "valve_m")
+
+
+#: Friction levels bounded by the actuator's largest force
+#: (:func:`force_ceiling`).
+_FORCE_BOUNDED = ("friction_static", "friction_coulomb")
+
+
+def force_ceiling(values: Mapping[str, float]) -> float:
+    """The largest force the actuator's air can exert (N): supply pressure on
+    the whole bore, P_s pi D^2 / 4, with vacuum on the other side.
+
+    A friction level above it would hold the piston against any command, so
+    a rig whose recordings show it moving bounds its static and Coulomb
+    friction by it. Without it a fit whose valve law misses the rig's could
+    send the LuGre breakaway force to its generic bound (1e4 N against a
+    32-mm bore's 560 N: table-valve-asym, sparse plan, seed 1), and the
+    held-out steps stuck.
+    """
+    bore = float(values.get("bore", SPECS["bore"].default))
+    return float(values.get("supply_pressure", SPECS["supply_pressure"].default)) * (
+        math.pi * bore * bore / 4.0
+    )
 
 
 _LOG_SCALE = {

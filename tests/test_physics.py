@@ -164,6 +164,25 @@ def test_full_opening_fractions_saturate_each_path_at_its_own_command():
     assert not kernel.check_parameters(vec)
 
 
+def test_null_offset_shifts_the_whole_characteristic():
+    """C(u; b) = C(u - b; 0) for both paths, the centre leakage included:
+    b = 0 is the earlier law bit for bit, and the compiled flow
+    (valve_constants, flows_core) shifts likewise."""
+    base = (1e-8, 1.1e-8, 0.3, 10.0, 2e-11, 0.3, 1.5, 0.8, 0.9, 1.0)
+    for u in (-10.0, -4.0, -0.35, -0.1, 0.0, 0.12, 0.4, 3.0, 9.5):
+        assert valve.conductances(u, *base) == valve.conductances(u, *base, 0.0)
+        for b in (-0.2, 0.07):
+            assert valve.conductances(u, *base, b) == pytest.approx(
+                valve.conductances(u - b, *base, 0.0), rel=1e-13, abs=1e-30
+            )
+    args = (7e5, 293.15, 1.013e5, 1e-8, 0.3, 1.1e-8, 0.3, 0.5, 0.995, 0.3, 10.0, 2e-11, 0.3)
+    for u in (-3.0, -0.2, 0.0, 0.45, 2.0):
+        for pres in (1.5e5, 4e5, 6.9e5):
+            q = valve.valve_flows(u, pres, 293.15, *args, 1.5, 0.8, 0.9, 1.0, 0.07)
+            ref = valve.valve_flows(u - 0.07, pres, 293.15, *args, 1.5, 0.8, 0.9, 1.0, 0.0)
+            assert q == pytest.approx(ref, rel=1e-12, abs=1e-18)
+
+
 def test_convection_law_zero_at_wall_temperature_and_scaled_form():
     mu, k = air.viscosity(293.15), air.conductivity(293.15)
     assert heat.convection_coefficient(0.4, 0.27, 5e5, 293.15, 293.15, 0.032, mu, k) == 0.0

@@ -934,7 +934,7 @@ class ParameterSet:
 _DEFAULT_FREE_VALVE = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
     "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
-    "valve_full_supply", "valve_full_exhaust",
+    "valve_full_supply", "valve_full_exhaust", "valve_null_offset",
 )  # fmt: skip
 _FRICTION = FRICTION_PARAMETERS["switch"]
 #: Prefix of the valve map's knot conductances (log scale).
@@ -1002,6 +1002,7 @@ _FIT_BOUNDS: dict[str, tuple[float, float]] = {
     "valve_n_exhaust": (0.4, 3.0),
     "valve_full_supply": (0.3, 1.0),
     "valve_full_exhaust": (0.3, 1.0),
+    "valve_null_offset": (-0.25, 0.25),
     "xi": (1e-3, 10.0),
     "beta": (0.05, 0.6),
     "lambda": (0.01, 1e4),

@@ -79,7 +79,7 @@ from pneumafit.identification.starts import (
     seal_start,
     valve_starts,
 )
-from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS
+from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS, SPECS
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     HEAT_PARAMETERS,
@@ -115,7 +115,7 @@ __all__ = [
 VALVE_PARAMETERS: tuple[str, ...] = (
     "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
     "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
-    "valve_full_supply", "valve_full_exhaust",
+    "valve_full_supply", "valve_full_exhaust", "valve_null_offset",
 )  # fmt: skip
 #: Friction parameters of the switch model (a structure's own list:
 #: :attr:`ModelStructure.friction_parameter_names`).
@@ -224,6 +224,12 @@ FULL_STARTS = (0.9, 0.75)
 #: A fitted full-opening fraction this close to 1 is held at 1: the path does
 #: not saturate within the flow levels, and the bound would be flagged.
 FULL_AT_ONE = 1e-3
+#: The spool's null offset (V), fitted last in the valve stage.
+NULL_PARAMETER = "valve_null_offset"
+#: Starting null offsets (V) besides 0 (the law without it): the dead band's
+#: edges move by the offset, and from 0 the flow levels near them alone
+#: set its sign.
+NULL_STARTS = (-0.05, 0.05)
 #: Level of the likelihood-ratio test that keeps the shape exponents (the
 #: linear ramp is the null hypothesis; chi-square with one degree of freedom
 #: per exponent): 0.999, so a linear valve keeps its linear law in all but
@@ -254,23 +260,34 @@ def _shape_starts(values: Mapping[str, float], shapes: Sequence[str]) -> list[di
 
 
 def _full_starts(values: Mapping[str, float], fulls: Sequence[str]) -> list[dict[str, float]]:
-    """Starts of the saturating valve law: every fraction of :data:`FULL_STARTS`
-    for the free full-opening fractions ``fulls``, the rest at ``values``.
+    """Starts of the saturating valve law: ``values`` (the law without the
+    fractions, at f = 1), then every fraction of :data:`FULL_STARTS` for the
+    free full-opening fractions ``fulls``, the rest at ``values``.
 
     A start whose path would open fully inside the dead band is left out.
     """
     floor = float(values["valve_overlap"]) / float(values["valve_u_sat"])
-    return [{**values, **{n: f for n in fulls}} for f in FULL_STARTS if f > floor + 0.05]
+    return [dict(values)] + [
+        {**values, **{n: f for n in fulls}} for f in FULL_STARTS if f > floor + 0.05
+    ]
+
+
+def _null_starts(values: Mapping[str, float], null: Sequence[str]) -> list[dict[str, float]]:
+    """Starts of the null offset: ``values`` (the law without it, at 0), then
+    each of :data:`NULL_STARTS` (V), the rest at ``values``."""
+    return [dict(values)] + [{**values, **{n: b for n in null}} for b in NULL_STARTS]
 
 
 def _informed_valve(
     campaign: Campaign, values: Mapping[str, float], names: Sequence[str]
 ) -> tuple[str, ...]:
-    """``names`` without the opening shape exponents and full-opening fractions
-    the fit flow tests do not resolve."""
+    """``names`` without the opening shape exponents, full-opening fractions and
+    null offset the fit flow tests do not resolve."""
     known = shape_informed(campaign, values)
     drop = {SHAPE_PARAMETERS[path] for path, ok in known.items() if not ok}
     drop |= {FULL_PARAMETERS[p] for p, ok in full_informed(campaign, values).items() if not ok}
+    if not all(known.values()):  # the offset moves both paths' edges: both measured
+        drop.add(NULL_PARAMETER)
     return tuple(n for n in names if n not in drop)
 
 
@@ -1068,7 +1085,8 @@ def identify(
         values.update(starts[0])
         shapes = tuple(n for n in valve_free if n in SHAPE_PARAMETERS.values())
         fulls = tuple(n for n in valve_free if n in FULL_PARAMETERS.values())
-        linear = tuple(n for n in valve_free if n not in shapes and n not in fulls)
+        null = tuple(n for n in valve_free if n == NULL_PARAMETER)
+        linear = tuple(n for n in valve_free if n not in (*shapes, *fulls, *null))
         run_stage(stage, flows, linear, starts, seeds[0])
         valve_free, notes = linear, []
         # the linear ramp nests the shaped law, and the shaped law the
@@ -1078,6 +1096,7 @@ def identify(
         for extra, what, make_starts in (
             (shapes, "opening shape exponents", _shape_starts),
             (fulls, "full-opening fractions", _full_starts),
+            (null, "null offset", _null_starts),
         ):
             if not extra:
                 continue
@@ -1099,7 +1118,7 @@ def identify(
             else:
                 stage.estimate = before
                 values.update(before_values)
-                values.update({n: 1.0 for n in extra})
+                values.update({n: float(SPECS[n].default) for n in extra})
             say(f"valve: {notes[-1]}")
         stage.free = valve_free
         if notes:

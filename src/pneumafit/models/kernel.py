@@ -107,6 +107,7 @@ from pneumafit.models.layout import (
     P_MASS,
     P_NE,
     P_NS,
+    P_NULL,
     P_OVERLAP,
     P_PE,
     P_PS,
@@ -296,7 +297,7 @@ def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
     valve_constants(
         p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
         p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc, p[P_NS], p[P_NE], p[P_FULLS],
-        p[P_FULLE],
+        p[P_FULLE], p[P_NULL],
     )  # fmt: skip
     n = N_MAP_KNOTS
     map_constants(p[P_MAP_CS:P_MAP_CS + n], p[P_MAP_CE:P_MAP_CE + n], p[P_MAP_BS:P_MAP_BS + 3],

@@ -174,6 +174,8 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
                   "fraction of u_sat at which the supply path is fully open"),
     ParameterSpec("valve_full_exhaust", "", 1.0, 0.2, 1.0, "valve",
                   "fraction of u_sat at which the exhaust path is fully open"),
+    ParameterSpec("valve_null_offset", "V", 0.0, -5.0, 5.0, "valve",
+                  "command at which the spool is centred (null offset)"),
     # --- heat transfer ---
     ParameterSpec("k", "", 1.2, 1.0, 1.4, "heat", "polytropic index"),
     ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e6, "heat", "constant heat-transfer coeff."),
@@ -292,6 +294,7 @@ P_NS = P["valve_n_supply"]
 P_NE = P["valve_n_exhaust"]
 P_FULLS = P["valve_full_supply"]
 P_FULLE = P["valve_full_exhaust"]
+P_NULL = P["valve_null_offset"]
 P_K = P["k"]
 P_LAMBDA = P["lambda"]
 P_XI = P["xi"]

@@ -64,6 +64,13 @@ earlier law's values bit for bit, and the fixed-step error of a corner
 (about 1 Pa at 0.5 ms, as for the dead band's before it was rounded) is far
 below a pressure sensor's noise.
 
+The null offset b (``valve_null_offset``, 0 by default) is the command at
+which the spool is centred: the whole characteristic, both paths' edges and
+the centre leakage, is that of u - b. A servo-valve's null drifts with its
+spool and electronics, and a centred spool with b != 0 is what makes a rig's
+supply path open at u_0 + b and its exhaust at -(u_0 - b) (the independently
+written rigs' paths open 0.03-0.05 V apart).
+
 The second term is the centre leakage through the overlapped lands: equal to C_leak on
 both paths at u = 0, and shifted towards the path that opens as the spool
 moves (the land on that side shortens, the other lengthens). It gives the
@@ -235,6 +242,7 @@ def conductances(
     n_exhaust: float = 1.0,
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
+    null_offset: float = 0.0,
 ) -> tuple[float, float]:
     """Sonic conductances (C_S(u), C_E(u)) of the supply and exhaust paths.
 
@@ -257,12 +265,16 @@ def conductances(
     full_supply, full_exhaust : float
         Fractions of ``u_sat`` at which each path is fully open (-), in
         (overlap / u_sat, 1]; 1 opens both fully at u_sat.
+    null_offset : float
+        Command at which the spool is centred (V); the law is that of
+        u - null_offset.
 
     Returns
     -------
     tuple of float
         (C_S, C_E) in m^3/s/Pa.
     """
+    u = u - null_offset
     z = u / leak_width
     sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
     sig_e = 1.0 - sig_s
@@ -286,8 +298,8 @@ def _shaped(fraction: float, n: float) -> float:
 VC_CS, VC_CE, VC_BS, VC_BE, VC_IBS, VC_IBE, VC_M, VC_XLAM = 0, 1, 2, 3, 4, 5, 6, 7
 VC_AS, VC_QS, VC_AE, VC_QE, VC_OVER, VC_IRANGE, VC_LEAK2, VC_IW = 8, 9, 10, 11, 12, 13, 14, 15
 VC_PE, VC_IPE, VC_TA, VC_RTA = 16, 17, 18, 19
-VC_NS, VC_NE, VC_IRANGE_E = 20, 21, 22  # VC_IRANGE is the supply path's
-NVC = 23
+VC_NS, VC_NE, VC_IRANGE_E, VC_NULL = 20, 21, 22, 23  # VC_IRANGE is the supply path's
+NVC = 24
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -309,6 +321,7 @@ def valve_constants(
     n_exhaust: float = 1.0,
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
+    null_offset: float = 0.0,
 ) -> None:
     """Fill ``vc`` (length NVC) with the constants of :func:`flows_core`.
 
@@ -330,6 +343,7 @@ def valve_constants(
     vc[VC_OVER] = overlap
     vc[VC_IRANGE] = 1.0 / (full_supply * u_sat - overlap)
     vc[VC_IRANGE_E] = 1.0 / (full_exhaust * u_sat - overlap)
+    vc[VC_NULL] = null_offset
     vc[VC_LEAK2] = 2.0 * c_leak
     vc[VC_IW] = 1.0 / leak_width
     vc[VC_PE] = p_exhaust
@@ -403,6 +417,7 @@ def flows_core(
     q_net, h_in, q_supply : float
         As :func:`valve_flows`.
     """
+    u = u - vc[VC_NULL]
     z = u * vc[VC_IW]
     sig_s = 0.5 * (1.0 + z / math.sqrt(1.0 + z * z))
     o_s = _open(u, vc[VC_OVER], vc[VC_IRANGE])
@@ -461,6 +476,7 @@ def valve_flows(
     n_exhaust: float = 1.0,
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
+    null_offset: float = 0.0,
 ) -> tuple[float, float, float]:
     """Flows of one 3-way servo-distributor into its chamber.
 
@@ -481,5 +497,5 @@ def valve_flows(
     vc = np.empty(NVC)
     valve_constants(c_supply, b_supply, c_exhaust, b_exhaust, m, x_lam, overlap, u_sat,
                     c_leak, leak_width, p_exhaust, t_ambient, vc, n_supply,
-                    n_exhaust, full_supply, full_exhaust)  # fmt: skip
+                    n_exhaust, full_supply, full_exhaust, null_offset)  # fmt: skip
     return flows_core(u, p, 1.0 / p, t, math.sqrt(T_REF / t), p_supply, 1.0 / p_supply, vc)

@@ -345,6 +345,7 @@ def sample_iso(
     n_exhaust: float = 1.0,
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
+    null_offset: float = 0.0,
 ) -> tuple[list[float], list[float]]:
     """Knot conductances of an ISO 6358 valve (see :func:`map_from_iso`).
 
@@ -361,7 +362,7 @@ def sample_iso(
     for f in MAP_KNOTS:
         cs, ce = conductances.py_func(f * u_sat, c_supply, c_exhaust, overlap, u_sat, c_leak,
                                       leak_width, n_supply, n_exhaust, full_supply,
-                                      full_exhaust)  # fmt: skip
+                                      full_exhaust, null_offset)  # fmt: skip
         c_s.append(max(float(cs), lo))
         c_e.append(max(float(ce), lo))
     return c_s, c_e
@@ -400,10 +401,11 @@ def map_from_iso(values: Mapping[str, float]) -> dict[str, float]:
             f"found none for {missing}"
         )
     iso = {k: float(values[k]) for k in _ISO_KEYS}
-    shape = tuple(
-        float(values.get(n, 1.0))
-        for n in ("valve_n_supply", "valve_n_exhaust", "valve_full_supply", "valve_full_exhaust")
-    )
+    shape = (
+        *(float(values.get(n, 1.0)) for n in
+          ("valve_n_supply", "valve_n_exhaust", "valve_full_supply", "valve_full_exhaust")),
+        float(values.get("valve_null_offset", 0.0)),
+    )  # fmt: skip
     c_s, c_e = sample_iso(*iso.values(), *shape)
     out = dict(zip(MAP_CS_NAMES, c_s, strict=True))
     out.update(zip(MAP_CE_NAMES, c_e, strict=True))

@@ -86,6 +86,7 @@ ISO6358 = register_valve_law(
             "valve_n_exhaust",
             "valve_full_supply",
             "valve_full_exhaust",
+            "valve_null_offset",
         ),
         description="parametric ISO 6358 law (pneumafit.physics.valve)",
     )

@@ -144,10 +144,11 @@ static void valve_flows(const pf_model *m, double u, double pres, double inv_pre
                         double rt, double p_supply, double inv_p_supply, double *q_net,
                         double *h_in, double *q_supply)
 { /* physics.valve.flows_core */
-    double z = u * m->v_iw;
+    double u_c = u - m->v_null; /* the command from the spool's null */
+    double z = u_c * m->v_iw;
     double sig_s = 0.5 * (1.0 + z / sqrt(1.0 + z * z));
-    double o_s = shaped(open_fn(u, m->v_over, m->v_irange), m->v_ns);
-    double o_e = shaped(open_fn(-u, m->v_over, m->v_irange_e), m->v_ne);
+    double o_s = shaped(open_fn(u_c, m->v_over, m->v_irange), m->v_ns);
+    double o_e = shaped(open_fn(-u_c, m->v_over, m->v_irange_e), m->v_ne);
     double c_s = m->v_cs * o_s + m->v_leak2 * sig_s;
     double c_e = m->v_ce * o_e + m->v_leak2 * (1.0 - sig_s);
     const double k = PF_RHO0;
@@ -399,6 +400,7 @@ void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants 
     laminar_tail(m->v_be, m->v_m, m->v_xlam, &m->v_ae, &m->v_qe);
     m->v_over = p[PF_P_valve_overlap];
     m->v_irange = 1.0 / (p[PF_P_valve_full_supply] * p[PF_P_valve_u_sat] - p[PF_P_valve_overlap]);
+    m->v_null = p[PF_P_valve_null_offset];
     m->v_irange_e =
         1.0 / (p[PF_P_valve_full_exhaust] * p[PF_P_valve_u_sat] - p[PF_P_valve_overlap]);
     m->v_leak2 = 2.0 * p[PF_P_valve_C_leak];

@@ -88,17 +88,28 @@ def opening_levels(campaign: Campaign, values: Mapping[str, float]) -> dict[str,
     return {"supply": int(np.sum(lv > width)), "exhaust": int(np.sum(lv < -width))}
 
 
-def shape_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str, bool]:
+def shape_informed(
+    campaign: Campaign, values: Mapping[str, float], levels: int = SHAPE_LEVELS
+) -> dict[str, bool]:
     """Which paths' opening shapes (``valve_n_supply``, ``valve_n_exhaust``) the fit
     flow tests resolve.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    values : mapping
+        Model values (``valve_u_sat`` sets the tolerance of 0 V, V).
+    levels : int
+        Distinct levels a path needs (:data:`SHAPE_LEVELS`; :func:`full_informed`
+        asks for :data:`FULL_LEVELS`).
 
     Returns
     -------
     dict
-        ``{"supply": bool, "exhaust": bool}``: at least :data:`SHAPE_LEVELS`
-        distinct levels on that side (:func:`opening_levels`).
+        ``{"supply": bool, "exhaust": bool}``: at least ``levels`` distinct
+        levels on that side (:func:`opening_levels`).
     """
-    return {path: n >= SHAPE_LEVELS for path, n in opening_levels(campaign, values).items()}
+    return {path: n >= levels for path, n in opening_levels(campaign, values).items()}
 
 
 #: Distinct opening levels a path needs before its full-opening fraction
@@ -108,15 +119,9 @@ FULL_LEVELS = SHAPE_LEVELS + 1
 
 
 def full_informed(campaign: Campaign, values: Mapping[str, float]) -> dict[str, bool]:
-    """Which paths' full-opening fractions the fit flow tests resolve.
-
-    Returns
-    -------
-    dict
-        ``{"supply": bool, "exhaust": bool}``: at least :data:`FULL_LEVELS`
-        distinct levels on that side (:func:`opening_levels`).
-    """
-    return {path: n >= FULL_LEVELS for path, n in opening_levels(campaign, values).items()}
+    """Which paths' full-opening fractions the fit flow tests resolve: at least
+    :data:`FULL_LEVELS` distinct levels on that side (:func:`shape_informed`)."""
+    return shape_informed(campaign, values, FULL_LEVELS)
 
 
 def centre_measured(campaign: Campaign, values: Mapping[str, float]) -> bool:

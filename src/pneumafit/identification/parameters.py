@@ -34,7 +34,12 @@ from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import PARAMETER_NAMES, SPECS
 from pneumafit.models.parts import VALVE_LAWS, ValveLaw
-from pneumafit.models.structure import FRICTION_PARAMETERS, ModelStructure, get_structure
+from pneumafit.models.structure import (
+    FRICTION_PARAMETERS,
+    VALVE_PARAMETERS,
+    ModelStructure,
+    get_structure,
+)
 
 __all__ = [
     "FORMAT",
@@ -881,7 +886,7 @@ class ParameterSet:
         structure = get_structure(model)
         rig = dict(rig or {})
         heat_used = set(structure.parameter_names)
-        default_free = set(_DEFAULT_FREE_VALVE + _FRICTION) | (
+        default_free = set(DEFAULT_FREE_VALVE + _FRICTION) | (
             heat_used & {"xi", "beta", "lambda", "k"}
         )
         free_set = set(free) if free is not None else default_free
@@ -895,7 +900,7 @@ class ParameterSet:
         valve_used = set(structure.valve_parameter_names)
         friction_used = set(structure.friction_parameter_names)
         if structure.valve == "map" and free is None:
-            free_set = (free_set - set(_DEFAULT_FREE_VALVE)) | set(_map_free())
+            free_set = (free_set - set(DEFAULT_FREE_VALVE)) | set(_map_free())
         for name in PARAMETER_NAMES:
             spec = SPECS[name]
             if spec.group == "heat" and name not in heat_used:
@@ -929,13 +934,15 @@ class ParameterSet:
         return cls(plist)
 
 
-#: Valve parameters fitted by default (x_laminar and u_sat are not identifiable
-#: from flow tests whose commands stop at full scale).
-_DEFAULT_FREE_VALVE = (
-    "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
-    "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
-    "valve_full_supply", "valve_full_exhaust", "valve_null_offset",
-)  # fmt: skip
+#: ISO 6358 valve parameters held by default: x_laminar and u_sat are not
+#: identifiable from flow tests whose commands stop at full scale.
+_HELD_VALVE = ("valve_x_laminar", "valve_u_sat")
+#: Valve parameters fitted by default (the valve stage's, stage a): the ISO
+#: 6358 law's own list (:data:`pneumafit.models.structure.VALVE_PARAMETERS`)
+#: without :data:`_HELD_VALVE`.
+DEFAULT_FREE_VALVE: tuple[str, ...] = tuple(
+    n for n in VALVE_PARAMETERS["iso6358"] if n not in _HELD_VALVE
+)
 _FRICTION = FRICTION_PARAMETERS["switch"]
 #: Prefix of the valve map's knot conductances (log scale).
 _MAP_C_PREFIX = ("valve_map_CS_", "valve_map_CE_")

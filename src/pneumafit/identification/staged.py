@@ -57,7 +57,12 @@ from pneumafit.identification.optimise import (
     laplace_covariance,
     laplace_summary,
 )
-from pneumafit.identification.parameters import Normal, Parameter, ParameterSet
+from pneumafit.identification.parameters import (
+    DEFAULT_FREE_VALVE,
+    Normal,
+    Parameter,
+    ParameterSet,
+)
 from pneumafit.identification.problem import (
     MAX_STEP,
     NOISE_POOLING,
@@ -111,12 +116,9 @@ __all__ = [
     "identify",
 ]
 
-#: Valve parameters fitted in stage (a).
-VALVE_PARAMETERS: tuple[str, ...] = (
-    "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
-    "valve_overlap", "valve_C_leak", "valve_leak_width", "valve_n_supply", "valve_n_exhaust",
-    "valve_full_supply", "valve_full_exhaust", "valve_null_offset",
-)  # fmt: skip
+#: Valve parameters fitted in stage (a) (the ISO 6358 law's, without the two
+#: held ones: :data:`pneumafit.identification.parameters.DEFAULT_FREE_VALVE`).
+VALVE_PARAMETERS: tuple[str, ...] = DEFAULT_FREE_VALVE
 #: Friction parameters of the switch model (a structure's own list:
 #: :attr:`ModelStructure.friction_parameter_names`).
 FRICTION_PARAMETERS: tuple[str, ...] = STRUCTURE_FRICTION["switch"]

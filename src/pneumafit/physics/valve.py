@@ -60,9 +60,10 @@ bends it wrong between the flow test's levels (power-law paths saturating
 at 9.1 and 9.6 V, the sparse plan's levels 0.6, 1.5, 4 and 10 V: the fitted
 law 6-11 % low at 6-8 V). Above f u_sat the opening is clipped at 1, a
 corner in C(u) left sharp, unlike the dead band's: f = 1 must give the
-earlier law's values bit for bit, and the fixed-step error of a corner
-(about 1 Pa at 0.5 ms, as for the dead band's before it was rounded) is far
-below a pressure sensor's noise.
+earlier law's values bit for bit, and the corner's fixed-step error is far
+below a pressure sensor's noise (a 6-V sine command through a corner at
+4 V, RK4 at 1 and 0.5 ms against DP5 at 2 us: 0.031 and 0.020 Pa, 0.001 Pa
+without the corner).
 
 The null offset b (``valve_null_offset``, 0 by default) is the command at
 which the spool is centred: the whole characteristic, both paths' edges and

@@ -272,6 +272,9 @@ def fit_least_squares(
     tol: float = 1e-8,
     stall: tuple[int, float] | None = None,
     progress: Progress | Callable[[str], None] | None = None,
+    candidates: Sequence[Mapping[str, float]] = (),
+    n_screened: int = 1,
+    screen_nfev: int = 8,
 ) -> PointEstimate:
     """Maximise the profile log-likelihood from one or more starts.
 
@@ -307,6 +310,18 @@ def fit_least_squares(
         every few seconds (:class:`pneumafit.progress.Progress`). A callable
         receives those lines (wrapped in a ``Progress`` labelled
         ``least squares``). Reporting changes no number of the fit.
+    candidates : sequence of mapping, optional
+        Further starts that are only screened: a short solve from each
+        (``screen_nfev`` iterations, one round), and the ``n_screened`` best
+        ends are solved in full after ``starts``. For a basin that the usual
+        starts miss (the friction law's Stribeck bump: from a bump no larger
+        than the Coulomb level it collapses onto it, and the Stribeck
+        velocity then has no gradient) at less than a full solve per
+        candidate.
+    n_screened : int
+        How many of the screened candidates become starts.
+    screen_nfev : int
+        Iterations of each screening solve.
 
     Returns
     -------
@@ -324,6 +339,20 @@ def fit_least_squares(
         b = np.where(np.isfinite(hi), hi, 10.0)
         z_starts.append(rng.uniform(a, b))
     n0 = likelihood.n_evaluations
+    if candidates and n_screened > 0:
+        # a short solve from each (one round of screen_nfev iterations, the
+        # noise weights of its start held): the likelihood at a candidate
+        # itself ranks bumps by how far the other parameters are from
+        # fitting them, not by the basin they lead to
+        screen = fit_least_squares(
+            likelihood, starts=candidates, max_nfev=screen_nfev, max_reweight=1, tol=tol,
+            stall=stall, progress=progress,
+        )  # fmt: skip
+        ranked = sorted(
+            (r for r in screen.starts if math.isfinite(r["log_likelihood"])),
+            key=lambda r: -r["log_likelihood"],
+        )
+        z_starts.extend(ps.to_internal(r["estimate"]) for r in ranked[:n_screened])
     best: tuple[float, NDArray[np.float64], dict[str, Any]] | None = None
     records: list[dict[str, Any]] = []
     width = np.where(np.isfinite(hi - lo), hi - lo, 1.0)

@@ -82,6 +82,7 @@ from pneumafit.identification.starts import (
     friction_starts,
     heat_starts,
     seal_start,
+    stribeck_candidates,
     valve_starts,
 )
 from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS, SPECS
@@ -898,12 +899,13 @@ def _least_squares(
     stall: tuple[int, float] | None = None,
     progress: Progress | None = None,
     max_reweight: int = 6,
+    candidates: Sequence[Mapping[str, float]] = (),
 ) -> PointEstimate:
     """Multi-start least squares (see :func:`fit_least_squares`)."""
     like = LogLikelihood(problem, parameters)
     return fit_least_squares(
         like, starts=starts, n_random_starts=random_starts, seed=seed, max_nfev=max_nfev,
-        stall=stall, progress=progress, max_reweight=max_reweight,
+        stall=stall, progress=progress, max_reweight=max_reweight, candidates=candidates,
     )  # fmt: skip
 
 
@@ -999,6 +1001,7 @@ def identify(
         random_starts: int = 0,
         explicit_initial: bool = False,
         label: str | None = None,
+        candidates: Sequence[Mapping[str, float]] = (),
     ) -> Problem:
         # stages a-c profile the initial-state errors (cheap, linearised at the
         # first start); the joint stage fits the initial states as parameters
@@ -1030,6 +1033,7 @@ def identify(
                 opts.joint_iterations if explicit_initial else 60,
                 stall,
                 task,
+                candidates=candidates,
             )
         stage.estimate, stage.seconds = est, time.perf_counter() - t0
         evaluations += est.n_evaluations
@@ -1200,6 +1204,7 @@ def identify(
                 seeds[2],
                 opts.random_starts,
                 label=f"friction ({cand})",
+                candidates=stribeck_candidates(starts[0]),
             )
             tried[cand] = (trial, dict(values), prob.n_data)
             say(
@@ -1224,9 +1229,9 @@ def identify(
         params = _with_law(params, structure, rig, nuisance)
         friction_names = tuple(structure.friction_parameter_names)
     elif steps:
-        run_stage(stage, steps, friction_names,
-                  friction_starts(steps, rig, structure.friction), seeds[2],
-                  opts.random_starts)  # fmt: skip
+        starts = friction_starts(steps, rig, structure.friction)
+        run_stage(stage, steps, friction_names, starts, seeds[2], opts.random_starts,
+                  candidates=stribeck_candidates(starts[0]))  # fmt: skip
         say(f"friction: {stage.seconds:.1f} s, " + _brief(stage.estimate, friction_names))
     else:
         stage.note = "no fit step test: friction parameters held at their defaults"

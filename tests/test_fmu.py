@@ -78,6 +78,7 @@ PLANTS = {
             "valve_full_supply": 0.25,  # fully open from 2.5 V: the +3 V step saturates
             "valve_full_exhaust": 0.6,
             "valve_null_offset": 0.15,
+            "valve_knee_supply": 2.5,
             "valve_m": 0.45,
             "friction_static": "60 N",
             "friction_stiffness": 2e5,

@@ -110,7 +110,7 @@ OLD_VALVE_PARAMETERS = {
         "valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust", "valve_m",
         "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak", "valve_leak_width",
         "valve_n_supply", "valve_n_exhaust", "valve_full_supply", "valve_full_exhaust",
-        "valve_null_offset",
+        "valve_null_offset", "valve_knee_supply", "valve_knee_exhaust",
     ),
     "map": ("valve_m", "valve_x_laminar", "valve_u_sat", *MAP_PARAMETER_NAMES),
 }  # fmt: skip

@@ -164,6 +164,40 @@ def test_full_opening_fractions_saturate_each_path_at_its_own_command():
     assert not kernel.check_parameters(vec)
 
 
+def test_knee_exponents_give_an_s_shaped_opening_that_nests_the_power_law():
+    """C = C_max (1 - (1 - open^n)^k) + leak: k = 1 is the power law bit for
+    bit; k = 3 by hand; the shape rises monotonically from the dead band to
+    full opening, where its slope is zero (finite differences); the compiled
+    flow (valve_constants, flows_core) uses the same law as conductances();
+    the kernel rejects k < 1."""
+    base = (1e-8, 1.1e-8, 0.3, 10.0, 2e-11, 0.3, 1.2, 1.6, 1.0, 0.9, 0.0)
+    for u in (-10.0, -6.0, -0.2, 0.0, 0.31, 2.0, 8.0, 10.0):
+        assert valve.conductances(u, *base) == valve.conductances(u, *base, 1.0, 1.0)
+    for u in (0.5, 2.0, 5.15, 9.0):
+        o = valve.opening(u, 0.3, 10.0)
+        leak = valve.conductances(u, 0.0, 0.0, 0.3, 10.0, 2e-11, 0.3)[0]
+        c_s, _ = valve.conductances(u, *base, 3.0, 1.0)
+        assert c_s == pytest.approx(1e-8 * (1.0 - (1.0 - o**1.2) ** 3) + leak, rel=1e-13)
+    grid = np.linspace(0.0, 10.0, 2001)
+    shape = np.array([valve.conductances(u, 1.0, 1.0, 0.3, 10.0, 0.0, 0.3, 1.2, 1.6, 1.0, 1.0,
+                                         0.0, 3.0, 2.0)[0] for u in grid])  # fmt: skip
+    assert np.all(np.diff(shape) >= 0.0) and shape[-1] == pytest.approx(1.0, rel=1e-14)
+    h = 1e-4
+    top = [valve.conductances(u, 1.0, 1.0, 0.3, 10.0, 0.0, 0.3, 1.2, 1.6, 1.0, 1.0, 0.0,
+                              3.0, 2.0)[0] for u in (10.0 - 2 * h, 10.0 - h)]  # fmt: skip
+    assert (top[1] - top[0]) / h < 1e-5  # zero slope at full opening (k > 1)
+    args = (7e5, 293.15, 1.013e5, 1e-8, 0.3, 1.1e-8, 0.3, 0.5, 0.995, 0.3, 10.0, 0.0, 0.3)
+    for u in (0.6, 3.0, 7.5):
+        q = valve.valve_flows(u, 1.5e5, 293.15, *args, 1.2, 1.6, 1.0, 0.9, 0.0, 3.0, 2.0)[2]
+        c_s, _ = valve.conductances(u, 1e-8, 1.1e-8, 0.3, 10.0, 0.0, 0.3, 1.2, 1.6, 1.0, 0.9,
+                                    0.0, 3.0, 2.0)  # fmt: skip
+        assert q == pytest.approx(c_s * air.RHO0 * 7e5, rel=1e-12)
+    vec = parameter_vector({"valve_knee_supply": 3.0})
+    assert kernel.check_parameters(vec)
+    vec[P["valve_knee_exhaust"]] = 0.9
+    assert not kernel.check_parameters(vec)
+
+
 def test_null_offset_shifts_the_whole_characteristic():
     """C(u; b) = C(u - b; 0) for both paths, the centre leakage included:
     b = 0 is the earlier law bit for bit, and the compiled flow

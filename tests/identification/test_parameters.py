@@ -118,6 +118,8 @@ def test_friction_levels_are_bounded_by_the_actuators_largest_force() -> None:
     assert ps["friction_viscous"].upper == 1e5  # not a force level
     for name in ("valve_full_supply", "valve_full_exhaust"):
         assert not ps[name].fixed and ps[name].upper == 1.0 and ps[name].value == 1.0
+    for name in ("valve_knee_supply", "valve_knee_exhaust"):  # 1: the power law
+        assert not ps[name].fixed and ps[name].lower == 1.0 and ps[name].value == 1.0
 
 
 @pytest.mark.parametrize(

@@ -37,19 +37,43 @@ def test_a_linear_valve_keeps_the_linear_ramp() -> None:
 
 
 def test_a_curved_valve_gets_its_exponents() -> None:
-    """The ``mixed`` truth's supply path is a catalogue table that rises
-    fast and saturates (concave: regressive, n < 1), its exhaust a power law
-    of index 1.6 (progressive, n > 1). The exponents are kept, each on its
-    path's side of 1, and the flow test is then followed within the quality
-    check's 3x of the meter noise (the linear ramp: 0.57 g/s RMS on the
-    level means, 28x)."""
+    """The ``mixed`` truth's supply path is a catalogue table (PCHIP through
+    8 knots) that rises progressively from its dead band and levels off
+    before full scale (S-shaped), its exhaust a power law of index 1.6. The
+    exponents and the knees are kept: the supply's knee well above 1 (S;
+    measured 3.08-3.19 on seeds 1-3, asserted > 2), the exhaust's exponent
+    progressive (> 1; 1.68-1.70), and the flow test is then followed within
+    2x the meter noise (measured 0.98-1.13; the power law without the knee
+    5.5-7.5x, the linear ramp 28x)."""
     result = identify(_flow_only(VirtualRig(truth="mixed", seed=3)),
                       options=FitOptions(mcmc=False), seed=3)  # fmt: skip
-    assert "kept" in result.stage("valve").note
-    assert result.parameters["valve_n_supply"].value < 1.0
+    note = result.stage("valve").note
+    assert "opening shape exponents kept" in note and "knee exponents kept" in note
+    assert result.parameters["valve_knee_supply"].value > 2.0
     assert result.parameters["valve_n_exhaust"].value > 1.0
     (flow,) = [c for c in result.quality.channels if c.channel.startswith("qm_")]
-    assert flow.ratio is not None and flow.ratio < 3.0
+    assert flow.ratio is not None and flow.ratio < 2.0
+
+
+def test_a_catalogue_table_valve_gets_its_dead_band_with_the_knee() -> None:
+    """The ``table-valve-asym`` truth's supply path is a catalogue table from
+    0.25 V (C = 0 there, PCHIP through 8 knots; its critical ratio grows as
+    it closes), its exhaust a rounded linear ramp from 0.22 V saturating at
+    8.4 V. On the demo plan (both valves' flow tests, levels near the dead
+    band) the knee is kept on the supply and the dead band lands at the
+    tables' edge: overlap within 0.06 V of 0.25 (the model has one overlap
+    for both paths: the truth's 0.25 and 0.22 V; measured 0.220-0.221 on
+    seeds 1-3, where the power law put it at 0.6-0.8 V), and both flow tests
+    within 2x the meter noise (measured 1.17-1.21)."""
+    result = identify(_flow_only(VirtualRig(truth="table-valve-asym", seed=1), "demo"),
+                      options=FitOptions(mcmc=False), seed=1)  # fmt: skip
+    assert "knee exponents kept" in result.stage("valve").note
+    assert result.parameters["valve_knee_supply"].value > 2.0
+    assert abs(result.parameters["valve_overlap"].value - 0.25) < 0.06
+    flows = [c for c in result.quality.channels if c.channel.startswith("qm_")]
+    assert len(flows) == 2
+    for flow in flows:
+        assert flow.ratio is not None and flow.ratio < 2.0
 
 
 def test_a_progressive_valve_is_not_left_on_the_ramps_overlap() -> None:

@@ -1010,6 +1010,8 @@ _FIT_BOUNDS: dict[str, tuple[float, float]] = {
     "valve_full_supply": (0.3, 1.0),
     "valve_full_exhaust": (0.3, 1.0),
     "valve_null_offset": (-0.25, 0.25),
+    "valve_knee_supply": (1.0, 12.0),
+    "valve_knee_exhaust": (1.0, 12.0),
     "xi": (1e-3, 10.0),
     "beta": (0.05, 0.6),
     "lambda": (0.01, 1e4),

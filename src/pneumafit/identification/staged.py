@@ -221,11 +221,20 @@ SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
 SHAPE_PARAMETERS = {"supply": "valve_n_supply", "exhaust": "valve_n_exhaust"}
 #: Full-opening fraction of each path (see :func:`coverage.full_informed`).
 FULL_PARAMETERS = {"supply": "valve_full_supply", "exhaust": "valve_full_exhaust"}
+#: Knee exponent of each path (S-shaped opening, physics.valve), fitted where
+#: the full-opening fraction would be (:func:`coverage.full_informed`).
+KNEE_PARAMETERS = {"supply": "valve_knee_supply", "exhaust": "valve_knee_exhaust"}
+#: Starting knee exponents besides 1 (the power law, whose optimum is at that
+#: bound), each with the power law's exponent and with 1.25: an S-shaped
+#: catalogue table is followed by n 1.2-1.25 and k 2.7-2.9 (physics.valve),
+#: where the power law alone had taken n 0.7 with a 0.6-0.8-V dead band.
+KNEE_STARTS = (2.0, 3.0, 5.0)
 #: Starting full-opening fractions of the saturating law, besides 1 (the
 #: law without them, whose optimum is at that bound).
 FULL_STARTS = (0.9, 0.75)
-#: A fitted full-opening fraction this close to 1 is held at 1: the path does
-#: not saturate within the flow levels, and the bound would be flagged.
+#: A fitted full-opening fraction (knee exponent) this close to 1 is held at
+#: 1: the path does not saturate within the flow levels (has no knee), and
+#: the bound would be flagged.
 FULL_AT_ONE = 1e-3
 #: The spool's null offset (V), fitted last in the valve stage.
 NULL_PARAMETER = "valve_null_offset"
@@ -275,6 +284,21 @@ def _full_starts(values: Mapping[str, float], fulls: Sequence[str]) -> list[dict
     ]
 
 
+def _knee_starts(values: Mapping[str, float], knees: Sequence[str]) -> list[dict[str, float]]:
+    """Starts of the S-shaped law: ``values`` (the power law, at k = 1), then
+    every knee of :data:`KNEE_STARTS` for the free knees ``knees``, with the
+    paths' exponents as in ``values`` and at 1.25, and the overlap at the
+    generic dead band (0.5 V) or the power law's if smaller (V)."""
+    overlap = min(float(values["valve_overlap"]), 0.5)
+    exps = [SHAPE_PARAMETERS[p] for p, n in KNEE_PARAMETERS.items() if n in knees]
+    out = [dict(values)]
+    for k in KNEE_STARTS:
+        out.append({**values, **{n: k for n in knees}})
+        out.append({**values, "valve_overlap": overlap, **{n: k for n in knees},
+                    **{n: 1.25 for n in exps}})  # fmt: skip
+    return out
+
+
 def _null_starts(values: Mapping[str, float], null: Sequence[str]) -> list[dict[str, float]]:
     """Starts of the null offset: ``values`` (the law without it, at 0), then
     each of :data:`NULL_STARTS` (V), the rest at ``values``."""
@@ -284,11 +308,13 @@ def _null_starts(values: Mapping[str, float], null: Sequence[str]) -> list[dict[
 def _informed_valve(
     campaign: Campaign, values: Mapping[str, float], names: Sequence[str]
 ) -> tuple[str, ...]:
-    """``names`` without the opening shape exponents, full-opening fractions and
-    null offset the fit flow tests do not resolve."""
+    """``names`` without the opening shape exponents, knee exponents,
+    full-opening fractions and null offset the fit flow tests do not resolve."""
     known = shape_informed(campaign, values)
     drop = {SHAPE_PARAMETERS[path] for path, ok in known.items() if not ok}
-    drop |= {FULL_PARAMETERS[p] for p, ok in full_informed(campaign, values).items() if not ok}
+    full = full_informed(campaign, values)
+    drop |= {FULL_PARAMETERS[p] for p, ok in full.items() if not ok}
+    drop |= {KNEE_PARAMETERS[p] for p, ok in full.items() if not ok}
     if not all(known.values()):  # the offset moves both paths' edges: both measured
         drop.add(NULL_PARAMETER)
     return tuple(n for n in names if n not in drop)
@@ -1090,26 +1116,55 @@ def identify(
         starts = valve_starts(flows, rig) if structure.valve == "iso6358" else [{}]
         values.update(starts[0])
         shapes = tuple(n for n in valve_free if n in SHAPE_PARAMETERS.values())
+        knees = tuple(n for n in valve_free if n in KNEE_PARAMETERS.values())
         fulls = tuple(n for n in valve_free if n in FULL_PARAMETERS.values())
         null = tuple(n for n in valve_free if n == NULL_PARAMETER)
-        linear = tuple(n for n in valve_free if n not in (*shapes, *fulls, *null))
+        linear = tuple(n for n in valve_free if n not in (*shapes, *knees, *fulls, *null))
         run_stage(stage, flows, linear, starts, seeds[0])
         valve_free, notes = linear, []
-        # the linear ramp nests the shaped law, and the shaped law the
-        # saturating one: each is kept only when the flow tests ask for it
-        # (likelihood-ratio tests), so a valve that is a linear ramp keeps the
-        # linear law and its fewer parameters
-        for extra, what, make_starts in (
-            (shapes, "opening shape exponents", _shape_starts),
-            (fulls, "full-opening fractions", _full_starts),
-            (null, "null offset", _null_starts),
-        ):
-            if not extra:
-                continue
-            before, before_values, before_seconds = stage.estimate, dict(values), stage.seconds
+
+        def extended(extra: tuple[str, ...], make_starts: Any) -> float:
+            # the law with ``extra`` free from ``make_starts``; its gain
+            before_seconds = stage.seconds
+            ll = stage.estimate.log_likelihood
             run_stage(stage, flows, (*valve_free, *extra), make_starts(values, extra), seeds[0])
             stage.seconds += before_seconds
-            gain = stage.estimate.log_likelihood - before.log_likelihood
+            return stage.estimate.log_likelihood - ll
+
+        # the linear ramp nests the shaped law, and the shaped law the knee
+        # and saturating ones: each is kept only when the flow tests ask for
+        # it (likelihood-ratio tests), so a valve that is a linear ramp keeps
+        # the linear law and its fewer parameters
+        queue = [
+            (shapes, "opening shape exponents", _shape_starts),
+            (knees, "knee exponents", _knee_starts),
+            (fulls, "full-opening fractions", _full_starts),
+            (null, "null offset", _null_starts),
+        ]
+        k, ordered = 0, False
+        while k < len(queue):
+            extra, what, make_starts = queue[k]
+            k += 1
+            if not extra:
+                continue
+            if extra in (knees, fulls) and knees and fulls and not ordered:
+                ordered = True
+                # a smooth knee (an S-shaped port) and a corner at full
+                # opening (a port uncovered before the end of its stroke)
+                # answer one question: the one that gains more goes first,
+                # the other is then tested on top of it
+                before, before_values = stage.estimate, dict(values)
+                gains = []
+                for alt, alt_starts in ((knees, _knee_starts), (fulls, _full_starts)):
+                    gains.append(extended(alt, alt_starts))
+                    stage.estimate = before
+                    values.clear()
+                    values.update(before_values)
+                if gains[1] > gains[0]:
+                    queue[k - 1], queue[k] = queue[k], queue[k - 1]
+                    extra, what, make_starts = queue[k - 1]
+            before, before_values = stage.estimate, dict(values)
+            gain = extended(extra, make_starts)
             needed = 2.0 * gain > chi2.ppf(SHAPE_CONFIDENCE, len(extra))
             notes.append(
                 f"{what} {'kept' if needed else 'not needed'}: log-likelihood gain {gain:.1f} "
@@ -1117,8 +1172,12 @@ def identify(
             )
             if needed:
                 # a path that does not saturate within the flow levels ends
-                # at its bound 1: held there
-                at_one = tuple(n for n in extra if n in fulls and values[n] > 1.0 - FULL_AT_ONE)
+                # at its bound 1, a path without a knee at its bound 1: held there
+                at_one = tuple(
+                    n for n in extra
+                    if (n in fulls and values[n] > 1.0 - FULL_AT_ONE)
+                    or (n in knees and values[n] < 1.0 + FULL_AT_ONE)
+                )  # fmt: skip
                 values.update({n: 1.0 for n in at_one})
                 valve_free = (*valve_free, *(n for n in extra if n not in at_one))
             else:

@@ -58,7 +58,8 @@ def valve_starts(flows: Sequence[Recording], rig: Mapping[str, float]) -> list[d
     common = {"valve_C_supply": cs, "valve_C_exhaust": ce, "valve_C_leak": cl,
               "valve_overlap": 0.5, "valve_leak_width": 1.0, "valve_n_supply": 1.0,
               "valve_n_exhaust": 1.0, "valve_full_supply": 1.0,
-              "valve_full_exhaust": 1.0, "valve_null_offset": 0.0}  # fmt: skip
+              "valve_full_exhaust": 1.0, "valve_null_offset": 0.0, "valve_knee_supply": 1.0,
+              "valve_knee_exhaust": 1.0}  # fmt: skip
     return [
         {**common, "valve_b_supply": 0.4, "valve_b_exhaust": 0.4, "valve_m": 0.5},
         {**common, "valve_b_supply": 0.2, "valve_b_exhaust": 0.2, "valve_m": 0.7},

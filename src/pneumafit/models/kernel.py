@@ -96,6 +96,8 @@ from pneumafit.models.layout import (
     P_GEL,
     P_GES,
     P_K,
+    P_KNEEE,
+    P_KNEES,
     P_KSTOP,
     P_LAMBDA,
     P_LEAKW,
@@ -163,6 +165,8 @@ from pneumafit.physics.geometry import chamber_volumes, piston_areas
 from pneumafit.physics.heat import convection_coefficient, convection_coefficient_scaled
 from pneumafit.physics.valve import (
     NVC,
+    VC_KE,
+    VC_KS,
     VC_NE,
     VC_NS,
     VC_RTA,
@@ -243,7 +247,7 @@ def check_parameters(p: np.ndarray) -> bool:
         return False
     if p[P_XLAM] >= 1.0 or p[P_VM] <= 0.0 or p[P_USAT] <= p[P_OVERLAP] or p[P_OVERLAP] < 0.0:
         return False
-    if p[P_FULLS] > 1.0 or p[P_FULLE] > 1.0:
+    if p[P_FULLS] > 1.0 or p[P_FULLE] > 1.0 or p[P_KNEES] < 1.0 or p[P_KNEEE] < 1.0:
         return False
     if p[P_FULLS] * p[P_USAT] <= p[P_OVERLAP] or p[P_FULLE] * p[P_USAT] <= p[P_OVERLAP]:
         return False
@@ -297,7 +301,7 @@ def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
     valve_constants(
         p[P_CS], p[P_BS], p[P_CE], p[P_BE], p[P_VM], p[P_XLAM], p[P_OVERLAP], p[P_USAT],
         p[P_CLEAK], p[P_LEAKW], p[P_PE], p[P_TAMB], vc, p[P_NS], p[P_NE], p[P_FULLS],
-        p[P_FULLE], p[P_NULL],
+        p[P_FULLE], p[P_NULL], p[P_KNEES], p[P_KNEEE],
     )  # fmt: skip
     n = N_MAP_KNOTS
     map_constants(p[P_MAP_CS:P_MAP_CS + n], p[P_MAP_CE:P_MAP_CE + n], p[P_MAP_BS:P_MAP_BS + 3],
@@ -410,7 +414,10 @@ def _valve(
     # flows of one valve under the configured law (cfg[C_VALVE_LAW])
     if law == VALVE_MAP:
         return flows_core_map(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:D_VM], d[D_VM:])
-    if d[D_VC + VC_NS] == 1.0 and d[D_VC + VC_NE] == 1.0:
+    if (
+        d[D_VC + VC_NS] == 1.0 and d[D_VC + VC_NE] == 1.0
+        and d[D_VC + VC_KS] == 1.0 and d[D_VC + VC_KE] == 1.0
+    ):  # fmt: skip
         # linear opening (the default): no pow in this path (flows_core's linear)
         return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], True)
     return flows_core(u, pres, inv_p, temp, rt, p_s, inv_ps, d[D_VC:], False)

@@ -176,6 +176,10 @@ _BASE_SPECS: tuple[ParameterSpec, ...] = (
                   "fraction of u_sat at which the exhaust path is fully open"),
     ParameterSpec("valve_null_offset", "V", 0.0, -5.0, 5.0, "valve",
                   "command at which the spool is centred (null offset)"),
+    ParameterSpec("valve_knee_supply", "", 1.0, 1.0, 20.0, "valve",
+                  "knee exponent of the supply path (1: power law; > 1: S-shaped)"),
+    ParameterSpec("valve_knee_exhaust", "", 1.0, 1.0, 20.0, "valve",
+                  "knee exponent of the exhaust path (1: power law; > 1: S-shaped)"),
     # --- heat transfer ---
     ParameterSpec("k", "", 1.2, 1.0, 1.4, "heat", "polytropic index"),
     ParameterSpec("lambda", "W/m^2/K", 15.0, 0.0, 1e6, "heat", "constant heat-transfer coeff."),
@@ -295,6 +299,8 @@ P_NE = P["valve_n_exhaust"]
 P_FULLS = P["valve_full_supply"]
 P_FULLE = P["valve_full_exhaust"]
 P_NULL = P["valve_null_offset"]
+P_KNEES = P["valve_knee_supply"]
+P_KNEEE = P["valve_knee_exhaust"]
 P_K = P["k"]
 P_LAMBDA = P["lambda"]
 P_XI = P["xi"]

@@ -24,8 +24,10 @@ chamber exceeds supply pressure.
 Command dependence. For a command u (V), with overlap (dead band) u_0 and
 full opening at u_sat:
 
-    C_S(u) = C_S,max open_S(u)^n_S + 2 C_leak sigma(+u / w)
-    C_E(u) = C_E,max open_E(-u)^n_E + 2 C_leak sigma(-u / w)
+    C_S(u) = C_S,max shape(open_S(u); n_S, k_S) + 2 C_leak sigma(+u / w)
+    C_E(u) = C_E,max shape(open_E(-u); n_E, k_E) + 2 C_leak sigma(-u / w)
+
+    shape(o; n, k) = 1 - (1 - o^n)^k             (o^n for k = 1)
 
     open_S(u) = min(ramp(u - u_0) / (f_S u_sat - u_0), 1)     (open_E likewise, f_E)
     sigma(z) = (1 + z / sqrt(1 + z^2)) / 2       (a smooth step from 0 to 1)
@@ -64,6 +66,23 @@ earlier law's values bit for bit, and the corner's fixed-step error is far
 below a pressure sensor's noise (a 6-V sine command through a corner at
 4 V, RK4 at 1 and 0.5 ms against DP5 at 2 us: 0.031 and 0.020 Pa, 0.001 Pa
 without the corner).
+
+The knee exponents k_S, k_E (``valve_knee_supply``, ``valve_knee_exhaust``;
+1 by default, the power law o^n) round each path's approach to full
+opening: with k > 1 the area grows progressively from the dead band (~ k
+o^n) and levels off smoothly at full opening, with zero slope there. That is
+the S-shaped area of a round port uncovered by a spool edge (a circular
+segment: area ~ stroke^1.5 at first, flattening as the edge passes the
+port's centre) and of catalogue servo-valve curves. shape is Kumaraswamy's
+distribution function (Kumaraswamy 1980), closed form and monotone in o,
+and it nests the power law exactly (k = 1 is computed as o^n, bit for bit).
+The power law with a full-opening fraction reaches an S-shaped table only
+with a kinked corner and a wrong dead band: on the two catalogue tables of
+``pneumafit.virtual_rig.truth`` (PCHIP through 8 knots, 0-10 V) its best
+least-squares fit leaves 5.9-6.2 % of C_max at worst and puts the overlap
+at 0.61-0.84 V (tables: 0.25-0.3 V), the knee law 0.5-1.1 % with the
+overlap at 0.22-0.37 V. k < 1 (a vertical slope at full opening) is not
+allowed.
 
 The null offset b (``valve_null_offset``, 0 by default) is the command at
 which the spool is centred: the whole characteristic, both paths' edges and
@@ -244,6 +263,8 @@ def conductances(
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
     null_offset: float = 0.0,
+    knee_supply: float = 1.0,
+    knee_exhaust: float = 1.0,
 ) -> tuple[float, float]:
     """Sonic conductances (C_S(u), C_E(u)) of the supply and exhaust paths.
 
@@ -269,6 +290,8 @@ def conductances(
     null_offset : float
         Command at which the spool is centred (V); the law is that of
         u - null_offset.
+    knee_supply, knee_exhaust : float
+        Knee exponents k of the two paths (-), >= 1; 1 is the power law.
 
     Returns
     -------
@@ -281,17 +304,20 @@ def conductances(
     sig_e = 1.0 - sig_s
     o_s = opening(u, overlap, full_supply * u_sat)
     o_e = opening(-u, overlap, full_exhaust * u_sat)
-    c_s = c_supply * _shaped(o_s, n_supply) + 2.0 * c_leak * sig_s
-    c_e = c_exhaust * _shaped(o_e, n_exhaust) + 2.0 * c_leak * sig_e
+    c_s = c_supply * _shaped(o_s, n_supply, knee_supply) + 2.0 * c_leak * sig_s
+    c_e = c_exhaust * _shaped(o_e, n_exhaust, knee_exhaust) + 2.0 * c_leak * sig_e
     return c_s, c_e
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _shaped(fraction: float, n: float) -> float:
-    # open^n, exact (no pow) for the linear law
-    if n == 1.0 or fraction <= 0.0:
+def _shaped(fraction: float, n: float, knee: float = 1.0) -> float:
+    # 1 - (1 - open^n)^knee: open^n exactly for knee 1, no pow for the linear law
+    if fraction <= 0.0:
         return fraction
-    return fraction**n
+    s = fraction if n == 1.0 else fraction**n
+    if knee == 1.0:
+        return s
+    return 1.0 - (1.0 - s) ** knee
 
 
 # Valve constants, computed once per simulation by valve_constants() so that
@@ -300,7 +326,8 @@ VC_CS, VC_CE, VC_BS, VC_BE, VC_IBS, VC_IBE, VC_M, VC_XLAM = 0, 1, 2, 3, 4, 5, 6,
 VC_AS, VC_QS, VC_AE, VC_QE, VC_OVER, VC_IRANGE, VC_LEAK2, VC_IW = 8, 9, 10, 11, 12, 13, 14, 15
 VC_PE, VC_IPE, VC_TA, VC_RTA = 16, 17, 18, 19
 VC_NS, VC_NE, VC_IRANGE_E, VC_NULL = 20, 21, 22, 23  # VC_IRANGE is the supply path's
-NVC = 24
+VC_KS, VC_KE = 24, 25
+NVC = 26
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -323,6 +350,8 @@ def valve_constants(
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
     null_offset: float = 0.0,
+    knee_supply: float = 1.0,
+    knee_exhaust: float = 1.0,
 ) -> None:
     """Fill ``vc`` (length NVC) with the constants of :func:`flows_core`.
 
@@ -331,6 +360,8 @@ def valve_constants(
     """
     vc[VC_NS] = n_supply
     vc[VC_NE] = n_exhaust
+    vc[VC_KS] = knee_supply
+    vc[VC_KE] = knee_exhaust
     vc[VC_CS] = c_supply
     vc[VC_CE] = c_exhaust
     vc[VC_BS] = b_supply
@@ -407,7 +438,7 @@ def flows_core(
     vc : ndarray
         Constants from :func:`valve_constants`.
     linear : bool
-        True only when both shape exponents are 1 (the caller checked): the
+        True only when both shape and knee exponents are 1 (the caller checked): the
         same results without the shaping code. LLVM turns _shaped's branch
         into a select and so calls pow at every evaluation even for n = 1
         (8 % of a simulation's CPU time); the kernel passes a constant here,
@@ -424,8 +455,8 @@ def flows_core(
     o_s = _open(u, vc[VC_OVER], vc[VC_IRANGE])
     o_e = _open(-u, vc[VC_OVER], vc[VC_IRANGE_E])
     if not linear:
-        o_s = _shaped(o_s, vc[VC_NS])
-        o_e = _shaped(o_e, vc[VC_NE])
+        o_s = _shaped(o_s, vc[VC_NS], vc[VC_KS])
+        o_e = _shaped(o_e, vc[VC_NE], vc[VC_KE])
     c_s = vc[VC_CS] * o_s + vc[VC_LEAK2] * sig_s
     c_e = vc[VC_CE] * o_e + vc[VC_LEAK2] * (1.0 - sig_s)
     k = RHO0
@@ -478,6 +509,8 @@ def valve_flows(
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
     null_offset: float = 0.0,
+    knee_supply: float = 1.0,
+    knee_exhaust: float = 1.0,
 ) -> tuple[float, float, float]:
     """Flows of one 3-way servo-distributor into its chamber.
 
@@ -498,5 +531,6 @@ def valve_flows(
     vc = np.empty(NVC)
     valve_constants(c_supply, b_supply, c_exhaust, b_exhaust, m, x_lam, overlap, u_sat,
                     c_leak, leak_width, p_exhaust, t_ambient, vc, n_supply,
-                    n_exhaust, full_supply, full_exhaust, null_offset)  # fmt: skip
+                    n_exhaust, full_supply, full_exhaust, null_offset, knee_supply,
+                    knee_exhaust)  # fmt: skip
     return flows_core(u, p, 1.0 / p, t, math.sqrt(T_REF / t), p_supply, 1.0 / p_supply, vc)

@@ -346,6 +346,8 @@ def sample_iso(
     full_supply: float = 1.0,
     full_exhaust: float = 1.0,
     null_offset: float = 0.0,
+    knee_supply: float = 1.0,
+    knee_exhaust: float = 1.0,
 ) -> tuple[list[float], list[float]]:
     """Knot conductances of an ISO 6358 valve (see :func:`map_from_iso`).
 
@@ -362,7 +364,8 @@ def sample_iso(
     for f in MAP_KNOTS:
         cs, ce = conductances.py_func(f * u_sat, c_supply, c_exhaust, overlap, u_sat, c_leak,
                                       leak_width, n_supply, n_exhaust, full_supply,
-                                      full_exhaust, null_offset)  # fmt: skip
+                                      full_exhaust, null_offset, knee_supply,
+                                      knee_exhaust)  # fmt: skip
         c_s.append(max(float(cs), lo))
         c_e.append(max(float(ce), lo))
     return c_s, c_e
@@ -405,6 +408,7 @@ def map_from_iso(values: Mapping[str, float]) -> dict[str, float]:
         *(float(values.get(n, 1.0)) for n in
           ("valve_n_supply", "valve_n_exhaust", "valve_full_supply", "valve_full_exhaust")),
         float(values.get("valve_null_offset", 0.0)),
+        *(float(values.get(n, 1.0)) for n in ("valve_knee_supply", "valve_knee_exhaust")),
     )  # fmt: skip
     c_s, c_e = sample_iso(*iso.values(), *shape)
     out = dict(zip(MAP_CS_NAMES, c_s, strict=True))

@@ -87,6 +87,8 @@ ISO6358 = register_valve_law(
             "valve_full_supply",
             "valve_full_exhaust",
             "valve_null_offset",
+            "valve_knee_supply",
+            "valve_knee_exhaust",
         ),
         description="parametric ISO 6358 law (pneumafit.physics.valve)",
     )

@@ -42,6 +42,7 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters */
         p[PF_P_valve_C_leak] < 0.0 || p[PF_P_valve_leak_width] <= 0.0)
         return 0;
     if (p[PF_P_valve_n_supply] < 1.0 / 3.0 || p[PF_P_valve_n_exhaust] < 1.0 / 3.0) return 0;
+    if (p[PF_P_valve_knee_supply] < 1.0 || p[PF_P_valve_knee_exhaust] < 1.0) return 0;
     if (p[PF_P_valve_full_supply] > 1.0 || p[PF_P_valve_full_exhaust] > 1.0 ||
         p[PF_P_valve_full_supply] * p[PF_P_valve_u_sat] <= p[PF_P_valve_overlap] ||
         p[PF_P_valve_full_exhaust] * p[PF_P_valve_u_sat] <= p[PF_P_valve_overlap])
@@ -134,10 +135,13 @@ static double open_fn(double u, double overlap, double inv_range)
     return frac < 1.0 ? frac : 1.0;
 }
 
-static double shaped(double fraction, double n)
+static double shaped(double fraction, double n, double knee)
 { /* physics.valve._shaped */
-    if (n == 1.0 || fraction <= 0.0) return fraction;
-    return pow(fraction, n);
+    double s;
+    if (fraction <= 0.0) return fraction;
+    s = n == 1.0 ? fraction : pow(fraction, n);
+    if (knee == 1.0) return s;
+    return 1.0 - pow(1.0 - s, knee);
 }
 
 static void valve_flows(const pf_model *m, double u, double pres, double inv_pres, double temp,
@@ -147,8 +151,8 @@ static void valve_flows(const pf_model *m, double u, double pres, double inv_pre
     double u_c = u - m->v_null; /* the command from the spool's null */
     double z = u_c * m->v_iw;
     double sig_s = 0.5 * (1.0 + z / sqrt(1.0 + z * z));
-    double o_s = shaped(open_fn(u_c, m->v_over, m->v_irange), m->v_ns);
-    double o_e = shaped(open_fn(-u_c, m->v_over, m->v_irange_e), m->v_ne);
+    double o_s = shaped(open_fn(u_c, m->v_over, m->v_irange), m->v_ns, m->v_ks);
+    double o_e = shaped(open_fn(-u_c, m->v_over, m->v_irange_e), m->v_ne, m->v_ke);
     double c_s = m->v_cs * o_s + m->v_leak2 * sig_s;
     double c_e = m->v_ce * o_e + m->v_leak2 * (1.0 - sig_s);
     const double k = PF_RHO0;
@@ -388,6 +392,8 @@ void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants 
     /* valve constants */
     m->v_ns = p[PF_P_valve_n_supply];
     m->v_ne = p[PF_P_valve_n_exhaust];
+    m->v_ks = p[PF_P_valve_knee_supply];
+    m->v_ke = p[PF_P_valve_knee_exhaust];
     m->v_cs = p[PF_P_valve_C_supply];
     m->v_ce = p[PF_P_valve_C_exhaust];
     m->v_bs = p[PF_P_valve_b_supply];

@@ -38,6 +38,7 @@ typedef struct {
     /* valve constants (physics.valve.valve_constants) */
     double v_cs, v_ce, v_bs, v_be, v_ibs, v_ibe, v_m, v_xlam, v_as, v_qs, v_ae, v_qe;
     double v_over, v_irange, v_irange_e, v_leak2, v_iw, v_pe, v_ipe, v_ta, v_rta, v_ns, v_ne, v_null;
+    double v_ks, v_ke; /* knee exponents */
     /* valve-map constants (physics.valve_map.map_constants) */
     double vm_iusat, vm_cs_lo, vm_cs_hi, vm_ce_lo, vm_ce_hi;
     double vm_bs[3], vm_be[3], vm_dbs[2], vm_dbe[2];

@@ -16,8 +16,9 @@ cannot follow it to the noise; what is tested is what must hold anyway:
   noise, and no recording whose residual is below it (judged against the
   truth's noise, not the estimate);
 - what the fit does reach (``benchmarks/bench_recovery.py``, the table in
-  docs/identification.md): the fit charge/discharge tests and the Coulomb
-  friction, where the opening shape exponents made the difference.
+  docs/identification.md): every fit recording within 3x the noise and the
+  Coulomb friction, where the opening shape and knee exponents made the
+  difference.
 """
 
 from __future__ import annotations
@@ -89,24 +90,21 @@ def test_the_verdict_names_what_misses_the_true_noise(mismatched: tuple) -> None
 def test_what_the_fit_reaches_on_a_mismatched_truth(mismatched: tuple) -> None:
     """The targets of the robust-identification issue that hold on this truth.
 
-    - fit charge/discharge tests within 5x the noise (the issue asks 3x;
-      measured 3.3-3.4x on seed 1; the linear ramp left 18-25x): 5x keeps the
-      factor-5 improvement guarded without claiming the 3x target;
+    - every fit recording's pressure within 3x the noise (the issue's
+      target; measured on seed 7: charge/discharge 1.04-1.35x, step
+      1.35-1.52x; before the valve's knee exponents the catalogue supply
+      left the charge/discharge tests at 3.3-3.4x and the steps at 12-17x);
     - Coulomb friction within 25 % of the truth's (the issue's figure;
-      measured -4 to -6 %).
-    Not asserted, because they fail (docs/identification.md): the step tests
-    (12-17x), the held-out tests at commands no flow test measured, the
-    static friction (pinned to the Coulomb level, flagged), lambda."""
+      measured +0.5 %).
+    Not asserted, because they fail (docs/identification.md): the held-out
+    recordings (3.2-4.0x the charge/discharge at commands no flow level
+    measured, 5.9-15.4x the held-out step), the static friction (-30 %)."""
     rig, _, result, truth = mismatched
     true = rig.sensors.pressure_noise
-    blocked = [
-        c
-        for c in result.quality.channels
-        if c.role == "fit" and c.kind in ("charge", "discharge") and c.channel == "p_P"
-    ]
-    assert blocked
-    for c in blocked:
-        assert c.rms / true <= 5.0, (c.recording, c.rms / true)
+    fitted = [c for c in result.quality.channels if c.role == "fit" and c.channel.startswith("p_")]
+    assert {c.kind for c in fitted} >= {"charge", "discharge", "step"}
+    for c in fitted:
+        assert c.rms / true <= 3.0, (c.recording, c.channel, c.rms / true)
     f_c = result.parameters["friction_coulomb"].value
     assert f_c == pytest.approx(truth["friction_coulomb"], rel=0.25)
     assert np.isfinite(result.stage("joint").estimate.log_likelihood)

@@ -134,6 +134,23 @@ def test_bounds_and_intervals_are_flagged() -> None:
     assert interval_problems([outside])[0].startswith("friction_static 24.2 not in")
 
 
+def test_a_nesting_bound_is_the_nested_law_not_a_problem() -> None:
+    """A knee exponent at 1 is the power law, a full-opening fraction at 1
+    the law that opens at u_sat (quality.NESTING_BOUNDS): not named. Their
+    other bounds are (a knee at 12, a fraction at 0.3)."""
+    from pneumafit.identification import Parameter
+
+    knee_at_one = Parameter("valve_knee_supply", 1.0, "", 1.0, 12.0)
+    full_at_one = Parameter("valve_full_exhaust", 1.0, "", 0.3, 1.0)
+    names = ["valve_knee_supply", "valve_full_exhaust"]
+    assert bound_problems([knee_at_one, full_at_one], names) == []
+    knee_at_top = Parameter("valve_knee_supply", 12.0, "", 1.0, 12.0)
+    full_at_floor = Parameter("valve_full_exhaust", 0.3, "", 0.3, 1.0)
+    assert bound_problems([knee_at_top, full_at_floor], names) == [
+        "valve_knee_supply (upper bound 12)", "valve_full_exhaust (lower bound 0.3)",
+    ]  # fmt: skip
+
+
 def test_commands_no_flow_test_measured_are_named(small: tuple) -> None:
     """The small campaign's flow tests have levels 0, +-0.2, +-0.4, +-3, +-10 V:
     the step tests' +-1 V (between 0.4 and 3 V, next to the dead band) and the

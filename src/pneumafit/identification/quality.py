@@ -455,9 +455,22 @@ CONSTRAINTS: tuple[tuple[str, str, str], ...] = (
 )  # fmt: skip
 
 
+#: Bounds that are the value of the law a parameter extends (name -> which
+#: bound): a valve path's knee exponent at 1 is the power law (no knee), its
+#: full-opening fraction at 1 the law that opens fully at u_sat. The valve
+#: stage holds an extension that ends there at that value; when the joint
+#: stage takes one back to it, the fit is that nested law, not an estimate
+#: leaning on a wall, and it is not named.
+NESTING_BOUNDS: dict[str, str] = {
+    "valve_knee_supply": "lower", "valve_knee_exhaust": "lower",
+    "valve_full_supply": "upper", "valve_full_exhaust": "upper",
+}  # fmt: skip
+
+
 def bound_problems(parameters: Iterable[Any], free: Iterable[str], rtol: float = 1e-4) -> list[str]:
     """Free estimates within ``rtol`` of their range (log range for log scale) of a
-    bound, or of a :data:`CONSTRAINTS` partner."""
+    bound, or of a :data:`CONSTRAINTS` partner; not those on a
+    :data:`NESTING_BOUNDS` bound."""
     names = set(free)
     parameters = list(parameters)
     values = {p.name: p.value for p in parameters}
@@ -476,9 +489,10 @@ def bound_problems(parameters: Iterable[Any], free: Iterable[str], rtol: float =
         else:
             v = p.value
         tol = rtol * (hi - lo)
-        if v <= lo + tol:
+        nesting = NESTING_BOUNDS.get(p.name)
+        if v <= lo + tol and nesting != "lower":
             out.append(f"{p.name} (lower bound {p.lower:g})")
-        elif v >= hi - tol:
+        elif v >= hi - tol and nesting != "upper":
             out.append(f"{p.name} (upper bound {p.upper:g})")
     return out
 

@@ -1135,34 +1135,12 @@ def identify(
         # and saturating ones: each is kept only when the flow tests ask for
         # it (likelihood-ratio tests), so a valve that is a linear ramp keeps
         # the linear law and its fewer parameters
-        queue = [
-            (shapes, "opening shape exponents", _shape_starts),
-            (knees, "knee exponents", _knee_starts),
-            (fulls, "full-opening fractions", _full_starts),
-            (null, "null offset", _null_starts),
-        ]
-        k, ordered = 0, False
-        while k < len(queue):
-            extra, what, make_starts = queue[k]
-            k += 1
+        def test_extra(extra: tuple[str, ...], what: str, make_starts: Any) -> int:
+            # the likelihood-ratio test of ``extra`` on the current law: kept
+            # (the parameters freed) or not (the law as it was); how many kept
+            nonlocal valve_free
             if not extra:
-                continue
-            if extra in (knees, fulls) and knees and fulls and not ordered:
-                ordered = True
-                # a smooth knee (an S-shaped port) and a corner at full
-                # opening (a port uncovered before the end of its stroke)
-                # answer one question: the one that gains more goes first,
-                # the other is then tested on top of it
-                before, before_values = stage.estimate, dict(values)
-                gains = []
-                for alt, alt_starts in ((knees, _knee_starts), (fulls, _full_starts)):
-                    gains.append(extended(alt, alt_starts))
-                    stage.estimate = before
-                    values.clear()
-                    values.update(before_values)
-                if gains[1] > gains[0]:
-                    queue[k - 1], queue[k] = queue[k], queue[k - 1]
-                    extra, what, make_starts = queue[k - 1]
+                return 0
             before, before_values = stage.estimate, dict(values)
             gain = extended(extra, make_starts)
             needed = 2.0 * gain > chi2.ppf(SHAPE_CONFIDENCE, len(extra))
@@ -1170,21 +1148,64 @@ def identify(
                 f"{what} {'kept' if needed else 'not needed'}: log-likelihood gain {gain:.1f} "
                 f"({', '.join(extra)})"
             )
-            if needed:
-                # a path that does not saturate within the flow levels ends
-                # at its bound 1, a path without a knee at its bound 1: held there
-                at_one = tuple(
-                    n for n in extra
-                    if (n in fulls and values[n] > 1.0 - FULL_AT_ONE)
-                    or (n in knees and values[n] < 1.0 + FULL_AT_ONE)
-                )  # fmt: skip
-                values.update({n: 1.0 for n in at_one})
-                valve_free = (*valve_free, *(n for n in extra if n not in at_one))
-            else:
+            if not needed:
                 stage.estimate = before
                 values.update(before_values)
                 values.update({n: float(SPECS[n].default) for n in extra})
-            say(f"valve: {notes[-1]}")
+                return 0
+            # a path that does not saturate within the flow levels ends at its
+            # bound 1, a path without a knee at its bound 1: held there
+            at_one = tuple(
+                n for n in extra
+                if (n in fulls and values[n] > 1.0 - FULL_AT_ONE)
+                or (n in knees and values[n] < 1.0 + FULL_AT_ONE)
+            )  # fmt: skip
+            values.update({n: 1.0 for n in at_one})
+            valve_free = (*valve_free, *(n for n in extra if n not in at_one))
+            return len(extra) - len(at_one)
+
+        test_extra(shapes, "opening shape exponents", _shape_starts)
+        # a smooth knee (an S-shaped port) and a corner at full opening (a
+        # port uncovered before the end of its stroke) answer one question:
+        # both orders are tried (each extra tested on top of the other, then
+        # the null offset), and the better law is kept, by log-likelihood
+        # less the test's price per kept parameter (half its chi-square
+        # quantile); on the bundled demo the two extras' gains on the shaped
+        # law tie (252.0 and 250.7), and the order decides the law
+        orders = [
+            [(knees, "knee exponents", _knee_starts), (fulls, "full-opening fractions",
+                                                        _full_starts)],
+        ]  # fmt: skip
+        if knees and fulls:
+            orders.append(orders[0][::-1])
+        price = 0.5 * chi2.ppf(SHAPE_CONFIDENCE, 1)
+        start_state = (stage.estimate, dict(values), valve_free, list(notes))
+        ends = []
+        for order in orders:
+            stage.estimate, valve_free = start_state[0], start_state[2]
+            values.clear()
+            values.update(start_state[1])
+            notes[:] = start_state[3]
+            kept = sum(test_extra(*item) for item in (*order, (null, "null offset",
+                                                                _null_starts)))  # fmt: skip
+            score = stage.estimate.log_likelihood - price * kept
+            ends.append((score, stage.estimate, dict(values), valve_free, list(notes)))
+        best = max(ends, key=lambda e: e[0])
+        _, stage.estimate, best_values, valve_free, best_notes = best
+        values.clear()
+        values.update(best_values)
+        notes[:] = best_notes
+        if len(ends) > 1:
+            notes.append(
+                "knees and fractions tried in both orders: log-likelihood "
+                + " and ".join(
+                    f"{e[1].log_likelihood:.1f} ({o[0][1]} first)"
+                    for e, o in zip(ends, orders, strict=True)
+                )
+                + f", the {'first' if best is ends[0] else 'second'} kept"
+            )
+        for line in notes:
+            say(f"valve: {line}")
         stage.free = valve_free
         if notes:
             stage.note = "; ".join(notes)

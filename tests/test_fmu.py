@@ -80,6 +80,7 @@ PLANTS = {
             "valve_null_offset": 0.15,
             "valve_knee_supply": 2.5,
             "valve_m": 0.45,
+            "heat_area_ends": 0.4,  # the exchange area's convention
             "friction_static": "60 N",
             "friction_stiffness": 2e5,
             "mounting_angle": 0.2,

@@ -100,9 +100,11 @@ def test_structure_field_layout_and_parameters() -> None:
     assert P["friction_damping"] == P["friction_stiffness"] + 1 == P["stop_damping"] + 2
     # then the seal effects' two parameters (appended, physics.seal_effects)
     assert P["area_factor"] == P["friction_asymmetry"] + 1 == P["friction_damping"] + 2
-    # then the external leak's split (appended with it), then the map block
+    # then the external leak's split (appended with it)
     assert P["external_leak_split"] == P["area_factor"] + 1
-    assert P["valve_map_CS_00"] == P["external_leak_split"] + 1
+    # then the exchange area's convention (a heat law's extension)
+    assert P["heat_area_ends"] == P["external_leak_split"] + 1
+    assert P["valve_map_CS_00"] == P["heat_area_ends"] + 1
 
 
 def test_parameter_sets_carry_the_law_parameters() -> None:

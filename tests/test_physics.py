@@ -233,14 +233,22 @@ def test_convection_law_zero_at_wall_temperature_and_scaled_form():
     assert 5.0 < lam < 40.0  # the paper's range (physics notes: 5..30 W/m^2/K)
 
 
-def test_exchange_areas_of_kernel_match_geometry():
-    p = parameter_vector({})
+@pytest.mark.parametrize("ends", [1.0, 0.0, 0.4])
+def test_exchange_areas_of_kernel_match_geometry(ends):
+    p = parameter_vector({"heat_area_ends": ends})
     d = np.empty(kernel.ND)
     kernel.derive(p, d)
     for y in (0.0, 0.13, 0.5):
-        a_p, a_n = geometry.exchange_areas(y, 0.5, 0.032, 0.016, 2e-5, 2e-5)
+        a_p, a_n = geometry.exchange_areas(y, 0.5, 0.032, 0.016, 2e-5, 2e-5, ends)
         assert d[kernel.D_A0P] + d[kernel.D_CAP] * y == pytest.approx(a_p, rel=1e-12)
         assert d[kernel.D_A0N] + d[kernel.D_CAN] * (0.5 - y) == pytest.approx(a_n, rel=1e-12)
+    # the two conventions by hand: all walls (1), the bore wall only (0)
+    s_p, s_n = 0.25 * np.pi * 0.032**2, 0.25 * np.pi * (0.032**2 - 0.016**2)
+    l_p, l_n = 2e-5 / s_p + 0.13, 2e-5 / s_n + 0.37
+    a_p, a_n = geometry.exchange_areas(0.13, 0.5, 0.032, 0.016, 2e-5, 2e-5, ends)
+    bore_p, bore_n = np.pi * 0.032 * l_p, np.pi * 0.032 * l_n
+    assert a_p == pytest.approx(bore_p + ends * 2 * s_p, rel=1e-12)
+    assert a_n == pytest.approx(bore_n + ends * (2 * s_n + np.pi * 0.016 * l_n), rel=1e-12)
     s_p, s_n = geometry.piston_areas(0.032, 0.016)
     v_p, v_n = geometry.chamber_volumes(0.1, 0.5, s_p, s_n, 2e-5, 2e-5)
     assert v_p == pytest.approx(2e-5 + s_p * 0.1) and v_n == pytest.approx(2e-5 + s_n * 0.4)

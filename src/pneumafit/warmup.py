@@ -103,7 +103,7 @@ def _small_kernels(params: np.ndarray) -> None:
     first_order_lag(np.ones((2, t.size)), t, 0.1)
     t.flags.writeable = False
     first_order_lag(np.ones((2, t.size)), t, 0.1)
-    names = ("stroke", "stroke", "bore", "rod", "dead_volume_P", "dead_volume_N")
+    names = ("stroke", "stroke", "bore", "rod", "dead_volume_P", "dead_volume_N", "heat_area_ends")
     exchange_areas(*(float(params[P[name]]) for name in names))
     rates_along = getattr(attribution, "_rates_along", None)
     if rates_along is not None:

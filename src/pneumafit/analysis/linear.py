@@ -519,7 +519,9 @@ def linearize(
     bore, rod, stroke = p[P["bore"]], p[P["rod"]], p[P["stroke"]]
     s_p, s_n = piston_areas(bore, rod)
     v_p, v_n = chamber_volumes(y, stroke, s_p, s_n, p[P["dead_volume_P"]], p[P["dead_volume_N"]])
-    a_p, a_n = exchange_areas(y, stroke, bore, rod, p[P["dead_volume_P"]], p[P["dead_volume_N"]])
+    a_p, a_n = exchange_areas(
+        y, stroke, bore, rod, p[P["dead_volume_P"]], p[P["dead_volume_N"]], p[P["heat_area_ends"]]
+    )
     mass, b = p[P["moving_mass"]], p[P["friction_viscous"]]
     t0, r, g = eq.T, R_AIR, GAMMA
     qp_p, qu_p = _gains(p, eq.u, eq.p_P, law)

@@ -81,6 +81,7 @@ from pneumafit.models.parts import RegistryView
 from pneumafit.models.structure import ModelStructure
 from pneumafit.numba_stamp import njit
 from pneumafit.physics.air import GAMMA, R_AIR  # the kernel's constants (docs/physics.md)
+from pneumafit.physics.geometry import exchange_areas
 from pneumafit.simulation import Experiment
 
 __all__ = [
@@ -249,12 +250,16 @@ def signature_features(
     s_p = 0.25 * math.pi * bore * bore
     s_n = 0.25 * math.pi * (bore * bore - rod * rod)
     y = np.asarray(sim["y"], float)
+    # the kernel's areas (physics.geometry), evaluated on the arrays in Python
+    areas = exchange_areas.py_func(
+        y, stroke, bore, rod, v0p, v0n, float(values.get("heat_area_ends", 1.0))
+    )
     if chamber == "P":
         vol = v0p + s_p * y
-        area = 2.0 * s_p + math.pi * bore * (v0p / s_p + y)
+        area = areas[0]
     else:
         vol = v0n + s_n * (stroke - y)
-        area = 2.0 * s_n + math.pi * (bore + rod) * (v0n / s_n + stroke - y)
+        area = areas[1]
     p_p, p_n = np.asarray(sim["p_P"], float), np.asarray(sim["p_N"], float)
     pres = p_p if chamber == "P" else p_n
     temp = np.asarray(sim[f"T_{chamber}"], float)

@@ -1015,6 +1015,7 @@ _FIT_BOUNDS: dict[str, tuple[float, float]] = {
     "xi": (1e-3, 10.0),
     "beta": (0.05, 0.6),
     "lambda": (0.01, 1e4),
+    "heat_area_ends": (0.0, 3.0),
     "friction_static": (0.01, 1e4),
     "friction_coulomb": (0.01, 1e4),
     "friction_viscous": (0.01, 1e5),

@@ -74,6 +74,7 @@ from pneumafit.models.layout import (
     MAP_C_UPPER,
     N_MAP_KNOTS,
     NX,
+    P_AENDS,
     P_ANGLE,
     P_AREA,
     P_BE,
@@ -263,7 +264,7 @@ def check_parameters(p: np.ndarray) -> bool:
         return False
     if p[P_SEAL] < 0.0 or not -1.0 < p[P_FASYM] < 1.0:
         return False
-    if not -1.0 <= p[P_GES] <= 1.0:
+    if not -1.0 <= p[P_GES] <= 1.0 or not p[P_AENDS] >= 0.0:
         return False
     # effective area: the bore's area k_A pi D^2 / 4 must exceed the rod's
     if p[P_AREA] <= 0.0 or p[P_AREA] * p[P_BORE] * p[P_BORE] <= p[P_ROD] * p[P_ROD]:
@@ -310,13 +311,16 @@ def valve_arrays(p: np.ndarray, vc: np.ndarray, vm: np.ndarray) -> None:
 
 @njit(cache=True)
 def _exchange_constants(
-    bore: float, rod: float, s_p: float, s_n: float, v0_p: float, v0_n: float
+    bore: float, rod: float, s_p: float, s_n: float, v0_p: float, v0_n: float, ends: float
 ) -> tuple[float, float, float, float]:
     """Exchange areas A_P = A0P + CAP y, A_N = A0N + CAN (L - y) (physics.geometry):
-    (A0P, CAP, A0N, CAN) in m^2, m^2, m; the dead volumes' walls as cylinders of
-    the piston's section."""
-    a0_n = 2.0 * s_n + math.pi * (bore + rod) * v0_n / s_n if s_n > 0.0 else 0.0
-    return 2.0 * s_p + math.pi * bore * v0_p / s_p, math.pi * bore, a0_n, math.pi * (bore + rod)
+    (A0P, CAP, A0N, CAN) in m^2, m, m^2, m; the dead volumes' walls as cylinders of
+    the piston's section; heads, piston faces and rod counted with the share
+    ``ends`` (parameter heat_area_ends)."""
+    rod_e = ends * rod
+    a0_n = 2.0 * ends * s_n + math.pi * (bore + rod_e) * v0_n / s_n if s_n > 0.0 else 0.0
+    a0_p = 2.0 * ends * s_p + math.pi * bore * v0_p / s_p
+    return a0_p, math.pi * bore, a0_n, math.pi * (bore + rod_e)
 
 
 @njit(cache=True)
@@ -333,7 +337,7 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     bore_k = bore * math.sqrt(p[P_AREA]) if p[P_AREA] > 0.0 else bore
     d[D_SPK], d[D_SNK] = piston_areas(bore_k, rod)
     d[D_A0PK], d[D_CAPK], d[D_A0NK], d[D_CANK] = _exchange_constants(
-        bore_k, rod, d[D_SPK], d[D_SNK], p[P_V0P], p[P_V0N]
+        bore_k, rod, d[D_SPK], d[D_SNK], p[P_V0P], p[P_V0N], p[P_AENDS]
     )
     d[D_FEXT] = p[P_PE] * (s_p - s_n) + p[P_FEXT] + p[P_MASS] * G0 * math.sin(p[P_ANGLE])
     mu = viscosity(p[P_TW])
@@ -345,7 +349,7 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     d[D_GRC] = G0 * length**3 / (R_AIR * mu) ** 2
     d[D_RTA] = math.sqrt(T_REF / p[P_TAMB])
     d[D_A0P], d[D_CAP], d[D_A0N], d[D_CAN] = _exchange_constants(
-        bore, rod, s_p, s_n, p[P_V0P], p[P_V0N]
+        bore, rod, s_p, s_n, p[P_V0P], p[P_V0N], p[P_AENDS]
     )
     d[D_IPS] = 1.0 / p[P_PS]
     d[D_IM] = 1.0 / p[P_MASS]

@@ -231,6 +231,13 @@ _BASE_SPECS = (
                   "share of the external leak by chamber: G_P = G (1 + s), G_N = G (1 - s)"),
 )  # fmt: skip
 
+# appended after the external leak's split: the heat-exchange area's convention
+_BASE_SPECS = (
+    *_BASE_SPECS,
+    ParameterSpec("heat_area_ends", "", 1.0, 0.0, 5.0, "heat",
+                  "share of heads, piston faces and rod in the exchange area (0: bore wall only)"),
+)  # fmt: skip
+
 
 def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
     # measured valve map (physics.valve_map): knot values of the default ISO valve
@@ -326,6 +333,7 @@ P_SIG0 = P["friction_stiffness"]
 P_SIG1 = P["friction_damping"]
 P_FASYM = P["friction_asymmetry"]
 P_AREA = P["area_factor"]
+P_AENDS = P["heat_area_ends"]
 # valve map: contiguous blocks (physics.valve_map.map_constants reads slices)
 N_MAP_KNOTS = len(MAP_KNOTS)
 P_MAP_CS = P[MAP_CS_NAMES[0]]

@@ -179,7 +179,7 @@ class ModelStructure:
     @property
     def parameter_names(self) -> tuple[str, ...]:
         """Model parameters (besides rig, valve, friction) used by this structure."""
-        names = list(HEAT_PARAMETERS[self.heat])
+        names = [*HEAT_PARAMETERS[self.heat], *parts.HEAT_LAWS[self.heat].extensions]
         for effect, value in self.effects.items():
             names.extend(parts.EFFECTS[effect].options[value])
         return tuple(names)

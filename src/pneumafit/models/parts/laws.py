@@ -46,6 +46,7 @@ CONSTANT_LAMBDA = register_heat_law(
         colour="tab:blue",
         order=1,
         starts=({"lambda": 5.0}, {"lambda": 15.0}, {"lambda": 40.0}),
+        extensions=("heat_area_ends",),
     )
 )
 CONVECTION = register_heat_law(
@@ -62,6 +63,7 @@ CONVECTION = register_heat_law(
             {"xi": 0.10, "beta": 1.0 / 3.0},
             {"xi": 0.25, "beta": 0.29},
         ),
+        extensions=("heat_area_ends",),
     )
 )
 

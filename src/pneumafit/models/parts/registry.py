@@ -141,6 +141,10 @@ class HeatLaw:
     starts : tuple of mapping of str to float
         Starting values of the staged fit's heat stage (SI; parameter names
         of ``parameters``), :func:`pneumafit.identification.starts.heat_starts`.
+    extensions : tuple of str
+        Further parameters the law uses, held at their table default (the law
+        as written) unless the heat stage's likelihood-ratio test frees them,
+        e.g. ``heat_area_ends``, the exchange area's convention.
     """
 
     name: str
@@ -151,6 +155,7 @@ class HeatLaw:
     colour: str
     order: int
     starts: tuple[Mapping[str, float], ...] = ()
+    extensions: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -454,6 +459,8 @@ def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
         A failed check; nothing is registered.
     """
     where = _check_law(_HEAT, law, "heat law", replace)
+    if law.extensions:
+        _check_parameters(f"{where}: extensions", (*law.parameters, *law.extensions))
     for start in law.starts:
         _check_values(where, start, law.parameters)
     return _commit(_HEAT, law, replace)

@@ -63,6 +63,7 @@ int pf_check_parameters(const double *p) /* kernel.check_parameters */
         p[PF_P_external_leak_conductance] < 0.0 || p[PF_P_valve_time_constant] < 0.0)
         return 0;
     if (!(p[PF_P_external_leak_split] >= -1.0) || !(p[PF_P_external_leak_split] <= 1.0)) return 0;
+    if (!(p[PF_P_heat_area_ends] >= 0.0)) return 0;
     if (p[PF_P_wall_heat_capacity] <= 0.0) return 0;
     if (p[PF_P_stop_stiffness] < 0.0 || p[PF_P_stop_damping] < 0.0) return 0;
     if (p[PF_P_friction_stiffness] <= 0.0 || p[PF_P_friction_damping] < 0.0) return 0;
@@ -369,10 +370,12 @@ void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants 
     m->k_air = conductivity(p[PF_P_wall_temperature]);
     m->lam_c = p[PF_P_xi] * m->k_air / length;
     m->gr_c = PF_G0 * (length * length * length) / ((PF_R_AIR * m->mu) * (PF_R_AIR * m->mu));
-    m->a0p = 2.0 * s_p + M_PI * bore * p[PF_P_dead_volume_P] / s_p;
+    /* heads, piston faces and rod counted with the share heat_area_ends */
+    double ends = p[PF_P_heat_area_ends], rod_e = ends * rod;
+    m->a0p = 2.0 * ends * s_p + M_PI * bore * p[PF_P_dead_volume_P] / s_p;
     m->cap = M_PI * bore;
-    m->a0n = 2.0 * s_n + M_PI * (bore + rod) * p[PF_P_dead_volume_N] / s_n;
-    m->can = M_PI * (bore + rod);
+    m->a0n = 2.0 * ends * s_n + M_PI * (bore + rod_e) * p[PF_P_dead_volume_N] / s_n;
+    m->can = M_PI * (bore + rod_e);
     { /* the effective bore D sqrt(k_A) of effect effective_area, the rod unchanged */
         double k_a = p[PF_P_area_factor];
         double bore_k = k_a > 0.0 ? bore * sqrt(k_a) : bore;
@@ -380,11 +383,12 @@ void pf_derive(pf_model *m) /* kernel.derive: valve_constants and map_constants 
         double s_nk = 0.25 * M_PI * (bore_k * bore_k - rod * rod);
         m->s_pk = s_pk;
         m->s_nk = s_nk;
-        m->a0pk = 2.0 * s_pk + M_PI * bore_k * p[PF_P_dead_volume_P] / s_pk;
+        m->a0pk = 2.0 * ends * s_pk + M_PI * bore_k * p[PF_P_dead_volume_P] / s_pk;
         m->capk = M_PI * bore_k;
-        m->a0nk = s_nk > 0.0 ? 2.0 * s_nk + M_PI * (bore_k + rod) * p[PF_P_dead_volume_N] / s_nk
-                             : 0.0;
-        m->cank = M_PI * (bore_k + rod);
+        m->a0nk = s_nk > 0.0
+                      ? 2.0 * ends * s_nk + M_PI * (bore_k + rod_e) * p[PF_P_dead_volume_N] / s_nk
+                      : 0.0;
+        m->cank = M_PI * (bore_k + rod_e);
     }
     m->inv_ps = 1.0 / p[PF_P_supply_pressure];
     m->inv_m = 1.0 / p[PF_P_moving_mass];

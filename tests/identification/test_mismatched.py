@@ -149,7 +149,7 @@ def test_auto_friction_chooses_pre_sliding_where_the_rig_has_it(pre_sliding: tup
     assert fit_p
     for c in fit_p:
         assert c.rms / true <= 3.0, (c.recording, c.channel, c.rms / true)
-    lam = result.metrics["lambda_reference"]["value"]
+    lam = result.metrics["lambda_reference"]["full_area_equivalent"]["value"]
     assert lam == pytest.approx(truth["lambda_full_area_equivalent"], rel=0.10)
     f_c = result.parameters["friction_coulomb"].value
     assert f_c == pytest.approx(truth["friction_coulomb"], rel=0.10)

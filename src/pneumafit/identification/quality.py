@@ -460,10 +460,12 @@ CONSTRAINTS: tuple[tuple[str, str, str], ...] = (
 #: full-opening fraction at 1 the law that opens fully at u_sat. The valve
 #: stage holds an extension that ends there at that value; when the joint
 #: stage takes one back to it, the fit is that nested law, not an estimate
-#: leaning on a wall, and it is not named.
+#: leaning on a wall, and it is not named. The exchange area's share of heads,
+#: faces and rod at 0 is likewise a convention of its own (the bore wall only).
 NESTING_BOUNDS: dict[str, str] = {
     "valve_knee_supply": "lower", "valve_knee_exhaust": "lower",
     "valve_full_supply": "upper", "valve_full_exhaust": "upper",
+    "heat_area_ends": "lower",
 }  # fmt: skip
 
 

@@ -86,6 +86,7 @@ from pneumafit.identification.starts import (
     valve_starts,
 )
 from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS, SPECS
+from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     HEAT_PARAMETERS,
@@ -94,6 +95,7 @@ from pneumafit.models.structure import (
     ModelStructure,
 )
 from pneumafit.models.structure import FRICTION_PARAMETERS as STRUCTURE_FRICTION
+from pneumafit.physics.geometry import exchange_areas
 from pneumafit.physics.valve_map import (
     CENTRE_KNOT,
     MAP_CE_NAMES,
@@ -185,6 +187,10 @@ JOINT_SCREEN_NFEV = 20
 #: (a Gaussian bump: 9 of 11 demo-plan fits ended at 1e-15 m^3/s/Pa, and the
 #: heat law then absorbed the rest drift, xi 3.5x the truth).
 LEAK_FRACTIONS = (1.0e-3, 3.0e-3, 1.0e-2)
+
+#: Starts of a heat law's extension ``heat_area_ends`` besides the law as
+#: written (1): the bore wall only (0) and half the heads, faces and rod.
+AREA_STARTS = (0.0, 0.5)
 
 
 def _leak_starts(
@@ -1258,6 +1264,47 @@ def identify(
         if len(heat_names) > 1:  # the xi-beta ridge: one-parameter laws have one optimum
             heat_alternatives = _distinct_optima(stage.estimate, heat_names, JOINT_STARTS - 1)
         say(f"heat: {stage.seconds:.1f} s, " + _brief(stage.estimate, heat_names + leak_names))
+        extensions = tuple(
+            n for n in HEAT_LAWS[structure.heat].extensions if n in params.names
+        )  # fmt: skip
+        if extensions and stage.estimate is not None:
+            # the law's extensions (the exchange area's convention): freed
+            # when the charge/discharge tests ask for them (likelihood-ratio
+            # test, the gain divided by the residuals' overcount as for the
+            # seal friction); they resolve it when the tests cover both
+            # chambers or several positions, else the gain is nil
+            before, before_values = stage.estimate, dict(values)
+            ll = before.log_likelihood
+            t_ext = stage.seconds
+            ext_starts = [dict(values)] + [
+                {**values, **{n: v for n in extensions}} for v in AREA_STARTS
+            ]
+            prob = run_stage(stage, blocked, (*free_heat, *extensions), ext_starts, seeds[1],
+                             label="heat (area convention)")  # fmt: skip
+            stage.seconds += t_ext
+            gain = stage.estimate.log_likelihood - ll
+            est_ps = stage.estimate.parameters
+            over = LogLikelihood(prob, est_ps).overcount(est_ps.to_internal(est_ps.values()))
+            kept = math.isfinite(gain) and 2.0 * gain / over > chi2.ppf(
+                SHAPE_CONFIDENCE, len(extensions)
+            )
+            line = (
+                f"exchange area's convention {'kept' if kept else 'not needed'}: log-likelihood "
+                f"gain {gain:.1f} / {over:.3g} (residual correlation), "
+                + _brief(stage.estimate, extensions)
+            )
+            say(f"heat: {line}")
+            stage.note = "; ".join(x for x in (stage.note, line) if x)
+            if kept:
+                heat_names = (*heat_names, *extensions)
+                stage.free = (*free_heat, *extensions)
+                heat_alternatives = [
+                    {**alt, **{n: values[n] for n in extensions}} for alt in heat_alternatives
+                ]
+            else:
+                stage.estimate = before
+                values.clear()
+                values.update(before_values)
     else:
         stage.note = "no fit charge/discharge test: heat parameters from the step tests only"
         warns.append(f"heat: {stage.note}")
@@ -1679,23 +1726,46 @@ def _lambda_reference(
 
     From the heat stage's propagated MCMC draws when sampled, else from 4000
     draws of the joint Laplace approximation; the value is the draws' median,
-    so that it lies inside its own interval.
+    so that it lies inside its own interval. ``full_area_equivalent`` is
+    lambda A_P / A_P,full, chamber P's exchange at mid-stroke on the area that
+    counts every wall (heat_area_ends 1): the figure that compares fits, and
+    rigs, whose area conventions differ.
     """
     if structure.heat == "polytropic":
         return None
-    names = HEAT_PARAMETERS[structure.heat]
+    names = (*HEAT_PARAMETERS[structure.heat], *HEAT_LAWS[structure.heat].extensions)
     if draws is None:
         draws = _laplace_draws(laplace, est, seed)
-    point = reference_lambda(values, structure.heat, structure.air_properties)
-    out: dict[str, Any] = {"state": dict(REFERENCE_STATE), "value": point, "interval_90": None}
-    if draws is not None and all(n in draws for n in names):
-        sample = {**values, **{n: np.asarray(draws[n]) for n in names}}
+
+    def figures(sample: Mapping[str, Any]) -> tuple[Any, Any]:
         lam = np.asarray(reference_lambda(sample, structure.heat, structure.air_properties))
-        lam = lam[np.isfinite(lam)]
-        if lam.size:
-            out["interval_90"] = [float(np.quantile(lam, 0.05)), float(np.quantile(lam, 0.95))]
-            out["value"] = float(np.median(lam))
+        return lam, lam * _full_area_share(sample)
+
+    point, point_full = (float(x) for x in figures(values))
+    out: dict[str, Any] = {
+        "state": dict(REFERENCE_STATE), "value": point, "interval_90": None,
+        "full_area_equivalent": {"value": point_full, "interval_90": None},
+    }  # fmt: skip
+    if draws is not None and all(n in draws for n in HEAT_PARAMETERS[structure.heat]):
+        sample = {**values, **{n: np.asarray(draws[n]) for n in names if n in draws}}
+        lam, full = figures(sample)
+        lam, full = np.broadcast_arrays(lam, full)
+        ok = np.isfinite(lam) & np.isfinite(full)
+        for target, x in ((out, lam[ok]), (out["full_area_equivalent"], full[ok])):
+            if x.size:
+                target["interval_90"] = [float(np.quantile(x, 0.05)), float(np.quantile(x, 0.95))]
+                target["value"] = float(np.median(x))
     return out
+
+
+def _full_area_share(values: Mapping[str, Any]) -> Any:
+    """A_P / A_P,full of chamber P at mid-stroke (physics.geometry; SI values;
+    ``heat_area_ends`` may be an array of draws)."""
+    geo = [float(values[n]) for n in ("stroke", "bore", "rod", "dead_volume_P", "dead_volume_N")]
+    y = 0.5 * geo[0]
+    ends = np.asarray(values.get("heat_area_ends", 1.0), dtype=float)
+    area = exchange_areas.py_func(y, *geo, ends)[0]
+    return area / exchange_areas.py_func(y, *geo, 1.0)[0]
 
 
 def _laplace_draws(

@@ -62,11 +62,12 @@ def test_an_extension_outside_the_table_is_refused() -> None:
         register_heat_law(law)
 
 
-def _chamber_tests(preset: str, seed: int) -> tuple[Campaign, float]:
-    """The demo plan's flow and charge/discharge tests of truth ``preset``, and
-    the truth's full-area equivalent lambda at the reference state (W/m^2/K)."""
+def _chamber_tests(preset: str, seed: int, plan: str = "demo") -> tuple[Campaign, float]:
+    """The flow and charge/discharge tests of truth ``preset`` on test plan
+    ``plan``, and the truth's full-area equivalent lambda at the reference
+    state (W/m^2/K)."""
     rig = VirtualRig(truth=preset, seed=seed)
-    full = rig.campaign("demo")
+    full = rig.campaign(plan)
     kept = [r for r in full.recordings if r.kind in ("flow", "charge", "discharge")]
     truth = reference_quantities(rig.truth, rig.parameters)["lambda_full_area_equivalent"]
     camp = Campaign(path=None, name=preset, description="", rig=full.rig, recordings=kept)
@@ -110,3 +111,15 @@ def test_a_full_area_rig_keeps_its_area() -> None:
     result = identify(campaign, options=FitOptions(mcmc=False), seed=2)
     assert abs(result.parameters[AREA].value - 1.0) <= 0.25
     assert _full_area_lambda(result) == pytest.approx(lam, rel=0.25)
+
+
+def test_one_chambers_tests_hold_the_area() -> None:
+    """The sparse plan tests chamber P only: the area's convention is held at
+    1 and the note says why. Freed there, it traded with the heat law
+    (table-valve-asym seed 2: kept at 0.69, then 1.19 in [0, 3], the fit
+    recordings' worst from 10.6x to 20.3x the noise)."""
+    campaign, _ = _chamber_tests("mixed", 2, "sparse")
+    assert {r.chamber for r in campaign.recordings if r.kind != "flow"} == {"P"}
+    result = identify(campaign, options=FitOptions(mcmc=False), seed=2)
+    assert "cover one chamber" in result.stage("heat").note
+    assert result.parameters[AREA].value == 1.0 and result.parameters[AREA].fixed

@@ -8,10 +8,11 @@ and reports:
 
 - per recording and channel, the residual RMS over the sensor noise (fit and
   held-out recordings; the fit's own quality check);
-- lambda at the reference state (5 bar, 50 degC gas, 20 degC wall; for a
-  truth with another exchange-area convention, its full-area equivalent at
-  mid-stroke) and the static and Coulomb friction, against the truth's
-  equivalents, and whether
+- lambda at the reference state (5 bar, 50 degC gas, 20 degC wall; fit and
+  truth by their full-area equivalents at mid-stroke, lambda A_P / A_P,full,
+  whatever walls each counts), the static friction and the Coulomb friction
+  (both sides' steady sliding friction at 50 mm/s less its viscous part,
+  the truth's definition), against the truth's figures, and whether
   the 90 % intervals contain them;
 - estimates outside their own interval, estimates at a bound.
 
@@ -131,8 +132,14 @@ def run_case(
             (fr["static"]["value"], fr["static"]["interval_90"]) if fr
             else (p["friction_static"].value, _interval(p["friction_static"]))
         ),
+        # the truth's Coulomb figure is its steady sliding friction at 50 mm/s
+        # less the viscous part (virtual_rig.truth.reference_quantities): the
+        # fit's same figure, its Coulomb level plus what remains of its
+        # Stribeck drop there (0.04 N on the fitted laws' own truth, whose
+        # F_c intervals of +-0.01 N missed it)
         "friction_coulomb": (
-            (fr["coulomb"]["value"], fr["coulomb"]["interval_90"]) if fr
+            (fr["sliding"]["value"], fr["sliding"]["interval_90"]) if fr.get("sliding")
+            else (fr["coulomb"]["value"], fr["coulomb"]["interval_90"]) if fr
             else (p["friction_coulomb"].value, _interval(p["friction_coulomb"]))
         ),
     }  # fmt: skip

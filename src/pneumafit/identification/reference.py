@@ -19,10 +19,42 @@ from numpy.typing import NDArray
 from pneumafit.physics.air import conductivity, viscosity
 from pneumafit.physics.heat import convection_coefficient
 
-__all__ = ["REFERENCE_STATE", "reference_lambda"]
+__all__ = ["REFERENCE_STATE", "SLIDING_VELOCITY", "reference_lambda", "reference_sliding"]
 
 #: Reference state: pressure (Pa), gas and wall temperatures (K).
 REFERENCE_STATE = {"pressure": 5.0e5, "gas_temperature": 323.15, "wall_temperature": 293.15}
+
+#: Sliding velocity (m/s) at which the sliding friction level is quoted
+#: (:func:`reference_sliding`): past the Stribeck drop of pneumatic seals
+#: (v_s 5-30 mm/s), below the speeds of a full stroke.
+SLIDING_VELOCITY = 0.05
+
+
+def reference_sliding(
+    values: Mapping[str, float | NDArray[np.float64]], extra: float | NDArray[np.float64] = 0.0
+) -> float | NDArray[np.float64]:
+    """Steady sliding friction at :data:`SLIDING_VELOCITY` less its viscous part (N).
+
+    F_c + (F_s - F_c) exp(-(v / v_s)^2) (the Stribeck curve of both friction
+    laws, :func:`pneumafit.physics.friction.sliding_friction`) plus ``extra``
+    (N, e.g. the seal friction at the quoted pressures), which adds to both
+    levels. This is the level a friction test reads once the piston slides,
+    and it compares laws whose Coulomb parameters mean different things (a
+    truth without a Stribeck drop, or with another drop shape).
+
+    Parameters
+    ----------
+    values : mapping
+        ``friction_static``, ``friction_coulomb`` (N), ``stribeck_velocity``
+        (m/s); arrays of draws allowed.
+    extra : float or ndarray
+        Added to both levels (N).
+    """
+    f_s = np.asarray(values["friction_static"], float) + extra
+    f_c = np.asarray(values["friction_coulomb"], float) + extra
+    r = SLIDING_VELOCITY / np.asarray(values["stribeck_velocity"], float)
+    out = f_c + (f_s - f_c) * np.exp(-r * r)
+    return float(out) if np.ndim(out) == 0 else out
 
 
 def reference_lambda(

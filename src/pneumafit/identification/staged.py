@@ -75,7 +75,12 @@ from pneumafit.identification.quality import (
     chain_problems,
     interval_problems,
 )
-from pneumafit.identification.reference import REFERENCE_STATE, reference_lambda
+from pneumafit.identification.reference import (
+    REFERENCE_STATE,
+    SLIDING_VELOCITY,
+    reference_lambda,
+    reference_sliding,
+)
 from pneumafit.identification.replay import Replay, replay
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import (
@@ -1810,9 +1815,13 @@ def _friction_reference(
     With the ``seal_friction`` effect the levels grow by c (P_P + P_N -
     2 P_atm); at P_P = P_N = (P_S + P_atm) / 2 that is c (P_S - P_atm),
     the state at which a rig's friction is usually quoted. Without it the
-    levels are the parameters themselves. Values are the medians of the
-    friction stage's propagated MCMC draws when sampled, else of 4000
-    draws of the joint Laplace approximation, with their 90 % intervals.
+    levels are the parameters themselves. ``sliding`` is the steady sliding
+    friction at 50 mm/s less its viscous part at the same pressures
+    (:func:`~pneumafit.identification.reference.reference_sliding`): the
+    Coulomb level plus what remains of the Stribeck drop there. Values are
+    the medians of the friction stage's propagated MCMC draws when sampled,
+    else of 4000 draws of the joint Laplace approximation, with their 90 %
+    intervals.
     """
     delta = float(rig["supply_pressure"] - rig["exhaust_pressure"])
     seal = SEAL if structure.effects.get("seal_friction") else None
@@ -1833,6 +1842,23 @@ def _friction_reference(
                     float(np.quantile(level, 0.05)), float(np.quantile(level, 0.95))
                 ]  # fmt: skip
         out[key] = entry
+    c = float(values.get(seal, 0.0)) if seal else 0.0
+    names = ("friction_static", "friction_coulomb", "stribeck_velocity")
+    sliding: dict[str, Any] = {
+        "velocity": SLIDING_VELOCITY,
+        "value": float(reference_sliding(values, c * delta)),
+        "interval_90": None,
+    }
+    if draws is not None and all(n in draws for n in names):
+        extra = np.asarray(draws.get(seal, c), dtype=float) * delta if seal else 0.0
+        level = np.asarray(reference_sliding({n: draws[n] for n in names}, extra))
+        level = level[np.isfinite(level)]
+        if level.size:
+            sliding["value"] = float(np.median(level))
+            sliding["interval_90"] = [
+                float(np.quantile(level, 0.05)), float(np.quantile(level, 0.95))
+            ]  # fmt: skip
+    out["sliding"] = sliding
     return out
 
 

@@ -1,0 +1,52 @@
+"""Reference figures that compare fits with truths whose laws differ.
+
+The sliding friction at 50 mm/s (reference.reference_sliding) is checked
+against the kernel's own Stribeck curve (physics.friction.sliding_friction,
+its viscous part removed), against its two analytic limits, and against the
+independently written truth simulator's figure of the same name on a truth
+with the fitted laws' Stribeck curve (``fit-laws``: LuGre with exponent 2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pneumafit.identification.reference import SLIDING_VELOCITY, reference_sliding
+from pneumafit.physics.friction import sliding_friction
+from pneumafit.virtual_rig import VirtualRig
+from pneumafit.virtual_rig.truth import reference_quantities
+
+LEVELS = {"friction_static": 46.0, "friction_coulomb": 28.5, "stribeck_velocity": 0.017}
+
+
+def test_sliding_level_is_the_kernels_stribeck_curve() -> None:
+    v = SLIDING_VELOCITY
+    args = (LEVELS["friction_static"], LEVELS["friction_coulomb"], 60.0,
+            LEVELS["stribeck_velocity"])  # fmt: skip
+    expected = sliding_friction(v, 1, *args) - 60.0 * v
+    assert reference_sliding(LEVELS) == pytest.approx(expected, rel=1e-12)
+    # a seal term adds to both levels, so to the sliding level
+    assert reference_sliding(LEVELS, 3.0) == pytest.approx(expected + 3.0, rel=1e-12)
+
+
+def test_sliding_level_limits_and_draws() -> None:
+    # a drop far slower than 50 mm/s leaves the Coulomb level, one far faster the static
+    assert reference_sliding({**LEVELS, "stribeck_velocity": 1e-4}) == pytest.approx(28.5)
+    assert reference_sliding({**LEVELS, "stribeck_velocity": 100.0}) == pytest.approx(46.0, 1e-6)
+    draws = {k: np.full(5, v) for k, v in LEVELS.items()}
+    out = reference_sliding(draws, np.arange(5.0))
+    assert out.shape == (5,)
+    assert out == pytest.approx(reference_sliding(LEVELS) + np.arange(5.0), rel=1e-12)
+
+
+def test_the_truth_simulator_quotes_the_same_figure() -> None:
+    """Both sides quote the Coulomb figure at the same velocity and by the
+    same curve: on the fitted laws' truth they agree to rounding."""
+    rig = VirtualRig(truth="fit-laws", seed=1)
+    truth = reference_quantities(rig.truth, rig.parameters)
+    fr = rig.truth.friction
+    values = {"friction_static": fr.F_s, "friction_coulomb": fr.F_c, "stribeck_velocity": fr.v_s}
+    delta = rig.parameters["supply_pressure"] - rig.parameters["exhaust_pressure"]
+    assert fr.sliding(SLIDING_VELOCITY, delta) == pytest.approx(truth["friction_coulomb"])
+    assert reference_sliding(values) == pytest.approx(truth["friction_coulomb"], rel=1e-9)

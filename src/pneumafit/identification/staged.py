@@ -1769,10 +1769,8 @@ def _lambda_reference(
         lam, full = figures(sample)
         lam, full = np.broadcast_arrays(lam, full)
         ok = np.isfinite(lam) & np.isfinite(full)
-        for target, x in ((out, lam[ok]), (out["full_area_equivalent"], full[ok])):
-            if x.size:
-                target["interval_90"] = [float(np.quantile(x, 0.05)), float(np.quantile(x, 0.95))]
-                target["value"] = float(np.median(x))
+        _summarise(out, lam[ok])
+        _summarise(out["full_area_equivalent"], full[ok])
     return out
 
 
@@ -1835,12 +1833,7 @@ def _friction_reference(
             level = np.asarray(draws[name], dtype=float)
             if seal:
                 level = level + np.asarray(draws.get(seal, c), dtype=float) * delta
-            level = level[np.isfinite(level)]
-            if level.size:
-                entry["value"] = float(np.median(level))
-                entry["interval_90"] = [
-                    float(np.quantile(level, 0.05)), float(np.quantile(level, 0.95))
-                ]  # fmt: skip
+            _summarise(entry, level)
         out[key] = entry
     c = float(values.get(seal, 0.0)) if seal else 0.0
     names = ("friction_static", "friction_coulomb", "stribeck_velocity")
@@ -1851,15 +1844,19 @@ def _friction_reference(
     }
     if draws is not None and all(n in draws for n in names):
         extra = np.asarray(draws.get(seal, c), dtype=float) * delta if seal else 0.0
-        level = np.asarray(reference_sliding({n: draws[n] for n in names}, extra))
-        level = level[np.isfinite(level)]
-        if level.size:
-            sliding["value"] = float(np.median(level))
-            sliding["interval_90"] = [
-                float(np.quantile(level, 0.05)), float(np.quantile(level, 0.95))
-            ]  # fmt: skip
+        _summarise(sliding, reference_sliding({n: draws[n] for n in names}, extra))
     out["sliding"] = sliding
     return out
+
+
+def _summarise(entry: dict[str, Any], draws: Any) -> None:
+    """Set ``entry``'s ``value`` and ``interval_90`` to the median and the 5 and
+    95 % quantiles of the finite ``draws`` (unchanged when none is finite)."""
+    x = np.asarray(draws, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    if x.size:
+        entry["value"] = float(np.median(x))
+        entry["interval_90"] = [float(np.quantile(x, 0.05)), float(np.quantile(x, 0.95))]
 
 
 def assess(

@@ -50,3 +50,24 @@ def test_the_truth_simulator_quotes_the_same_figure() -> None:
     delta = rig.parameters["supply_pressure"] - rig.parameters["exhaust_pressure"]
     assert fr.sliding(SLIDING_VELOCITY, delta) == pytest.approx(truth["friction_coulomb"])
     assert reference_sliding(values) == pytest.approx(truth["friction_coulomb"], rel=1e-9)
+
+
+def test_the_console_summary_quotes_the_figures() -> None:
+    """The fit's summary prints the figures with their intervals, the full-area
+    lambda only where the fitted area is not the full one."""
+    from pneumafit.cli.fit import _reference_lines
+
+    state = {"pressure": 5e5, "gas_temperature": 323.15, "wall_temperature": 293.15}
+    lam = {"state": state, "value": 16.1, "interval_90": [16.0, 16.2],
+           "full_area_equivalent": {"value": 15.2, "interval_90": [15.1, 15.3]}}  # fmt: skip
+    level = {"value": 30.0, "interval_90": [29.0, 31.0]}
+    fr = {"static": level, "coulomb": level, "sliding": {**level, "velocity": 0.05}}
+    lines = _reference_lines({"lambda_reference": lam, "friction_reference": fr})
+    assert lines[0] == (
+        "lambda at 5 bar, gas 50 degC, wall 20 degC: 16.1 W/m^2/K [16, 16.2]; on every "
+        "wall's area (chamber P, mid-stroke): 15.2 W/m^2/K [15.1, 15.3]"
+    )
+    assert "sliding at 50 mm/s less viscous 30 N [29, 31]" in lines[1]
+    same = {**lam, "full_area_equivalent": {"value": 16.1, "interval_90": [16.0, 16.2]}}
+    assert "every wall" not in _reference_lines({"lambda_reference": same})[0]
+    assert _reference_lines({}) == []

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 from rich.table import Table
@@ -270,6 +271,38 @@ def _quality_table(result: FitResult, console: Console) -> None:
     console.print(table)
 
 
+def _figure(entry: dict[str, Any], unit: str) -> str:
+    """'16.1 W/m^2/K [16.0, 16.2]' from a reference figure of fit.json's metrics."""
+    iv = entry.get("interval_90")
+    text = f"{_fmt(entry.get('value'), 4)} {unit}"
+    return text + (f" [{_fmt(iv[0], 4)}, {_fmt(iv[1], 4)}]" if iv else "")
+
+
+def _reference_lines(metrics: dict[str, Any]) -> list[str]:
+    """The figures that compare a fit with other models and rigs (fit.json's
+    metrics.lambda_reference and friction_reference), with 90 % intervals."""
+    lines = []
+    lam = metrics.get("lambda_reference")
+    if lam and lam.get("value") is not None:
+        s = lam["state"]
+        line = (
+            f"lambda at {s['pressure'] / 1e5:g} bar, gas {s['gas_temperature'] - 273.15:g} degC, "
+            f"wall {s['wall_temperature'] - 273.15:g} degC: {_figure(lam, 'W/m^2/K')}"
+        )
+        full = lam.get("full_area_equivalent")
+        if full and full.get("value") is not None and full["value"] != lam["value"]:
+            line += f"; on every wall's area (chamber P, mid-stroke): {_figure(full, 'W/m^2/K')}"
+        lines.append(line)
+    fr = metrics.get("friction_reference")
+    if fr and fr.get("static"):
+        parts = [f"static {_figure(fr['static'], 'N')}", f"Coulomb {_figure(fr['coulomb'], 'N')}"]
+        if fr.get("sliding"):
+            v = fr["sliding"]["velocity"] * 1e3
+            parts.append(f"sliding at {v:g} mm/s less viscous {_figure(fr['sliding'], 'N')}")
+        lines.append("friction at mid pressure: " + ", ".join(parts))
+    return lines
+
+
 def _summary(result: FitResult, console: Console) -> None:
     """The verdict first, then the fitted parameters with their uncertainty and
     MCMC diagnostics, and the residual over noise per recording."""
@@ -319,6 +352,8 @@ def _summary(result: FitResult, console: Console) -> None:
             Text(flagged.get(p.name, ""), style="bold red"),
         )  # fmt: skip
     console.print(table)
+    for line in _reference_lines(result.metrics):
+        console.print(line)
     _quality_table(result, console)
     for run in result.mcmc:
         if len(run.names) >= 2 and run.name == "heat":

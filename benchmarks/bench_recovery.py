@@ -138,8 +138,7 @@ def run_case(
         # Stribeck drop there (0.04 N on the fitted laws' own truth, whose
         # F_c intervals of +-0.01 N missed it)
         "friction_coulomb": (
-            (fr["sliding"]["value"], fr["sliding"]["interval_90"]) if fr.get("sliding")
-            else (fr["coulomb"]["value"], fr["coulomb"]["interval_90"]) if fr
+            (fr["sliding"]["value"], fr["sliding"]["interval_90"]) if fr
             else (p["friction_coulomb"].value, _interval(p["friction_coulomb"]))
         ),
     }  # fmt: skip

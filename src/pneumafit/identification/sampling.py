@@ -169,8 +169,7 @@ class MCMCResult:
         the stage name, units, seed, discard. For ``az.summary``, ``az.plot_trace``
         and the like; the walkers of one ensemble are not independent chains.
         """
-        import arviz as az
-
+        az = _arviz()
         kept = self.chain[self.discard :]
         posterior = {
             p.name: np.asarray(p.to_value(kept[:, :, j]), dtype=float).T
@@ -206,6 +205,20 @@ class MCMCResult:
             "seed": self.seed,
             "warnings": list(self.warnings),
         }
+
+
+def _arviz() -> Any:
+    """ArviZ, imported without its 0.23 announcement of the 1.0 refactor.
+
+    ArviZ 0.23 prints a ``FutureWarning`` at import (the refactor to come), in
+    the middle of a fit's progress lines; the package pins ``arviz<1`` (the
+    refactor moves ``from_dict``), so the announcement says nothing to a user.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=FutureWarning, module="arviz")
+        import arviz
+
+    return arviz
 
 
 def default_moves() -> list[tuple[Any, float]]:
@@ -648,8 +661,7 @@ def summarize_chain(
     from the chain (a walker that moved accepted), since emcee's counts
     include the adaptation.
     """
-    import arviz as az
-
+    az = _arviz()
     n_steps, n_walkers, n_free = chain.shape
     burn = min(max(int(burn), 0), max(n_steps - 2, 0))
     names = parameters.free_names

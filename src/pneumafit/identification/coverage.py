@@ -21,13 +21,20 @@ holds at least :data:`MIN_SHARE` of the recording's samples.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from pneumafit.campaign.model import Campaign
+from pneumafit.campaign.model import Campaign, Recording
 
-__all__ = ["MAX_GAP", "MIN_SHARE", "TOLERANCE", "centre_measured", "uncovered_commands"]
+__all__ = [
+    "MAX_GAP",
+    "MIN_SHARE",
+    "TOLERANCE",
+    "centre_measured",
+    "opened_paths",
+    "uncovered_commands",
+]
 
 #: Largest distance (fraction of u_sat) from a flow level for a command to
 #: count as measured: 0.5 V of a 10-V valve, the width of its dead band.
@@ -128,6 +135,50 @@ def centre_measured(campaign: Campaign, values: Mapping[str, float]) -> bool:
     """True when a flow test has a level within the tolerance of 0 V (centre leakage)."""
     width = TOLERANCE * float(values.get("valve_u_sat", 10.0))
     return any(v.size and np.min(np.abs(v)) <= width for v in _levels(campaign).values())
+
+
+def opened_paths(recordings: Sequence[Recording], values: Mapping[str, float]) -> dict[str, bool]:
+    """Which valve paths the recordings open past the dead band.
+
+    Used without a flow test: the charge/discharge and step tests then
+    measure the valve's conductances instead. A charge or discharge opens
+    the path its command's sign selects (u > +u_0: supply, u < -u_0:
+    exhaust, u_0 = ``valve_overlap``) on at least :data:`MIN_SHARE` of its
+    samples; a step or free test opens both whenever it moves (one chamber
+    fills through its supply path while the other empties through its
+    exhaust path), also when its closed loop's commands are not recorded.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+    values : mapping
+        Model values (``valve_overlap``, V; ``valve_u_sat`` sets the margin).
+
+    Returns
+    -------
+    dict
+        ``{"supply": bool, "exhaust": bool}``.
+    """
+    edge = float(values.get("valve_overlap", 0.0)) + TOLERANCE * float(
+        values.get("valve_u_sat", 10.0)
+    )
+    out = {"supply": False, "exhaust": False}
+    for rec in recordings:
+        if rec.kind in ("step", "free"):
+            y = np.asarray(rec.channels.get("y", []), float)
+            y = y[np.isfinite(y)]
+            if y.size and np.ptp(y) > 0.0:
+                out = {"supply": True, "exhaust": True}
+            continue
+        if rec.kind not in ("charge", "discharge"):
+            continue
+        u = np.asarray(rec.channels.get(f"u_{rec.chamber}", []), float)
+        u = u[np.isfinite(u)]
+        if not u.size:
+            continue
+        out["supply"] |= bool(np.mean(u > edge) >= MIN_SHARE)
+        out["exhaust"] |= bool(np.mean(u < -edge) >= MIN_SHARE)
+    return out
 
 
 def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[str]:

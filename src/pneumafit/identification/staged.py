@@ -44,6 +44,7 @@ from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.identification.coverage import (
     centre_measured,
     full_informed,
+    opened_paths,
     shape_informed,
     uncovered_commands,
 )
@@ -239,6 +240,11 @@ _VALVE_GROUPS = ("valve", "valve_map")
 SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
 
 
+#: Sonic conductance of each path: without a fit flow test, the only valve
+#: parameters fitted (from the tests that open the path, :func:`coverage.opened_paths`).
+CONDUCTANCE_PARAMETERS = {"supply": "valve_C_supply", "exhaust": "valve_C_exhaust"}
+#: Critical pressure ratio of each path.
+RATIO_PARAMETERS = {"supply": "valve_b_supply", "exhaust": "valve_b_exhaust"}
 #: Opening shape exponent of each path (see :func:`coverage.shape_informed`).
 SHAPE_PARAMETERS = {"supply": "valve_n_supply", "exhaust": "valve_n_exhaust"}
 #: Full-opening fraction of each path (see :func:`coverage.full_informed`).
@@ -325,6 +331,37 @@ def _null_starts(values: Mapping[str, float], null: Sequence[str]) -> list[dict[
     """Starts of the null offset: ``values`` (the law without it, at 0), then
     each of :data:`NULL_STARTS` (V), the rest at ``values``."""
     return [dict(values)] + [{**values, **{n: b for n in null}} for b in NULL_STARTS]
+
+
+def _flowless_extensions(
+    conductances: Sequence[str], names: Sequence[str]
+) -> list[tuple[tuple[str, ...], str, Any]]:
+    """The valve law's extensions tested without a flow test, in order.
+
+    For the paths whose conductance is fitted (``conductances``): the dead
+    band with the opening shape exponents (the steps' commands sweep the
+    valve's range, the charge/discharge tests hold a few levels), the knee
+    exponents, the full-opening fractions, the critical pressure ratios and
+    the null offset (both paths only), each with the starts of stage (a).
+    """
+    paths = [p for p, n in CONDUCTANCE_PARAMETERS.items() if n in conductances]
+
+    def of(table: Mapping[str, str]) -> tuple[str, ...]:
+        return tuple(table[p] for p in paths if table[p] in names)
+
+    def held(values: Mapping[str, float], extra: Sequence[str]) -> list[dict[str, float]]:
+        return [dict(values)]
+
+    shapes = of(SHAPE_PARAMETERS)
+    out = [
+        (("valve_overlap", *shapes), "dead band and opening shape", _shape_starts),
+        (of(KNEE_PARAMETERS), "knee exponents", _knee_starts),
+        (of(FULL_PARAMETERS), "full-opening fractions", _full_starts),
+        (of(RATIO_PARAMETERS), "critical pressure ratios", held),
+    ]
+    if len(paths) == 2 and NULL_PARAMETER in names:
+        out.append(((NULL_PARAMETER,), "null offset", _null_starts))
+    return [(extra, what, starts) for extra, what, starts in out if extra]
 
 
 def _informed_valve(
@@ -1241,7 +1278,25 @@ def identify(
                 _VALVE_STAGES.pop(next(iter(_VALVE_STAGES)))
     else:
         stage.note = "no fit flow test: valve parameters held at their defaults"
+        valve_free = ()
+        if structure.valve == "iso6358":
+            # the charge/discharge and step tests measure the conductances of
+            # the paths they open (a rig without a flow meter): fitted with the
+            # heat law in stage (b) and in the joint stage
+            opened = opened_paths(blocked + steps, values)
+            valve_free = tuple(
+                CONDUCTANCE_PARAMETERS[p] for p in ("supply", "exhaust") if opened[p]
+            )
+            if valve_free:
+                stage.note = (
+                    "no fit flow test: the valve's sonic conductances ("
+                    + ", ".join(valve_free)
+                    + ") are fitted from the charge/discharge and step tests that open its "
+                    "paths, its shape only where the joint stage's likelihood-ratio tests "
+                    "ask for it; its flows at commands those tests do not use are extrapolated"
+                )
         warns.append(f"valve: {stage.note}")
+        stage.free = valve_free
     stages.append(stage)
     if structure.valve == "map" and flows and any(n not in valve_free for n in leak_names):
         # the knots between a held centre and the first measured knot on
@@ -1264,7 +1319,13 @@ def identify(
     leak_here = bool(blocked) and (
         structure.heat != "polytropic" or not (flows and centre_measured(campaign, values))
     )
-    free_heat = heat_names + tuple(nuisance) + (leak_names if leak_here else ())
+    # without a flow test, the conductances of the paths the charge/discharge
+    # tests open are fitted here too (their fillings set them)
+    blocked_valve = () if flows else tuple(
+        CONDUCTANCE_PARAMETERS[p] for p, ok in opened_paths(blocked, values).items()
+        if ok and CONDUCTANCE_PARAMETERS[p] in valve_free
+    )  # fmt: skip
+    free_heat = heat_names + tuple(nuisance) + (leak_names if leak_here else ()) + blocked_valve
     stage = StageResult("heat", [r.file for r in blocked], free_heat)
     heat_alternatives: list[dict[str, float]] = []
     if blocked:
@@ -1279,7 +1340,10 @@ def identify(
         run_stage(stage, blocked, free_heat, starts, seeds[1], opts.random_starts)
         if len(heat_names) > 1:  # the xi-beta ridge: one-parameter laws have one optimum
             heat_alternatives = _distinct_optima(stage.estimate, heat_names, JOINT_STARTS - 1)
-        say(f"heat: {stage.seconds:.1f} s, " + _brief(stage.estimate, heat_names + leak_names))
+        say(
+            f"heat: {stage.seconds:.1f} s, "
+            + _brief(stage.estimate, heat_names + leak_names + blocked_valve)
+        )
         extensions = tuple(
             n for n in HEAT_LAWS[structure.heat].extensions if n in params.names
         )  # fmt: skip
@@ -1452,7 +1516,7 @@ def identify(
         if structure.valve == "map" and flows and leak_here else ()
     )  # fmt: skip
     joint_free = tuple(
-        [*(valve_free if flows else ()), *map_leak, *(heat_names if (blocked or steps) else ()),
+        [*valve_free, *map_leak, *(heat_names if (blocked or steps) else ()),
          *(friction_names if steps else ()), *nuisance]
     )  # fmt: skip
     all_fit = flows + blocked + steps
@@ -1495,6 +1559,48 @@ def identify(
     joint_problem = run_stage(
         stage, all_fit, joint_free, [dict(values)], seeds[3], explicit_initial=True
     )
+    if not flows and structure.valve == "iso6358" and valve_free:
+        # without a flow test the valve law's shape comes from the tests that
+        # open its paths: the extensions of stage (a), each kept by a
+        # likelihood-ratio test on the joint problem
+        extended = _flowless_extensions(valve_free, params.names)
+        for extra, what, make_starts in extended:
+            before, before_values, before_seconds = stage.estimate, dict(values), stage.seconds
+            if before is None or not math.isfinite(before.log_likelihood):
+                break
+            prob = run_stage(stage, all_fit, (*joint_free, *extra), make_starts(values, extra),
+                             seeds[3], explicit_initial=True, label=f"joint ({what})")  # fmt: skip
+            stage.seconds += before_seconds
+            gain = stage.estimate.log_likelihood - before.log_likelihood
+            est_ps = stage.estimate.parameters
+            over = LogLikelihood(prob, est_ps).overcount(est_ps.to_internal(est_ps.values()))
+            kept = math.isfinite(gain) and 2.0 * gain / over > chi2.ppf(
+                SHAPE_CONFIDENCE, len(extra)
+            )
+            line = (
+                f"valve {what} (no flow test) {'kept' if kept else 'not needed'}: "
+                f"log-likelihood gain {gain:.1f} / {over:.3g} (residual correlation)"
+                + (", " + _brief(stage.estimate, extra) if kept else "")
+            )
+            say(f"joint: {line}")
+            stage.note = "; ".join(x for x in (stage.note, line) if x)
+            if kept:
+                # a path that opens fully at u_sat, or has no knee, is held there
+                # (at the bound 1), as in stage (a)
+                at_one = tuple(
+                    n for n in extra
+                    if (n in FULL_PARAMETERS.values() and values[n] > 1.0 - FULL_AT_ONE)
+                    or (n in KNEE_PARAMETERS.values() and values[n] < 1.0 + FULL_AT_ONE)
+                )  # fmt: skip
+                values.update({n: 1.0 for n in at_one})
+                extra = tuple(n for n in extra if n not in at_one)
+                joint_free, valve_free = (*joint_free, *extra), (*valve_free, *extra)
+                joint_problem = prob
+                stage.free = joint_free
+            else:
+                stage.estimate = before
+                values.clear()
+                values.update(before_values)
     stages.append(stage)
     est = stage.estimate
     if est is not None and math.isfinite(est.log_likelihood) and opts.correct_solver:

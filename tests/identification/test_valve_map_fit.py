@@ -106,7 +106,8 @@ def test_roughness_is_the_scaled_second_difference_of_ln_c_on_the_opening_sides(
 def test_a_map_parameter_set_carries_the_smoothness_prior_and_an_iso_set_does_not() -> None:
     """log_prior and prior_residuals of a map set include the roughness
     (the same terms: log prior = -sum r^2 / 2 up to the per-parameter
-    priors); an ISO set has no such term."""
+    priors and the breakaway prior, flat at these friction defaults); an
+    ISO set has no such term."""
     ps = ParameterSet.for_model(fit_structure("convection", valve="map"), {})
     line = _line_knots(-24.0, 0.9)
     bumped = {**line, "valve_map_CE_03": line["valve_map_CE_03"] * 3.0}
@@ -123,9 +124,12 @@ def test_a_map_parameter_set_carries_the_smoothness_prior_and_an_iso_set_does_no
     d_lp = float(ps.log_prior(z1)[0] - ps.log_prior(z0)[0])
     assert np.isclose(d_lp, own - 0.5 * np.sum(r1**2), rtol=1e-9, atol=1e-9)
     res = ps.prior_residuals(z1)
-    assert np.allclose(res[-r1.size :], r1[0], rtol=1e-12, atol=1e-12)
+    # the laws' joint priors come last, the valve law's before the friction law's
+    assert np.allclose(res[-r1.size - 1 : -1], r1[0], rtol=1e-12, atol=1e-12)
     iso = ParameterSet.for_model(fit_structure("convection"), {})
-    assert iso.prior_residuals(iso.to_internal()).size == 0
+    # no smoothness term: only the friction law's breakaway prior (one term)
+    assert iso.prior_residuals(iso.to_internal()).size == 1
+    assert res.size == r1.size + 1
 
 
 def test_prior_residuals_of_a_batch_are_its_rows_stacked_in_c_order() -> None:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
 from pneumafit.models.layout import PARAMETER_NAMES, SPECS
-from pneumafit.models.parts import VALVE_LAWS, ValveLaw
+from pneumafit.models.parts import FRICTION_LAWS, VALVE_LAWS
 from pneumafit.models.structure import (
     FRICTION_PARAMETERS,
     VALVE_PARAMETERS,
@@ -675,45 +675,56 @@ class ParameterSet:
     def log_prior(self, z: ArrayLike) -> NDArray[np.float64]:
         """log prior density of internal vectors (n, n_free) -> (n,).
 
-        Each free parameter's own prior, plus the joint smoothness prior of
-        every valve law with a free parameter here (``ValveLaw.roughness``,
-        e.g. the measured map's).
+        Each free parameter's own prior, plus the joint priors of the laws
+        with a free parameter here (:meth:`_joint_priors`: a valve law's
+        smoothness prior, e.g. the measured map's; a friction law's
+        breakaway prior).
         """
         zz = np.atleast_2d(np.asarray(z, dtype=float))
         total = np.zeros(zz.shape[0])
         for j, p in enumerate(self.free):
             total = total + p.log_prior_internal(zz[:, j])
-        laws = self._rough_laws()
-        if laws and np.any(np.isfinite(total)):
+        priors = self._joint_priors()
+        if priors and np.any(np.isfinite(total)):
             with np.errstate(invalid="ignore", divide="ignore"):
-                r = self._roughness(zz, laws)
+                r = self._joint_residuals(zz, priors)
                 total = total - 0.5 * np.sum(r * r, axis=1)
             total = np.where(np.isnan(total), -np.inf, total)
         return total
 
-    def _roughness(self, zz: NDArray[np.float64], laws: Sequence[ValveLaw]) -> NDArray[np.float64]:
-        """Whitened residuals (n, n_terms) of the smoothness priors of
-        ``laws`` (:meth:`_rough_laws`) at internal vectors (n, n_free);
-        (n, 0) without a law."""
-        if not laws:
+    def _joint_residuals(
+        self, zz: NDArray[np.float64], priors: Sequence[Callable[[Mapping[str, Any]], Any]]
+    ) -> NDArray[np.float64]:
+        """Whitened residuals (n, n_terms) of the joint ``priors``
+        (:meth:`_joint_priors`) at internal vectors (n, n_free); (n, 0)
+        without one."""
+        if not priors:
             return np.zeros((zz.shape[0], 0))
         values = self.to_values(zz)
-        parts = [np.asarray(law.roughness(values), dtype=float) for law in laws]
+        parts = [np.asarray(prior(values), dtype=float) for prior in priors]
         return np.concatenate([p.reshape(zz.shape[0], -1) for p in parts], axis=1)
 
-    def _rough_laws(self) -> list[ValveLaw]:
-        """Valve laws with a smoothness prior and a free parameter in this set."""
+    def _joint_priors(self) -> list[Callable[[Mapping[str, Any]], Any]]:
+        """The joint priors of the laws all of whose parameters are in this
+        set and one of them free: each valve law's smoothness prior
+        (``ValveLaw.roughness``) and each friction law's joint prior
+        (``FrictionLaw.joint_prior``), each prior once (the LuGre law shares
+        the switch law's)."""
         free, names = set(self.free_names), set(self.names)
-        return [
-            law for law in VALVE_LAWS.values()
-            if law.roughness is not None and free.intersection(law.parameters)
-            and names.issuperset(law.parameters)
+        laws = [(law.parameters, law.roughness) for law in VALVE_LAWS.values()] + [
+            (law.parameters, law.joint_prior) for law in FRICTION_LAWS.values()
+        ]
+        chosen = [
+            prior for parameters, prior in laws
+            if prior is not None and free.intersection(parameters)
+            and names.issuperset(parameters)
         ]  # fmt: skip
+        return list(dict.fromkeys(chosen))
 
     def prior_residuals(self, z: ArrayLike) -> NDArray[np.float64]:
         """Whitened residuals of the Gaussian priors, each free parameter's
-        and the valve laws' smoothness priors (:meth:`log_prior` is minus half
-        their sum of squares, plus constants).
+        and the laws' joint priors (:meth:`log_prior` is minus half their sum
+        of squares, plus constants).
 
         Parameters
         ----------
@@ -734,7 +745,7 @@ class ParameterSet:
                 r = p.prior.residual(p.to_value(zz[:, j]))
                 if r is not None:
                     res.append(np.asarray(r, dtype=float).reshape(zz.shape[0], -1))
-        res.append(self._roughness(zz, self._rough_laws()))
+        res.append(self._joint_residuals(zz, self._joint_priors()))
         # C order, as rows stacked one by one. The least-squares residual
         # matrix takes its blocks' layout: a Fortran-ordered block (the map's
         # roughness is a transpose) made it Fortran-ordered and the Jacobian

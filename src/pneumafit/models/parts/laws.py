@@ -16,6 +16,7 @@ from pneumafit.models.parts.registry import (
     register_heat_law,
     register_valve_law,
 )
+from pneumafit.physics.friction_prior import breakaway_prior
 from pneumafit.physics.valve_map import MAP_PARAMETER_NAMES, map_roughness
 
 __all__ = ["CONSTANT_LAMBDA", "CONVECTION", "ISO6358", "LUGRE", "MAP", "POLYTROPIC", "SWITCH"]
@@ -115,6 +116,7 @@ SWITCH = register_friction_law(
         code=0,
         parameters=_SWITCH_FRICTION,
         description="switch model of stick-slip, modes stuck/+1/-1 (pneumafit.physics.friction)",
+        joint_prior=breakaway_prior,
     )
 )
 LUGRE = register_friction_law(
@@ -124,5 +126,6 @@ LUGRE = register_friction_law(
         parameters=(*_SWITCH_FRICTION, "friction_stiffness", "friction_damping"),
         description="LuGre (Canudas de Wit et al. 1995): a bristle state z_f, stiffness sigma0 "
         "and damping sigma1 on the same Stribeck curve",
+        joint_prior=breakaway_prior,
     )
 )

@@ -203,7 +203,19 @@ class ValveLaw(_Law):
 class FrictionLaw(_Law):
     """A friction law of the piston (configuration slot ``C_FRICTION_LAW``,
     ``kernel.FRICTION_*``; ``ModelStructure.friction``); the attributes of
-    every law."""
+    every law, and:
+
+    Attributes
+    ----------
+    joint_prior : callable or None
+        A prior over several of the law's parameters, or None: called as a
+        valve law's ``roughness`` (the whitened residuals, shape (n, n_terms);
+        the log prior is -sum(r^2) / 2), and added by parameter sets when one
+        of the law's parameters is free, e.g. the breakaway prior on
+        F_s / F_c (:mod:`pneumafit.physics.friction_prior`).
+    """
+
+    joint_prior: Callable[[Mapping[str, Any]], Any] | None = None
 
 
 # ----------------------------------------------------------------- effects

@@ -187,6 +187,39 @@ def test_commands_no_flow_test_measured_are_named(small: tuple) -> None:
     assert rest and "charge_P.h5" in rest[0] and "discharge_P.h5" in rest[0]
 
 
+def test_without_a_flow_test_the_commands_no_fit_test_used_are_named(small: tuple) -> None:
+    """Without a flow test the valve comes from the fit tests' own commands
+    (coverage.opened_paths): a held-out recording's commands that no fit
+    recording used (within one 0.5-V bin) are named, and a fit recording's
+    never are: the -8-V discharge once it is held out; with every recording a
+    fit one, nothing is."""
+    from dataclasses import replace
+
+    from pneumafit.campaign import Campaign
+    from pneumafit.identification.coverage import uncovered_commands
+
+    _, campaign, _ = small
+    kept = [r for r in campaign.recordings if r.kind != "flow"]
+    held = {r.file for r in kept if r.role != "fit"}
+    assert held and len(kept) < len(campaign.recordings)
+    no_flow = Campaign(path=None, name="no-flow", description="", rig=campaign.rig,
+                       recordings=kept)  # fmt: skip
+    lines = uncovered_commands(no_flow, {"valve_u_sat": 10.0})
+    for line in lines:
+        assert "there is no flow test" in line
+        named = line.split("used by ")[1].split(", were")[0].replace(" and ", ", ").split(", ")
+        assert set(named) <= held, line
+    # the -8-V discharge held out: its command is no fit recording's
+    moved = [replace(r, role="validate") if r.file == "discharge_P.h5" else r for r in kept]
+    moved_campaign = Campaign(path=None, name="moved", description="", rig=campaign.rig,
+                              recordings=moved)  # fmt: skip
+    lines = uncovered_commands(moved_campaign, {"valve_u_sat": 10.0})
+    assert any("-8.25..-7.75 V" in line and "discharge_P.h5" in line for line in lines), lines
+    all_fit = Campaign(path=None, name="all-fit", description="", rig=campaign.rig,
+                       recordings=[replace(r, role="fit") for r in kept])  # fmt: skip
+    assert uncovered_commands(all_fit, {"valve_u_sat": 10.0}) == []
+
+
 def test_an_estimate_on_a_constraint_is_flagged_like_a_bound() -> None:
     """Static friction pinned to the Coulomb level (the kernel rejects F_s < F_c):
     the Stribeck drop is unresolved and the interval squeezed by the wall, which

@@ -200,7 +200,7 @@ def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[
     width = TOLERANCE * u_sat
     levels = _levels(campaign)
     if not any(v.size for v in levels.values()):
-        return []
+        return _unused_without_flow(campaign, width)
     out = []
     for valve in ("P", "N"):
         own = levels[valve]
@@ -212,37 +212,75 @@ def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[
         for rec in campaign.recordings:
             if rec.kind == "flow":
                 continue
-            u = rec.channels.get(f"u_{valve}")
-            if u is None:
-                continue
-            u = np.asarray(u, float)
-            u = u[np.isfinite(u)]
-            if not u.size:
-                continue
-            bins = np.round(u / width).astype(int)
-            ids, counts = np.unique(bins, return_counts=True)
-            for b, n in zip(ids, counts, strict=True):
-                if n < MIN_SHARE * u.size:
-                    continue
+            for b in _bins(rec, valve, width):
                 if not _covered(b * width, ref, width, u_sat):
-                    users.setdefault(int(b), []).append(rec.file)
-        if not users:
-            continue
-        # merge neighbouring bins into ranges
-        keys = sorted(users)
-        ranges: list[list[int]] = [[keys[0], keys[0]]]
-        for k in keys[1:]:
-            if k == ranges[-1][1] + 1:
-                ranges[-1][1] = k
-            else:
-                ranges.append([k, k])
-        for a, b in ranges:
-            recs = sorted({f for k in range(a, b + 1) for f in users.get(k, [])})
-            lo, hi = (a - 0.5) * width, (b + 0.5) * width
-            shown = ", ".join(recs[:4]) + (f" and {len(recs) - 4} more" if len(recs) > 4 else "")
+                    users.setdefault(b, []).append(rec.file)
+        for lo, hi, shown in _ranges(users, width):
             out.append(
                 f"valve {valve}: commands {lo:+.2f}..{hi:+.2f} V, used by {shown}, were not "
                 f"measured by any flow test{source}: the valve flows there are extrapolated "
                 "from the fitted characteristic"
+            )
+    return out
+
+
+def _bins(rec: Recording, valve: str, width: float) -> list[int]:
+    """The command bins of width ``width`` (V) holding at least
+    :data:`MIN_SHARE` of ``rec``'s samples of ``u_<valve>``."""
+    u = rec.channels.get(f"u_{valve}")
+    if u is None:
+        return []
+    u = np.asarray(u, float)
+    u = u[np.isfinite(u)]
+    if not u.size:
+        return []
+    ids, counts = np.unique(np.round(u / width).astype(int), return_counts=True)
+    return [int(b) for b, n in zip(ids, counts, strict=True) if n >= MIN_SHARE * u.size]
+
+
+def _ranges(users: Mapping[int, list[str]], width: float) -> list[tuple[float, float, str]]:
+    """Neighbouring bins merged: (lowest command, highest command, the
+    recordings that use them, shown)."""
+    if not users:
+        return []
+    keys = sorted(users)
+    ranges: list[list[int]] = [[keys[0], keys[0]]]
+    for k in keys[1:]:
+        if k == ranges[-1][1] + 1:
+            ranges[-1][1] = k
+        else:
+            ranges.append([k, k])
+    out = []
+    for a, b in ranges:
+        recs = sorted({f for k in range(a, b + 1) for f in users.get(k, [])})
+        shown = ", ".join(recs[:4]) + (f" and {len(recs) - 4} more" if len(recs) > 4 else "")
+        out.append(((a - 0.5) * width, (b + 0.5) * width, shown))
+    return out
+
+
+def _unused_without_flow(campaign: Campaign, width: float) -> list[str]:
+    """Without a flow test: the commands of the other recordings that no fit
+    recording used (either valve: the fit shares one characteristic), within
+    one bin of ``width`` (V). The fit's valve comes from the fit tests' own
+    commands (:func:`opened_paths`); elsewhere it is extrapolated."""
+    used: set[int] = set()
+    for rec in campaign.recordings:
+        if rec.role == "fit" and rec.kind != "flow":
+            for valve in ("P", "N"):
+                used.update(_bins(rec, valve, width))
+    out = []
+    for valve in ("P", "N"):
+        users: dict[int, list[str]] = {}
+        for rec in campaign.recordings:
+            if rec.role == "fit" or rec.kind == "flow":
+                continue
+            for b in _bins(rec, valve, width):
+                if not {b - 1, b, b + 1} & used:
+                    users.setdefault(b, []).append(rec.file)
+        for lo, hi, shown in _ranges(users, width):
+            out.append(
+                f"valve {valve}: commands {lo:+.2f}..{hi:+.2f} V, used by {shown}, were used "
+                "by no fit recording and there is no flow test: the valve flows there are "
+                "extrapolated from the fitted characteristic"
             )
     return out

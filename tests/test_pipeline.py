@@ -134,3 +134,26 @@ def test_an_invalid_campaign_runs_nothing(tmp_path: Path) -> None:
     console = _console()
     assert run_pipeline(bad, tmp_path / "out", console, mcmc=False) == 2  # bad input
     assert not (tmp_path / "out" / "fits").exists()
+
+
+def test_a_campaign_of_flow_tests_alone_runs_without_discovery(tmp_path: Path) -> None:
+    """A valve characterised on its own: discovery, which analyses the
+    residual pressure rates of charge/discharge and step tests, is skipped
+    with a line that says why, and the run ends with its report (exit 0; it
+    stopped at discovery with status 2 before)."""
+    import re
+
+    campaign = tmp_path / "campaign"
+    VirtualRig(seed=4).write(campaign, quick_protocol())
+    toml = campaign / "campaign.toml"
+    head, *blocks = re.split(r"(?=^\[\[recording\]\]\n)", toml.read_text(), flags=re.M)
+    flows = [b for b in blocks if 'kind = "flow"' in b]
+    assert flows and len(flows) < len(blocks)
+    toml.write_text(head + "".join(flows))
+    out = tmp_path / "run"
+    console = _console()
+    assert run_pipeline(campaign, out, console, mcmc=False) == 0, console.file.getvalue()[-3000:]
+    text = console.file.getvalue()
+    assert "discovery skipped: the campaign has no charge/discharge or step recording" in text
+    assert (out / "report.html").is_file() and not (out / "discovery").exists()
+    assert run_pipeline(campaign, out, console, mcmc=False) == 0  # the re-run reuses the stages

@@ -157,10 +157,14 @@ class StageBook:
             self.done = {}
 
     def fingerprint(self, campaign: Campaign, files: Sequence[Path]) -> str:
-        """Hash of the campaign's file hashes, the given files and the version."""
+        """Hash of the campaign's file hashes, the given files and the version.
+
+        A missing file (a stage skipped, e.g. discovery on a campaign of
+        flow tests alone, or a comparison whose residual analysis failed)
+        counts as missing, so that it appearing later changes the hash."""
         h = hashlib.sha256(json.dumps(campaign.sha256, sort_keys=True).encode())
         for f in files:
-            h.update(_sha256(f).encode())
+            h.update((_sha256(f) if Path(f).is_file() else f"missing:{Path(f).name}").encode())
         h.update(__version__.encode())
         return h.hexdigest()
 
@@ -454,7 +458,20 @@ def _analyses(
         console.print("wrote " + ", ".join(str(p) for p in done.files))
         return 0
 
-    stage("discovery", [conv], [out / "discovery" / "discovery.json"], discover)
+    # discovery analyses the residual pressure rates of charge/discharge and
+    # step tests: a campaign of flow tests alone (a valve characterised on
+    # its own) has none, and skipping it is not a failure of the run
+    if any(
+        r.kind in ("charge", "discharge", "step", "free") and {"p_P", "p_N"} & set(r.channels)
+        for r in campaign.recordings
+    ):
+        stage("discovery", [conv], [out / "discovery" / "discovery.json"], discover)
+    else:
+        console.rule("discovery")
+        console.print(
+            "discovery skipped: the campaign has no charge/discharge or step recording with "
+            "chamber pressures, whose residuals it analyses"
+        )
 
     lambda_file = fits["constant-lambda"]
 

@@ -1399,7 +1399,11 @@ def identify(
                 values.clear()
                 values.update(before_values)
     else:
-        stage.note = "no fit charge/discharge test: heat parameters from the step tests only"
+        stage.note = (
+            "no fit charge/discharge test: heat parameters from the step tests only"
+            if steps
+            else "no fit charge/discharge or step test: heat parameters held at their defaults"
+        )
         warns.append(f"heat: {stage.note}")
     stages.append(stage)
 

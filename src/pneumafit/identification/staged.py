@@ -333,6 +333,19 @@ def _null_starts(values: Mapping[str, float], null: Sequence[str]) -> list[dict[
     return [dict(values)] + [{**values, **{n: b for n in null}} for b in NULL_STARTS]
 
 
+def _overcount(problem: Problem, estimate: PointEstimate) -> float:
+    """The residuals' overcount at ``estimate`` (:meth:`LogLikelihood.overcount`):
+    what a likelihood-ratio test divides its gain by to count effective samples."""
+    ps = estimate.parameters
+    return LogLikelihood(problem, ps).overcount(ps.to_internal(ps.values()))
+
+
+def _passes(gain: float, over: float, n_extra: int, confidence: float) -> bool:
+    """The likelihood-ratio test in effective samples: 2 gain / ``over`` above
+    the chi-square quantile at ``confidence`` for ``n_extra`` parameters."""
+    return math.isfinite(gain) and 2.0 * gain / over > chi2.ppf(confidence, n_extra)
+
+
 def _flowless_extensions(
     conductances: Sequence[str], names: Sequence[str]
 ) -> list[tuple[tuple[str, ...], str, Any]]:
@@ -1376,11 +1389,8 @@ def identify(
                              label="heat (area convention)")  # fmt: skip
             stage.seconds += t_ext
             gain = stage.estimate.log_likelihood - ll
-            est_ps = stage.estimate.parameters
-            over = LogLikelihood(prob, est_ps).overcount(est_ps.to_internal(est_ps.values()))
-            kept = math.isfinite(gain) and 2.0 * gain / over > chi2.ppf(
-                AREA_CONFIDENCE, len(extensions)
-            )
+            over = _overcount(prob, stage.estimate)
+            kept = _passes(gain, over, len(extensions), AREA_CONFIDENCE)
             line = (
                 f"exchange area's convention {'kept' if kept else 'not needed'}: log-likelihood "
                 f"gain {gain:.1f} / {over:.3g} (residual correlation), "
@@ -1481,8 +1491,7 @@ def identify(
             trial, steps, names, [{**values, SEAL: c0}], seeds[2], label="friction (seal)"
         )
         gain = trial.estimate.log_likelihood - stage.estimate.log_likelihood
-        est_ps = trial.estimate.parameters
-        over = LogLikelihood(prob, est_ps).overcount(est_ps.to_internal(est_ps.values()))
+        over = _overcount(prob, trial.estimate)
         penalty = 0.5 * math.log(max(prob.n_data / over, 2.0))
         held = [r for r in campaign.by_role("validate") if r.kind in ("step", "free")]
         rms_without = _pressure_rms(held, plain[0], before, opts)
@@ -1576,11 +1585,8 @@ def identify(
                              seeds[3], explicit_initial=True, label=f"joint ({what})")  # fmt: skip
             stage.seconds += before_seconds
             gain = stage.estimate.log_likelihood - before.log_likelihood
-            est_ps = stage.estimate.parameters
-            over = LogLikelihood(prob, est_ps).overcount(est_ps.to_internal(est_ps.values()))
-            kept = math.isfinite(gain) and 2.0 * gain / over > chi2.ppf(
-                SHAPE_CONFIDENCE, len(extra)
-            )
+            over = _overcount(prob, stage.estimate)
+            kept = _passes(gain, over, len(extra), SHAPE_CONFIDENCE)
             line = (
                 f"valve {what} (no flow test) {'kept' if kept else 'not needed'}: "
                 f"log-likelihood gain {gain:.1f} / {over:.3g} (residual correlation)"

@@ -461,10 +461,9 @@ def _analyses(
     # discovery analyses the residual pressure rates of charge/discharge and
     # step tests: a campaign of flow tests alone (a valve characterised on
     # its own) has none, and skipping it is not a failure of the run
-    if any(
-        r.kind in ("charge", "discharge", "step", "free") and {"p_P", "p_N"} & set(r.channels)
-        for r in campaign.recordings
-    ):
+    from pneumafit.discovery.attribution import analysable
+
+    if analysable(campaign):
         stage("discovery", [conv], [out / "discovery" / "discovery.json"], discover)
     else:
         console.rule("discovery")

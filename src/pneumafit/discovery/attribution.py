@@ -85,6 +85,7 @@ from pneumafit.physics.geometry import exchange_areas
 from pneumafit.simulation import Experiment
 
 __all__ = [
+    "ANALYSED_KINDS",
     "GAMMA",
     "MIN_INCLUSION",
     "MIN_VARIANCE",
@@ -92,6 +93,7 @@ __all__ = [
     "Attribution",
     "Candidate",
     "Rows",
+    "analysable",
     "attribute",
     "build_rows",
     "signature_features",
@@ -621,6 +623,19 @@ def model_rates(
     return out
 
 
+#: Recording kinds whose residual pressure rates attribution analyses.
+ANALYSED_KINDS = ("charge", "discharge", "step")
+
+
+def analysable(campaign: Campaign) -> bool:
+    """True when the campaign has a recording attribution can analyse: one of
+    :data:`ANALYSED_KINDS` with a chamber pressure (a campaign of flow tests
+    alone has none, and discovery has nothing to work on)."""
+    return any(
+        r.kind in ANALYSED_KINDS and {"p_P", "p_N"} & set(r.channels) for r in campaign.recordings
+    )
+
+
 def build_rows(
     campaign: Campaign,
     structure: ModelStructure,
@@ -700,10 +715,10 @@ def build_rows(
 
     model = model_values(values)
     recordings = campaign.recordings if role is None else campaign.by_role(role)
-    own_noise = noise_estimates(campaign, ("charge", "discharge", "step"))
+    own_noise = noise_estimates(campaign, ANALYSED_KINDS)
     pooled_noise = campaign_noise(campaign)
     for rec in recordings:
-        if rec.kind not in ("charge", "discharge", "step"):
+        if rec.kind not in ANALYSED_KINDS:
             continue
         sim = simulate_recording(rec, structure, values)
         if sim is None:

@@ -55,6 +55,7 @@ import numpy as np
 
 from pneumafit.campaign.model import Campaign
 from pneumafit.discovery.attribution import (
+    ANALYSED_KINDS,
     Attribution,
     Candidate,
     attribute,
@@ -598,7 +599,7 @@ def pressure_noise(campaign: Campaign) -> float:
     :func:`~pneumafit.identification.quality.noise_estimates`, the fit's
     quality check's estimator); NaN without any."""
     sig = [
-        s for (_f, ch), s in noise_estimates(campaign, ("charge", "discharge", "step")).items()
+        s for (_f, ch), s in noise_estimates(campaign, ANALYSED_KINDS).items()
         if ch in PRESSURES and s is not None
     ]  # fmt: skip
     return float(np.median(sig)) if sig else math.nan

@@ -333,6 +333,17 @@ def _null_starts(values: Mapping[str, float], null: Sequence[str]) -> list[dict[
     return [dict(values)] + [{**values, **{n: b for n in null}} for b in NULL_STARTS]
 
 
+def _at_one(extra: Sequence[str], values: Mapping[str, float]) -> tuple[str, ...]:
+    """The full-opening fractions and knee exponents of ``extra`` within
+    :data:`FULL_AT_ONE` of 1, the law they extend: held there (a path that
+    does not saturate within the commands, a path without a knee)."""
+    return tuple(
+        n for n in extra
+        if (n in FULL_PARAMETERS.values() and values[n] > 1.0 - FULL_AT_ONE)
+        or (n in KNEE_PARAMETERS.values() and values[n] < 1.0 + FULL_AT_ONE)
+    )  # fmt: skip
+
+
 def _overcount(problem: Problem, estimate: PointEstimate) -> float:
     """The residuals' overcount at ``estimate`` (:meth:`LogLikelihood.overcount`):
     what a likelihood-ratio test divides its gain by to count effective samples."""
@@ -1227,11 +1238,7 @@ def identify(
                 return 0
             # a path that does not saturate within the flow levels ends at its
             # bound 1, a path without a knee at its bound 1: held there
-            at_one = tuple(
-                n for n in extra
-                if (n in fulls and values[n] > 1.0 - FULL_AT_ONE)
-                or (n in knees and values[n] < 1.0 + FULL_AT_ONE)
-            )  # fmt: skip
+            at_one = _at_one(extra, values)
             values.update({n: 1.0 for n in at_one})
             valve_free = (*valve_free, *(n for n in extra if n not in at_one))
             return len(extra) - len(at_one)
@@ -1597,11 +1604,7 @@ def identify(
             if kept:
                 # a path that opens fully at u_sat, or has no knee, is held there
                 # (at the bound 1), as in stage (a)
-                at_one = tuple(
-                    n for n in extra
-                    if (n in FULL_PARAMETERS.values() and values[n] > 1.0 - FULL_AT_ONE)
-                    or (n in KNEE_PARAMETERS.values() and values[n] < 1.0 + FULL_AT_ONE)
-                )  # fmt: skip
+                at_one = _at_one(extra, values)
                 values.update({n: 1.0 for n in at_one})
                 extra = tuple(n for n in extra if n not in at_one)
                 joint_free, valve_free = (*joint_free, *extra), (*valve_free, *extra)

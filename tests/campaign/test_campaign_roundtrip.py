@@ -8,7 +8,11 @@ addition of an offset (exhaust pressure, 273.15 K). Each step is exact to half
 an ulp of the larger operand, so values agree to a few ulp of the channel's
 magnitude: ``rtol = 1e-12`` and ``atol = 1e-12 * max|x|`` leave a margin of
 about 1000 over the worst case, while any real mistake (a wrong factor, a
-missing offset) is off by far more.
+missing offset) is off by far more. Below the smallest normal float
+(2.2e-308) a product keeps an absolute precision only, and a subnormal value
+written in kN (5e-324 N -> 0 kN) reads back as 0: ``atol`` has a floor of
+1e-300 in SI units, far below any measured quantity (hypothesis drew such a
+channel once; it is not a unit error).
 """
 
 from __future__ import annotations
@@ -37,6 +41,8 @@ from pneumafit.campaign import (
 )
 
 RTOL = 1e-12
+#: Absolute floor (SI) of the comparison: subnormal values (see the module doc).
+TINY = 1e-300
 EXHAUST = 101_325.0
 
 UNITS = {
@@ -63,7 +69,7 @@ OPTIONAL = sorted(set(CHANNELS) - {"y", "u_P", "u_N"})
 
 def assert_close(actual: np.ndarray, expected: np.ndarray) -> None:
     scale = float(np.max(np.abs(expected))) if expected.size else 0.0
-    np.testing.assert_allclose(actual, expected, rtol=RTOL, atol=RTOL * scale)
+    np.testing.assert_allclose(actual, expected, rtol=RTOL, atol=RTOL * scale + TINY)
 
 
 @st.composite

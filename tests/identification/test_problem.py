@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -207,6 +209,40 @@ def test_solver_correction_moves_predictions_to_the_reference(small: tuple) -> N
     delta = after - before
     # the coarse solver is already good to a few Pa; the correction is that
     assert 0.0 < np.max(np.abs(delta)) < 100.0
+
+
+def test_compared_samples_do_not_depend_on_the_values_a_problem_is_built_at(
+    small: tuple,
+) -> None:
+    """Two problems of one fit built at different values or friction laws (a
+    stage and its extension after the joint solve stiffened a LuGre bristle;
+    the switch and LuGre laws' BIC) compare the same samples, so that their
+    log-likelihoods can be compared. Before, the compared samples were the
+    stability step's grid: here 2.58 ms (every 2nd sample) against 1.64 ms
+    (every one), and the log-likelihood of one and the same parameter set was
+    -15299 on one problem and -28883 on the other. Now both compare every 2
+    ms (``COMPARE_SPACING``) and integrate a shorter step as substeps; what
+    is left is the two steps' truncation error (measured: 1.5 in
+    log-likelihood; bound 5, against 13583 before)."""
+    _, campaign, truth = small
+    lugre = dataclasses.replace(STRUCTURE, friction="lugre")
+    rec = [r for r in campaign.by_role("fit") if r.kind == "step"][:1]
+    ps = ParameterSet.for_model(lugre, campaign.rig.as_parameters())
+    base = {**ps.values(), **{k: v for k, v in truth.items() if k in ps.names}}
+    ps = ps.with_values(base).only_free(("friction_static", "friction_coulomb"))
+    probs = [
+        Problem(rec, lugre, {**base, "friction_damping": d}, initial_nuisance=False)
+        for d in (1.0e3, 2.0e4)
+    ]
+    # the precondition: the stiffer bristle asks for a shorter step
+    assert probs[1].steps[0] < 0.75 * probs[0].steps[0]
+    switch = Problem(rec, STRUCTURE, truth, initial_nuisance=False)
+    for other in (probs[1], switch):
+        for a, b in zip(probs[0].observations, other.observations, strict=True):
+            np.testing.assert_array_equal(a.time, b.time)
+    ll = [LogLikelihood(p, ps)(ps.to_internal()[None, :])[0] for p in probs]
+    assert np.all(np.isfinite(ll))
+    assert abs(ll[0] - ll[1]) < 5.0, ll
 
 
 def test_a_spool_lag_at_its_fitting_floor_is_simulated(small: tuple) -> None:

@@ -13,8 +13,12 @@ likelihood; physics notes):
 - **Step and comparison grid.** The step of each recording is
   :func:`~pneumafit.simulation.choose_step` at nominal parameters over the
   positions the recording visits, capped by ``max_step`` (4 ms). The model
-  is compared with the data on every k-th sample, k the largest with
-  k dt <= step; the integration grid keeps, besides, the two samples around
+  is compared with the data on every k-th sample, k the largest with k dt
+  <= :data:`COMPARE_SPACING` (2 ms): the compared samples depend on the
+  sampling only, never on the values, friction law or effects a problem is
+  built with, so two problems of one fit or one discovery have comparable
+  log-likelihoods. A shorter stability step runs as substeps of this grid.
+  The integration grid keeps, besides, the two samples around
   every change of an input (a command or reference jump), so the
   piecewise-linear inputs the simulator sees are exactly those of the full
   recording. Charge/discharge tests are compared densely only while the
@@ -124,6 +128,20 @@ NOISE_POOLINGS: tuple[str, ...] = ("recording", "sensor")
 NOISE_POOLING = "recording"
 #: Largest integration step (s) of a problem's recordings (RK4; see module doc).
 MAX_STEP = 4.0e-3
+#: Spacing (s) of the compared samples where a recording is compared densely
+#: (every k-th sample, k dt <= this; capped by ``max_step``). Fixed, so that
+#: every problem of a campaign compares the same samples and their
+#: log-likelihoods can be compared (likelihood-ratio tests between a stage
+#: and its extension, the friction law's BIC, discovery's refits). Until
+#: 2026-11-29 k came from the problem's stability step, chosen at the values
+#: it was built at: a LuGre bristle that stiffened in the joint solve took
+#: the step from 2.75 to 1.89 ms, every 2nd sample to every one, and the
+#: log-likelihood of one and the same estimate from -12659 to -24022, so
+#: every no-flow valve extension "lost" ~11000. A shorter stability step runs
+#: as substeps of this grid; a longer one is cut to it (2 ms: as dense as the
+#: stability steps of 2-4 ms mostly gave, and on the recovery matrix the
+#: closest of three rules to the former figures, docs/identification.md).
+COMPARE_SPACING = 2.0e-3
 #: Flow-test samples this soon (s) after a change of command or pressure are
 #: not compared (flow-meter settling).
 FLOW_SETTLE = 0.2
@@ -639,7 +657,11 @@ class Problem:
             friction=self.structure.friction, spool=mode,
         )  # fmt: skip
         dt = float(np.median(np.diff(t)))
-        k = max(1, math.floor(step / dt * (1.0 + 1e-9)))
+        # the compared samples: every k-th, k dt <= COMPARE_SPACING, never
+        # from the step, hence never from the values, friction law or effects
+        # a problem is built with (see COMPARE_SPACING)
+        spacing = min(COMPARE_SPACING, self.max_step)
+        k = max(1, math.floor(spacing / dt * (1.0 + 1e-9)))
         # dense samples: everywhere, or for blocked tests only around the
         # opening (valve moving or open and REST_AFTER s after)
         dense = np.ones(n, dtype=bool)

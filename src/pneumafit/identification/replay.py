@@ -7,7 +7,7 @@ read the same :class:`Replay`, made here and nowhere else:
 - the recordings are bound to a :class:`~pneumafit.identification.Problem`
   with every comparable channel, no averaging at rest, no flow-level means,
   no profiled offsets, at the identification's largest step: that gives the
-  compared samples (every k-th sample with k dt <= step; flow tests on
+  compared samples (every k-th sample with k dt <= ``COMPARE_SPACING``; flow tests on
   settled samples), the initial states (the fitted ones, ``initial:FILE:STATE``
   entries of the values, for ``fit`` recordings; estimated from the data, a
   line intercept over the first 50 ms, for the others) and the parameter

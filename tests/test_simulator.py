@@ -403,9 +403,10 @@ def test_choose_step_is_stable_for_a_fast_second_order_spool(charge_experiment):
 
     The accuracy bound is for the command's samples interpolated linearly
     (``inputs="linear"``: a 1-ms ramp at each switch); held between
-    samples (``inputs="hold"``, the default) the switch is a step, which rings the lightly damped spool
-    harder: the stable step still runs, 1.2 kPa (0.2 % of the rise) from the
-    quarter step, measured 2026-11-28, and only its stability is required."""
+    samples (``inputs="hold"``, the default) the switch is a step, which
+    rings the lightly damped spool harder: the stable step still runs, 1.2
+    kPa (0.2 % of the rise) from the quarter step, measured 2026-11-28, and
+    only its stability is required."""
     import math
 
     from pneumafit.simulation import choose_step, spool_mode

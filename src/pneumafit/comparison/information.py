@@ -53,7 +53,6 @@ from pneumafit.identification.fitfile import noise_pooling_of
 from pneumafit.identification.noise import AR1, Gaussian
 from pneumafit.identification.problem import MAX_STEP, Problem
 from pneumafit.identification.staged import DEFAULT_CHANNELS
-from pneumafit.models.layout import SPECS
 
 __all__ = ["DEFAULT_DRAWS", "differences", "pointwise_log_likelihood", "posterior_criteria"]
 
@@ -96,13 +95,6 @@ def _draws(
             z = flat[pick, j]
             out[name] = np.exp(z) if scales.get(name) == "log" else z
     return out, list(flats), n
-
-
-def _common_nominal(campaign: Campaign) -> dict[str, float]:
-    """Parameter defaults with the campaign's rig: steps, hence the compared
-    samples, chosen alike for every model (the fitted values would give each
-    model its own grid, and WAIC/LOO must score the same points)."""
-    return {**{name: spec.default for name, spec in SPECS.items()}, **campaign.rig.as_parameters()}
 
 
 def pointwise_log_likelihood(
@@ -215,12 +207,14 @@ def posterior_criteria(
     if not (noise is None or isinstance(noise, str)):
         noise = None  # a described noise model: the defaults (the fit's own defaults too)
     fit_recs = list(campaign.by_role("fit"))
+    # every model's problem compares the same samples (Problem's fixed
+    # COMPARE_SPACING), whatever values it is built at: WAIC/LOO score the
+    # same points; the step follows this model's values
     try:
         problem = Problem(
             fit_recs, structure, values, channels=channels, noise=noise,
             sensor_lags=lags, max_step=options.get("max_step", MAX_STEP),
             offsets=tuple(options.get("offsets") or ("pressure",)), initial_nuisance=True,
-            nominal=_common_nominal(campaign),
             noise_pooling=noise_pooling_of(options),
         )  # fmt: skip
     except ValueError as exc:

@@ -11,7 +11,11 @@ Keys (version 1; keys are only ever added):
   ``interval_90`` ([5 %, 95 %] quantiles), ``fixed``, and ``median``,
   ``uncertainty`` (``"mcmc"`` or ``"laplace"``), ``laplace_std``,
   ``laplace_interval_90`` (joint Laplace approximation, which includes the
-  other groups' uncertainty), ``lower``, ``upper``, ``scale``, ``group``;
+  other groups' uncertainty), ``lower``, ``upper``, ``scale``, ``group``,
+  and ``interval_widening`` where the misspecification-robust covariance
+  widened the Laplace standard deviation by that factor (> 1; the
+  Laplace figures above include it; see
+  :func:`~pneumafit.identification.optimise.recording_robust_covariance`);
   only model parameters, so :func:`pneumafit.parameters_io.read_parameter_file`
   reads the file as a parameter file;
 - ``nuisance``: measurement parameters (sensor lags) and ``initial_states``
@@ -231,6 +235,9 @@ def fit_document(
             lp = laplace[p.name]
             entry["laplace_std"] = lp.std
             entry["laplace_interval_90"] = list(lp.interval_90) if lp.interval_90 else None
+        widening = getattr(result, "widening", {}).get(p.name, 1.0)
+        if widening > 1.0:
+            entry["interval_widening"] = float(widening)
         if p.name in SPECS or (friction_test and p.group == "effect"):
             params[p.name] = entry  # a friction test's effects are its model's parameters
         elif p.group == "initial":

@@ -34,10 +34,12 @@ from pneumafit.progress import Progress
 __all__ = [
     "STALL_RULE",
     "PointEstimate",
+    "RobustCovariance",
     "fit_least_squares",
     "information_stall",
     "laplace_covariance",
     "laplace_summary",
+    "recording_robust_covariance",
 ]
 
 #: Whitened residual given to every sample of a failed simulation: large, so
@@ -472,6 +474,162 @@ def laplace_covariance(
     wh.set_state(zz)
     _, jac = wh.fun_and_jac(zz)
     return _laplace(jac)
+
+
+@dataclass
+class RobustCovariance:
+    """Laplace covariance and its misspecification-robust widening at one point.
+
+    Attributes
+    ----------
+    laplace : ndarray (n_free, n_free)
+        (J^T J)^+ of the whitened residuals and priors (:func:`laplace_covariance`).
+    profile : ndarray (n_free, n_free) or None
+        H^+, H the curvature of the profile log-likelihood (Gauss-Newton
+        less each noise level's share, see
+        :func:`recording_robust_covariance`); None where H is not positive
+        definite.
+    sandwich : ndarray (n_free, n_free) or None
+        H^+ M H^+, M = G / (G - 1) sum_c s_c s_c^T over the G recordings c,
+        s_c the gradient of recording c's profile log-likelihood.
+    inflation : ndarray (n_free,)
+        max(1, sqrt(profile_jj / laplace_jj), sqrt(sandwich_jj / laplace_jj))
+        per free parameter.
+    covariance : ndarray (n_free, n_free)
+        The Laplace covariance with its standard deviations scaled by
+        ``inflation`` (correlations kept): D laplace D, D = diag(inflation).
+    clusters : int
+        Recordings G in the sandwich.
+    beyond_profile : ndarray (n_free,)
+        max(1, sqrt(sandwich_jj / profile_jj)): the widening still due
+        where the spread already follows the profile likelihood (an MCMC
+        chain samples it); ``inflation`` where ``profile`` is None.
+    """
+
+    laplace: NDArray[np.float64]
+    profile: NDArray[np.float64] | None
+    sandwich: NDArray[np.float64] | None
+    inflation: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    clusters: int
+    beyond_profile: NDArray[np.float64]
+
+
+#: Smallest eigenvalue, relative to the largest, of the equilibrated profile
+#: curvature for it to count as positive definite.
+PROFILE_PD = 1.0e-10
+
+
+def recording_robust_covariance(
+    likelihood: LogLikelihood, z: NDArray[np.float64]
+) -> RobustCovariance | None:
+    """Misspecification-robust covariance, recordings as independent clusters.
+
+    Two corrections to the Laplace covariance (J^T J)^-1 of the whitened
+    residuals, which is the sampling covariance of the estimate only when the
+    model is the rig's.
+
+    **The profile curvature.** Each block's noise level is profiled, so its
+    log-likelihood is -(n w / 2) log S(theta), S the sum of squares, w the
+    block's tempering power (:meth:`LogLikelihood.temper`). Its Hessian is
+    the Gauss-Newton J^T J *less* (2 / (n w)) g g^T, g = J^T r the block's
+    gradient (whitened): a block that the model misses by more than its noise
+    lets its noise level absorb part of any move, so it pins the parameters
+    less than J^T J says. At a model that reaches the noise g is ~ sqrt(n)
+    and the correction is negligible; at one 10x off it is not. This is the
+    curvature that the MCMC, which samples the profile likelihood itself,
+    sees.
+
+    **The sandwich over recordings.** A model whose laws are not the rig's
+    leaves recordings that disagree: each test, refitted alone, would move the
+    parameters further than its noise allows. The cluster-robust (Godambe)
+    covariance H^-1 M H^-1, with M the outer products of the recordings'
+    scores at the estimate, measures that disagreement whatever the
+    residuals' correlation inside a recording (Liang and Zeger 1986; Cameron
+    and Miller 2015, small-sample factor G / (G - 1)). To first order,
+    H^-1 s_c is how far dropping recording c would move the estimate, so
+    this is the jackknife over recordings without G refits: one Jacobian,
+    n_free + 1 simulations.
+
+    Neither can see a bias that every recording shares, and with few
+    recordings informing a parameter (two step tests) the sandwich has few
+    degrees of freedom, so they only ever widen: the reported covariance is
+    the Laplace one with each standard deviation scaled by the largest of 1
+    and the two ratios.
+
+    Returns None when the Jacobian is not finite or fewer than two
+    recordings are compared.
+    """
+    wh = _Whitened(likelihood)
+    zz = np.asarray(z, dtype=float)
+    wh.set_state(zz)
+    res, jac = wh.fun_and_jac(zz)
+    if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(res))):
+        return None
+    problem = likelihood.problem
+    observations = problem.observations
+    sizes = [np.asarray(o.data).size for o in observations]
+    if sum(sizes) > res.size:
+        return None
+    power = np.asarray(problem.tempering, dtype=float)
+    groups = getattr(problem, "noise_groups", None)
+    names: dict[str, int] = {}
+    block_grad = np.zeros((len(observations), zz.size))
+    cluster = np.empty(len(observations), dtype=np.int64)
+    start = 0
+    for j, (o, size) in enumerate(zip(observations, sizes, strict=True)):
+        rows = slice(start, start + size)
+        block_grad[j] = jac[rows].T @ res[rows]
+        cluster[j] = names.setdefault(o.recording, len(names))
+        start += size
+    g = len(names)
+    if g < 2:
+        return None
+    gauss_newton = jac.T @ jac
+    laplace = equilibrated_pinv(gauss_newton)
+    # each profiled noise level's share of the curvature: (2 / (n w)) g g^T,
+    # per block, or per sensor where blocks share one sigma
+    level = np.arange(len(observations)) if groups is None else np.where(
+        groups >= 0, groups + len(observations), np.arange(len(observations))
+    )  # fmt: skip
+    share = np.zeros_like(gauss_newton)
+    for lv in np.unique(level):
+        members = np.flatnonzero(level == lv)
+        n_w = float(sum(sizes[m] * power[m] for m in members))
+        if n_w > 0.0:
+            gg = block_grad[members].sum(axis=0)
+            share += (2.0 / n_w) * np.outer(gg, gg)
+    hessian = gauss_newton - share
+    diag = np.diag(hessian)
+    profile: NDArray[np.float64] | None = None
+    if np.all(diag > 0.0):
+        d = 1.0 / np.sqrt(diag)
+        eig = np.linalg.eigvalsh(d[:, None] * hessian * d[None, :])
+        if eig[0] > PROFILE_PD * eig[-1]:
+            profile = equilibrated_pinv(hessian)
+    h_inv = profile if profile is not None else laplace
+    scores = np.zeros((g, zz.size))
+    np.add.at(scores, cluster, block_grad)
+    meat = g / (g - 1.0) * (scores.T @ scores)
+    sandwich = h_inv @ meat @ h_inv
+    sandwich = 0.5 * (sandwich + sandwich.T)
+    lap_var = np.diag(laplace)
+    ratio = np.ones(zz.size)
+    for cov in (profile, sandwich):
+        if cov is None:
+            continue
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.where(lap_var > 0.0, np.diag(cov) / lap_var, 1.0)
+        ratio = np.maximum(ratio, np.nan_to_num(r, nan=1.0, posinf=1.0))
+    inflation = np.sqrt(ratio)
+    widened = inflation[:, None] * laplace * inflation[None, :]
+    beyond = inflation
+    if profile is not None:
+        pro_var = np.diag(profile)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.where(pro_var > 0.0, np.diag(sandwich) / pro_var, 1.0)
+        beyond = np.sqrt(np.maximum(np.nan_to_num(r, nan=1.0, posinf=1.0), 1.0))
+    return RobustCovariance(laplace, profile, sandwich, inflation, widened, g, beyond)
 
 
 def _laplace(jac: NDArray[np.float64]) -> NDArray[np.float64] | None:

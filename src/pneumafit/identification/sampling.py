@@ -46,7 +46,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -765,6 +765,7 @@ def propagate(
     *,
     exclude_groups: tuple[str, ...] = ("initial",),
     seed: int = 0,
+    inflation: Mapping[str, float] | None = None,
 ) -> tuple[ParameterSet, NDArray[np.float64]]:
     """Add the uncertainty of the parameters a stage held fixed, to first order.
 
@@ -777,6 +778,15 @@ def propagate(
     of ``exclude_groups`` (the initial states, whose errors the stage's
     likelihood profiles already) are not propagated.
 
+    ``inflation`` (name -> factor >= 1) widens the sampled parameters the
+    way the joint covariance was widened
+    (:func:`~pneumafit.identification.optimise.recording_robust_covariance`,
+    ``covariance`` then being D L D with L the Laplace covariance): each
+    draw's deviation from the chain mean is scaled by its factor before the
+    shift. For a Gaussian posterior the conditional spread D_h L_cond D_h
+    plus the shift's A C_vv A^T is then exactly C_hh, the widened marginal,
+    so the reported median and interval come from one (widened) posterior.
+
     Returns
     -------
     ParameterSet
@@ -785,17 +795,31 @@ def propagate(
         The shifted internal draws.
     """
     kept = result.chain[result.discard :].reshape(-1, len(result.names))
-    if covariance is None:
+    lo, hi = result.parameters.internal_bounds()
+    widened = False
+    if inflation:
+        factor = np.array([max(float(inflation.get(n, 1.0)), 1.0) for n in result.names])
+        if np.any(factor > 1.0):
+            centre = kept.mean(axis=0)
+            kept = np.clip(centre + (kept - centre) * factor, lo, hi)
+            widened = True
+
+    def unshifted() -> tuple[ParameterSet, NDArray[np.float64]]:
+        if widened:
+            return summarize_samples(kept, result.parameters), kept
         return result.parameters, kept
+
+    if covariance is None:
+        return unshifted()
     free = joint.free_names
     try:
         h = [free.index(n) for n in result.names]
     except ValueError:
-        return result.parameters, kept
+        return unshifted()
     v = [i for i, n in enumerate(free) if n not in result.names
          and joint[n].group not in exclude_groups]  # fmt: skip
     if not v:
-        return result.parameters, kept
+        return unshifted()
     s_hv = covariance[np.ix_(h, v)]
     s_vv = covariance[np.ix_(v, v)]
     a = s_hv @ equilibrated_pinv(s_vv)
@@ -811,7 +835,6 @@ def propagate(
     # unidentified (a huge Laplace variance; the Stribeck velocity of a
     # polytropic fit on an independently written rig) got draws of exp(800)
     # and a NaN interval. Draws that stay inside are the same as before.
-    lo, hi = result.parameters.internal_bounds()
     for _ in range(PROPAGATE_REDRAWS):
         out = np.any((z < lo) | (z > hi), axis=1)
         if not out.any():

@@ -57,6 +57,7 @@ from pneumafit.identification.optimise import (
     information_stall,
     laplace_covariance,
     laplace_summary,
+    recording_robust_covariance,
 )
 from pneumafit.identification.parameters import (
     DEFAULT_FREE_VALVE,
@@ -622,6 +623,14 @@ class FitOptions:
         default length, also while extended) where it is at least 50 tau
         long with every R-hat <= 1.01 (ignored with ``steps``, which gives
         chains of exactly that length).
+    robust : bool
+        Widen the joint Laplace covariance where the profile likelihood's own
+        curvature, or the disagreement between recordings (a sandwich with
+        the recordings as clusters), says the estimate is less certain
+        (:func:`~pneumafit.identification.optimise.recording_robust_covariance`);
+        the MCMC draws are widened by what the sandwich adds to the profile
+        curvature they sample. Only ever widens. False: the Laplace and MCMC
+        spreads as they are.
     temper : bool
         Count each block's residuals as n / tau independent samples in the
         Laplace covariance and the MCMC, tau their correlation time at the
@@ -654,6 +663,7 @@ class FitOptions:
     temper: bool = True
     early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
+    robust: bool = True
     noise_pooling: str = NOISE_POOLING
     inputs: str = INPUT_MODE
 
@@ -777,6 +787,11 @@ class FitResult:
     campaign : dict or None
         The campaign fitted as fit.json records it: ``name``, ``path``,
         ``sha256`` (file -> SHA-256).
+    widening : dict of str to float
+        Free parameter -> factor (> 1) by which the misspecification-robust
+        covariance widened its joint Laplace standard deviation
+        (:func:`~pneumafit.identification.optimise.recording_robust_covariance`,
+        ``FitOptions.robust``); parameters it left alone are absent.
 
     :func:`identify` fills every field. :meth:`save` writes fit.json;
     :meth:`load` reads one back as a
@@ -799,6 +814,7 @@ class FitResult:
     seed: int | None = None
     options: FitOptions | Mapping[str, Any] | None = None
     campaign: dict[str, Any] | None = None
+    widening: dict[str, float] = field(default_factory=dict)
 
     def save(
         self, path: str | os.PathLike[str], *, command: str = "", chains: str | None = None
@@ -1653,6 +1669,26 @@ def identify(
             est.covariance = cov
             est.parameters = laplace_summary(est.parameters, est.z, cov)
         say(f"joint: {_tempering_line(joint_problem, taus)}")
+    inflation: dict[str, float] = {}
+    widening: dict[str, float] = {}
+    if opts.robust:
+        like = LogLikelihood(joint_problem, est.parameters)
+        robust = recording_robust_covariance(like, est.z)
+        if robust is not None:
+            # the chains sample the profile likelihood: what the sandwich adds
+            inflation = dict(
+                zip(est.parameters.free_names, robust.beyond_profile.tolist(), strict=True)
+            )
+            widening = {
+                n: float(f)
+                for n, f in zip(est.parameters.free_names, robust.inflation, strict=True)
+                if f > 1.0 and est.parameters[n].group != "initial"
+            }
+            est.covariance = robust.covariance
+            est.parameters = laplace_summary(est.parameters, est.z, robust.covariance)
+            line = _robust_line(est.parameters, robust)
+            say(f"joint: {line}")
+            stage.note = "; ".join(x for x in (stage.note, line) if x)
     laplace = est.parameters
     final = laplace.with_fixed([p.name for p in laplace if p.group == "initial"], fixed=True)
     final.correlation = laplace.correlation
@@ -1706,7 +1742,9 @@ def identify(
             stage_obj.mcmc = res
             warns.extend(res.warnings)
             # the groups held fixed: their joint Laplace uncertainty, propagated
-            summary, draws = propagate(res, laplace, est.covariance, seed=seeds[4 + k])
+            summary, draws = propagate(
+                res, laplace, est.covariance, seed=seeds[4 + k], inflation=inflation
+            )
             stage_obj.propagated = summary
             if stage_name == "heat":
                 heat_draws = {n: v for n, v in res.parameters.to_values(draws).items()}
@@ -1757,6 +1795,7 @@ def identify(
         metrics=metrics, warnings=warns, seconds=time.perf_counter() - t_start,
         evaluations=evaluations, blocks=joint_problem.describe(), quality=quality,
         seed=seed, options=opts, campaign=campaign_identity(campaign),
+        widening=widening,
     )  # fmt: skip
 
 
@@ -1814,6 +1853,22 @@ def _reported_point(
         f"below the draws' {TYPICAL_QUANTILE:.0%} quantile {floor:.1f}): the reported "
         f"estimate is the most probable draw inside every 90 % interval (log posterior "
         f"{lp[best]:.1f})"
+    )
+
+
+def _robust_line(parameters: ParameterSet, robust: Any) -> str:
+    """One line on the recordings' disagreement (:func:`recording_robust_covariance`)."""
+    names = [p.name for p in parameters.free]
+    wide = [(f, n) for f, n in zip(robust.inflation, names, strict=True)
+            if f > 1.0 and parameters[n].group != "initial"]  # fmt: skip
+    if not wide:
+        return f"intervals: the {robust.clusters} recordings agree within their noise"
+    wide.sort(reverse=True)
+    top = ", ".join(f"{n} x{f:.1f}" for f, n in wide[:4])
+    return (
+        f"intervals widened where the {robust.clusters} recordings disagree "
+        f"(sandwich over recordings): {top}"
+        + (f" and {len(wide) - 4} more" if len(wide) > 4 else "")
     )
 
 

@@ -1866,8 +1866,8 @@ def _robust_line(parameters: ParameterSet, robust: Any) -> str:
     wide.sort(reverse=True)
     top = ", ".join(f"{n} x{f:.1f}" for f, n in wide[:4])
     return (
-        f"intervals widened where the {robust.clusters} recordings disagree "
-        f"(sandwich over recordings): {top}"
+        f"intervals widened by the profile curvature and the disagreement between the "
+        f"{robust.clusters} recordings (sandwich over recordings): {top}"
         + (f" and {len(wide) - 4} more" if len(wide) > 4 else "")
     )
 

@@ -21,7 +21,7 @@ booleans) and, with ``--table FILE``, writes the case x figure table in
 Markdown.
 
     python benchmarks/bench_recovery.py [--seeds 1 2 3] [--cases NAME ...]
-           [--valve iso6358|map] [--friction auto|switch|lugre] [--mcmc]
+           [--valve iso6358|map] [--friction auto|switch|lugre] [--mcmc] [--no-robust]
            [--table docs/recovery-table.md]
 """
 
@@ -88,6 +88,7 @@ def run_case(
     seal: str = "off",
     noise_pooling: str = "recording",
     inputs: str = INPUT_MODE,
+    robust: bool = True,
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.virtual_rig.truth import reference_quantities
@@ -107,6 +108,7 @@ def run_case(
             seal=seal,
             noise_pooling=noise_pooling,
             inputs=inputs,
+            robust=robust,
         )
         result = identify(camp, "convection", options=options, seed=seed)
     p = result.parameters
@@ -214,6 +216,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
     ap.add_argument("--inputs", default=INPUT_MODE, choices=INPUT_MODES)
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
+    ap.add_argument(
+        "--no-robust",
+        action="store_true",
+        help="intervals without the robust widening (FitOptions.robust=False)",
+    )
     ap.add_argument("--table", type=Path, default=None, help="write the Markdown table here")
     ap.add_argument("--json", type=Path, default=None, help="write every case's details here")
     args = ap.parse_args(argv)
@@ -226,7 +233,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{preset}/{protocol}/seed {seed}: recording and fitting ...", file=sys.stderr)
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
                            friction=args.friction, seal=args.seal,
-                           noise_pooling=args.noise_pooling, inputs=args.inputs)  # fmt: skip
+                           noise_pooling=args.noise_pooling, inputs=args.inputs,
+                           robust=not args.no_robust)  # fmt: skip
             rows.append(row)
             if args.json is not None:  # every finished case kept, also if interrupted
                 _write_atomic(args.json, json.dumps(rows, indent=1, default=float))
@@ -247,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
         "friction": args.friction, "seal": args.seal, "noise_pooling": args.noise_pooling,
-        "inputs": args.inputs, "mcmc": args.mcmc,
+        "inputs": args.inputs, "mcmc": args.mcmc, "robust": not args.no_robust,
         "worst_pressure_ratio": max(ratios, default=math.nan),
         "median_pressure_ratio": float(np.median(ratios)) if ratios else math.nan,
         "pressure_within_3x": float(np.mean([x <= RATIO_TARGET for x in ratios])) if ratios

@@ -569,8 +569,9 @@ def recording_robust_covariance(
     problem = likelihood.problem
     observations = problem.observations
     sizes = [np.asarray(o.data).size for o in observations]
-    if sum(sizes) > res.size:
-        return None
+    n_prior = likelihood.parameters.prior_residuals(zz[None, :]).shape[1]
+    if sum(sizes) + n_prior != res.size:
+        return None  # rows that cannot be told apart: no recording's score
     power = np.asarray(problem.tempering, dtype=float)
     groups = getattr(problem, "noise_groups", None)
     names: dict[str, int] = {}

@@ -1659,36 +1659,31 @@ def identify(
             "check the campaign's rig parameters"
         )
     say(f"joint: {stage.seconds:.1f} s, log-likelihood {est.log_likelihood:.1f}")
+    like = LogLikelihood(joint_problem, est.parameters)
     if opts.temper:
         # intervals from the data's effective information: each block's
         # likelihood counts its correlated residuals as n / tau samples
-        like = LogLikelihood(joint_problem, est.parameters)
         taus = like.temper(est.z)
-        cov = laplace_covariance(like, est.z)
-        if cov is not None:
-            est.covariance = cov
-            est.parameters = laplace_summary(est.parameters, est.z, cov)
         say(f"joint: {_tempering_line(joint_problem, taus)}")
+    # the robust covariance's Laplace part is the (tempered) Laplace
+    # covariance at est.z: one Jacobian gives both
+    robust = recording_robust_covariance(like, est.z) if opts.robust else None
     inflation: dict[str, float] = {}
     widening: dict[str, float] = {}
-    if opts.robust:
-        like = LogLikelihood(joint_problem, est.parameters)
-        robust = recording_robust_covariance(like, est.z)
-        if robust is not None:
-            # the chains sample the profile likelihood: what the sandwich adds
-            inflation = dict(
-                zip(est.parameters.free_names, robust.beyond_profile.tolist(), strict=True)
-            )
-            widening = {
-                n: float(f)
-                for n, f in zip(est.parameters.free_names, robust.inflation, strict=True)
-                if f > 1.0 and est.parameters[n].group != "initial"
-            }
-            est.covariance = robust.covariance
-            est.parameters = laplace_summary(est.parameters, est.z, robust.covariance)
-            line = _robust_line(est.parameters, robust)
-            say(f"joint: {line}")
-            stage.note = "; ".join(x for x in (stage.note, line) if x)
+    cov = laplace_covariance(like, est.z) if opts.temper and robust is None else None
+    if robust is not None:
+        cov = robust.covariance
+        names = est.parameters.free_names
+        # the chains sample the profile likelihood: what the sandwich adds
+        inflation = dict(zip(names, robust.beyond_profile.tolist(), strict=True))
+        widening = {n: float(f) for n, f in zip(names, robust.inflation, strict=True)
+                    if f > 1.0 and est.parameters[n].group != "initial"}  # fmt: skip
+        line = _robust_line(widening, robust.clusters)
+        say(f"joint: {line}")
+        stage.note = "; ".join(x for x in (stage.note, line) if x)
+    if cov is not None:
+        est.covariance = cov
+        est.parameters = laplace_summary(est.parameters, est.z, cov)
     laplace = est.parameters
     final = laplace.with_fixed([p.name for p in laplace if p.group == "initial"], fixed=True)
     final.correlation = laplace.correlation
@@ -1856,18 +1851,15 @@ def _reported_point(
     )
 
 
-def _robust_line(parameters: ParameterSet, robust: Any) -> str:
-    """One line on the recordings' disagreement (:func:`recording_robust_covariance`)."""
-    names = [p.name for p in parameters.free]
-    wide = [(f, n) for f, n in zip(robust.inflation, names, strict=True)
-            if f > 1.0 and parameters[n].group != "initial"]  # fmt: skip
-    if not wide:
-        return f"intervals: the {robust.clusters} recordings agree within their noise"
-    wide.sort(reverse=True)
-    top = ", ".join(f"{n} x{f:.1f}" for f, n in wide[:4])
+def _robust_line(widening: Mapping[str, float], clusters: int) -> str:
+    """One line on the widened intervals (:func:`recording_robust_covariance`)."""
+    if not widening:
+        return f"intervals: the {clusters} recordings agree within their noise"
+    wide = sorted(widening.items(), key=lambda item: item[1], reverse=True)
+    top = ", ".join(f"{n} x{f:.1f}" for n, f in wide[:4])
     return (
         f"intervals widened by the profile curvature and the disagreement between the "
-        f"{robust.clusters} recordings (sandwich over recordings): {top}"
+        f"{clusters} recordings (sandwich over recordings): {top}"
         + (f" and {len(wide) - 4} more" if len(wide) > 4 else "")
     )
 

@@ -26,6 +26,7 @@ from rich.console import Console
 from pneumafit.campaign import read_campaign
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
+from pneumafit.identification.fitfile import WIDENING_SHOWN, widening_label
 from pneumafit.outputs.report import SECTIONS, write_report
 from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
 
@@ -141,6 +142,9 @@ def test_sections_render_what_the_run_holds(
     xi = fit["parameters"]["xi"]
     assert f"{xi['value']:.4g}" in params and f"{xi['interval_90'][0]:.4g}" in params
     assert "N s/m" in params  # units next to the numbers
+    widened = [e["interval_widening"] for e in fit["parameters"].values()
+               if e.get("interval_widening", 1.0) >= WIDENING_SHOWN]  # fmt: skip
+    assert all(f"<td>{widening_label(f)}</td>" in params for f in widened)
     mcmc = _section_html(html, "mcmc")
     assert "corner plot convection heat" in mcmc and "corner plot convection friction" in mcmc
     assert "MCMC traces convection friction" in mcmc
@@ -154,6 +158,28 @@ def test_sections_render_what_the_run_holds(
     assert "air supplied" in _section_html(html, "air")
     linear = _section_html(html, "linear")
     assert "open_loop_poles.png" in linear and "gain_schedule_4.png" in linear
+
+
+def test_the_parameter_table_shows_the_interval_widening(
+    run_folder: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """fit.json's ``interval_widening`` (written only where the robust
+    covariance widened an interval) is the table's "widened" column: a copy
+    of the run whose xi was widened 3.47x shows "x3.5" on xi's row."""
+    run, _ = run_folder
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    path = copy / "fits" / "convection" / "fit.json"
+    fit = json.loads(path.read_text())
+    fit["parameters"]["xi"]["interval_widening"] = 3.47
+    fit["parameters"]["beta"].pop("interval_widening", None)
+    path.write_text(json.dumps(fit))
+    params = _section_html(write_report(copy, tmp_path / "r.html").read_text(), "parameters")
+    rows = {re.sub("<[^>]+>", "", row.split("</td>", 1)[0]): row
+            for row in params.split("<tr>")[1:]}  # fmt: skip
+    assert "widened" in params
+    assert "<td>x3.5</td>" in rows["xi"]
+    assert "<td>x3.5</td>" not in rows["beta"] and rows["beta"].rstrip().endswith("<td>-</td></tr>")
 
 
 def test_an_empty_run_folder_gives_not_run_sections(tmp_path: Path) -> None:

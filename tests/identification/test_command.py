@@ -12,6 +12,7 @@ from rich.console import Console
 
 from pneumafit.cli.fit import fit_command
 from pneumafit.identification import likelihood as likelihood_module
+from pneumafit.identification.fitfile import WIDENING_SHOWN, widening_label
 from pneumafit.parameters_io import read_parameter_file
 
 #: Short chains: these tests check the plumbing, not the posteriors.
@@ -229,6 +230,17 @@ def test_no_mcmc_writes_laplace_uncertainties_only(small: tuple, tmp_path: Path,
     doc = json.loads((tmp_path / "lap" / "fit.json").read_text())
     assert doc["mcmc"] is None and not (tmp_path / "lap" / "chains.h5").exists()
     assert doc["parameters"]["xi"]["uncertainty"] == "laplace"
+    # the parameter table shows each interval's widening where fit.json has it
+    rows = {
+        line.split("│")[1].strip(): line
+        for line in console.file.getvalue().splitlines()
+        if line.count("│") > 5
+    }
+    widened = {n: e["interval_widening"] for n, e in doc["parameters"].items()
+               if e.get("interval_widening", 1.0) >= WIDENING_SHOWN}  # fmt: skip
+    assert widened, "the small campaign's model is not its rig's: some interval widens"
+    for name, factor in widened.items():
+        assert f" {widening_label(factor)} " in rows[name], (name, factor, rows[name])
 
 
 def test_untrustworthy_fit_is_said_first_and_strict_exits_3(

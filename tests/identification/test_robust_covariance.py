@@ -20,11 +20,13 @@ data exactly, except the control, which says so.
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
 
 from pneumafit.identification import LogLikelihood, Parameter, ParameterSet
+from pneumafit.identification.fitfile import widening_label
 from pneumafit.identification.noise import Gaussian
 from pneumafit.identification.optimise import (
     Z90,
@@ -151,3 +153,10 @@ def test_widened_covariance_keeps_the_laplace_correlations() -> None:
     np.testing.assert_allclose(rob.laplace / np.outer(d, d), rob.covariance / np.outer(dw, dw))
     np.testing.assert_allclose(dw / d, rob.inflation)
     assert np.all(rob.inflation >= 1.0)
+
+
+def test_the_widening_is_shown_from_five_percent() -> None:
+    """Factors of a fit whose model is the rig's (1.00-1.03) show as "-"."""
+    assert [widening_label(f) for f in (None, math.nan, 1.0, 1.03, 1.06, 3.47, 12.4)] == [
+        "-", "-", "-", "-", "x1.1", "x3.5", "x12",
+    ]  # fmt: skip

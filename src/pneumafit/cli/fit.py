@@ -49,6 +49,7 @@ from pneumafit.cli.console import (
     report_problems,
     run_guarded,
 )
+from pneumafit.identification.fitfile import widening_label
 from pneumafit.identification.problem import NOISE_POOLINGS
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
@@ -335,6 +336,7 @@ def _summary(result: FitResult, console: Console) -> None:
         "tau",
         "R-hat",
         "ESS",
+        "widened",
         "flag",
     ):
         table.add_column(
@@ -349,6 +351,7 @@ def _summary(result: FitResult, console: Console) -> None:
             p.name, _fmt(p.value, 7), p.unit or "-", _fmt(p.std, 3),
             f"[{_fmt(lo, 7)}, {_fmt(hi, 7)}]",
             p.uncertainty or "-", _fmt(tau), _fmt(rhat), _fmt(ess),
+            widening_label(result.widening.get(p.name)),
             Text(flagged.get(p.name, ""), style="bold red"),
         )  # fmt: skip
     console.print(table)

@@ -678,6 +678,22 @@ def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructur
     return structure
 
 
+#: Smallest ``interval_widening`` that the console and the report show: a
+#: fit whose model is the rig's has factors of 1.00-1.03 (sampling noise of
+#: the sandwich; the control case of tests/identification/
+#: test_robust_covariance.py has a median of 1.01), which a reader should
+#: not take for a warning.
+WIDENING_SHOWN = 1.05
+
+
+def widening_label(factor: float | None) -> str:
+    """How an interval's ``interval_widening`` is shown: "x3.5", or "-" below
+    :data:`WIDENING_SHOWN` or when it was not widened."""
+    if factor is None or not math.isfinite(factor) or factor < WIDENING_SHOWN:
+        return "-"
+    return f"x{factor:.2g}" if factor < 10 else f"x{factor:.0f}"
+
+
 def load_fit(path: str | os.PathLike[str]) -> SavedFit:
     """Read a fit.json (or the fit folder holding one): the one reader of the file.
 

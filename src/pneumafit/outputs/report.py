@@ -36,6 +36,7 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import display_unit
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.fileio import check_output, write_text_atomic
+from pneumafit.identification.fitfile import widening_label
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.report_html import (
     Section,
@@ -624,8 +625,10 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
         return missing, "not run", source
     parts = [note(
         "value: the posterior median (<em>mcmc</em>) or the joint least-squares estimate "
-        "(<em>laplace</em>); 90 % interval: the 5 and 95 % quantiles of the same posterior. "
-        "Rig parameters are fixed from the campaign."
+        "(<em>laplace</em>); 90 % interval: the 5 and 95 % quantiles of the same posterior; "
+        "widened: the factor by which the disagreement between recordings and the profile "
+        "likelihood's curvature widened it (docs/identification.md, \"Intervals where the "
+        "recordings disagree\"). Rig parameters are fixed from the campaign."
     )]  # fmt: skip
     fixed_rows: dict[str, list[str]] = {}
     for model in FIT_MODELS:
@@ -651,6 +654,7 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
                 esc(name), esc(e.get("group", "")), fmt(e.get("value"), unit),
                 fmt(e.get("std"), unit, 3), _interval(e, "interval_90", unit),
                 esc(e.get("uncertainty") or "-"), _interval(e, "laplace_interval_90", unit),
+                widening_label(e.get("interval_widening")),
             ])  # fmt: skip
         parts.append(
             table(
@@ -662,6 +666,7 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
                     "90 % interval",
                     "from",
                     "Laplace 90 % interval",
+                    "widened",
                 ],
                 rows,
                 caption=f"Estimated parameters ({path})",

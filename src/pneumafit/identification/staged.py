@@ -1463,7 +1463,7 @@ def identify(
                 label=f"friction ({cand})",
                 candidates=stribeck_candidates(starts[0]),
             )
-            tried[cand] = (trial, dict(values), prob.n_data)
+            tried[cand] = (trial, dict(values), prob.n_data, prob)
             say(
                 f"friction ({cand}): {trial.seconds:.1f} s, log-likelihood "
                 f"{trial.estimate.log_likelihood:.1f}, " + _brief(trial.estimate, names)
@@ -1472,13 +1472,19 @@ def identify(
             values.update(before)
         lls = {k: t[0].estimate.log_likelihood for k, t in tried.items()}
         gain = lls["lugre"] - lls["switch"]
-        penalty = math.log(max(tried["lugre"][2], 2))
-        law = "lugre" if math.isfinite(gain) and gain > penalty else "switch"
-        stage, chosen, _ = tried[law]
+        # BIC in effective samples, as for the seal friction and the area
+        # convention: the gain and n divided by the residuals' overcount at
+        # the LuGre optimum (correlated residuals of a model that is not the
+        # rig's count each sample many times over)
+        over = _overcount(tried["lugre"][3], tried["lugre"][0].estimate)
+        penalty = math.log(max(tried["lugre"][2] / over, 2.0))
+        law = "lugre" if math.isfinite(gain) and gain / over > penalty else "switch"
+        stage, chosen, _, _ = tried[law]
         stage.seconds = sum(t[0].seconds for t in tried.values())
         stage.note = (
-            f"friction law {law}: LuGre log-likelihood gain {gain:.1f} over the switch model "
-            f"(BIC threshold ln n = {penalty:.1f})"
+            f"friction law {law}: LuGre log-likelihood gain {gain:.1f} / {over:.3g} (residual "
+            f"correlation) = {gain / over:.1f} over the switch model (BIC threshold "
+            f"ln n_eff = {penalty:.1f})"
         )
         say(f"friction: {stage.note}")
         values.update(chosen)

@@ -11,6 +11,7 @@ formats and on malformed files.
 
 from __future__ import annotations
 
+import html
 import io
 import json
 import re
@@ -27,6 +28,7 @@ from pneumafit.campaign import read_campaign
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
 from pneumafit.identification.fitfile import WIDENING_SHOWN, widening_label
+from pneumafit.identification.quality import one_recording_caveat
 from pneumafit.outputs.report import SECTIONS, write_report
 from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
 
@@ -165,7 +167,8 @@ def test_the_parameter_table_shows_the_interval_widening(
 ) -> None:
     """fit.json's ``interval_widening`` (written only where the robust
     covariance widened an interval) is the table's "widened" column: a copy
-    of the run whose xi was widened 3.47x shows "x3.5" on xi's row."""
+    of the run whose xi was widened 3.47x shows "x3.5" on xi's row; the
+    quality's caveats are shown under its verdict."""
     run, _ = run_folder
     copy = tmp_path / "run"
     shutil.copytree(run, copy)
@@ -173,12 +176,15 @@ def test_the_parameter_table_shows_the_interval_widening(
     fit = json.loads(path.read_text())
     fit["parameters"]["xi"]["interval_widening"] = 3.47
     fit["parameters"]["beta"].pop("interval_widening", None)
+    caveat = one_recording_caveat(["friction_static (step_1.h5)"])
+    fit["quality"]["caveats"] = [caveat]
     path.write_text(json.dumps(fit))
     params = _section_html(write_report(copy, tmp_path / "r.html").read_text(), "parameters")
     rows = {re.sub("<[^>]+>", "", row.split("</td>", 1)[0]): row
             for row in params.split("<tr>")[1:]}  # fmt: skip
     assert "widened" in params
     assert "<td>x3.5</td>" in rows["xi"]
+    assert html.escape(caveat) in params  # the quality's caveats, under its verdict
     assert "<td>x3.5</td>" not in rows["beta"] and rows["beta"].rstrip().endswith("<td>-</td></tr>")
 
 

@@ -29,11 +29,13 @@ from pneumafit.identification import LogLikelihood, Parameter, ParameterSet
 from pneumafit.identification.fitfile import widening_label
 from pneumafit.identification.noise import Gaussian
 from pneumafit.identification.optimise import (
+    ONE_RECORDING,
     Z90,
     fit_least_squares,
     laplace_covariance,
     recording_robust_covariance,
 )
+from pneumafit.identification.quality import FitQuality, one_recording_caveat
 
 G = 10  # recordings
 N = 100  # samples per recording
@@ -160,3 +162,65 @@ def test_the_widening_is_shown_from_five_percent() -> None:
     assert [widening_label(f) for f in (None, math.nan, 1.0, 1.03, 1.06, 3.47, 12.4)] == [
         "-", "-", "-", "-", "x1.1", "x3.5", "x12",
     ]  # fmt: skip
+
+
+class OffsetInOneProblem(LinesProblem):
+    """The lines, with an offset ``c`` that only recording r0 sees (a sensor
+    offset, or friction that only one step test moves)."""
+
+    def predict(self, values: dict[str, np.ndarray], n: int) -> SimpleNamespace:
+        out = super().predict(values, n)
+        out.offset = values["c"][:, None]
+        return out
+
+    def residuals(self, prediction: SimpleNamespace) -> list[np.ndarray]:
+        res = super().residuals(prediction)
+        res[0] = res[0] - prediction.offset
+        return res
+
+
+def test_a_parameter_one_recording_informs_is_counted_once() -> None:
+    """``informing``: the recordings that hold a parameter's information (the
+    participation ratio of their Gauss-Newton information). The offset seen by
+    r0 alone counts 1 and names r0; the intercept and slope, which every
+    recording informs, between 1 and G (G for equal shares; here each block's
+    share is its n / s_c^2, s_c its profiled noise level).
+    The offset's interval cannot be widened by the sandwich (its one
+    recording's score is the total score, zero at the optimum), which is why
+    the count is reported."""
+    rng = np.random.default_rng(3)
+    params = ParameterSet([*_params(), Parameter("c", 0.0, "", -50.0, 50.0)])
+    like = LogLikelihood(OffsetInOneProblem(_campaign(rng, SPREAD)), params)
+    est = fit_least_squares(like, max_nfev=20)
+    rob = recording_robust_covariance(like, est.z)
+    assert rob is not None
+    # every block's whitened Jacobian row for a and b is its x-row over its
+    # profiled noise level s_c (the RMS of its residuals at the estimate), so
+    # the shares are n / s_c^2 for both: the participation ratio of those
+    values = params.to_values(est.z[None, :])
+    pred = like.problem.predict(values, 1)
+    s2 = np.array([np.mean(r[0] ** 2) for r in like.problem.residuals(pred)])
+    share = N / s2
+    np.testing.assert_allclose(rob.informing[:2], share.sum() ** 2 / np.sum(share**2), rtol=1e-6)
+    assert 1.5 * ONE_RECORDING < rob.informing[0] <= G
+    assert rob.informing[2] == 1.0
+    assert rob.informing[2] < ONE_RECORDING <= rob.informing[0]
+    assert rob.recordings[int(rob.dominant[2])] == "r0.h5"
+    # the slope still widens by the recordings' disagreement; the offset, whose
+    # error the random slopes do not touch, keeps its Laplace width
+    assert rob.inflation[1] > 3.0 and rob.inflation[2] < 1.5
+
+
+def test_the_caveat_groups_the_parameters_by_recording() -> None:
+    """quality.one_recording ("name (file)") -> one sentence, by recording,
+    in a FitQuality's caveats (not its problems: the fit stays trustworthy)."""
+    items = ["friction_static (step_1.h5)", "valve_C_leak (discharge_P_1.h5)",
+             "friction_coulomb (step_1.h5)"]  # fmt: skip
+    text = one_recording_caveat(items)
+    assert text.endswith(
+        "step_1.h5: friction_static, friction_coulomb; discharge_P_1.h5: valve_C_leak"
+    )
+    quality = FitQuality(channels=[], one_recording=items)
+    assert quality.caveats() == [text] and quality.trustworthy and not quality.problems()
+    assert quality.as_dict()["one_recording"] == items
+    assert FitQuality(channels=[]).caveats() == []

@@ -313,6 +313,8 @@ def _summary(result: FitResult, console: Console) -> None:
         console.print(Text(f"{result.model}: {quality.verdict()}", style=style))
         for line in quality.problems():
             console.print(Text(f"  - {line}", style="red"))
+        for line in quality.caveats():
+            console.print(Text(f"  - {line}", style="yellow"))
     flagged: dict[str, str] = {}
     if quality is not None:
         for item in quality.at_bounds:

@@ -32,6 +32,7 @@ from pneumafit.identification.parameters import ParameterSet
 from pneumafit.progress import Progress
 
 __all__ = [
+    "ONE_RECORDING",
     "STALL_RULE",
     "PointEstimate",
     "RobustCovariance",
@@ -504,6 +505,18 @@ class RobustCovariance:
         max(1, sqrt(sandwich_jj / profile_jj)): the widening still due
         where the spread already follows the profile likelihood (an MCMC
         chain samples it); ``inflation`` where ``profile`` is None.
+    informing : ndarray (n_free,)
+        How many recordings inform each parameter: the participation ratio
+        (sum_c I_c)^2 / sum_c I_c^2 of the recordings' Gauss-Newton
+        information I_c = (J_c^T J_c)_jj on its diagonal. 1 when one recording
+        holds all of it: that recording's score is then the total one, zero at
+        the optimum, so the sandwich cannot widen the interval whatever the
+        model's error (:data:`ONE_RECORDING`).
+    recordings : tuple of str
+        The clusters' recording names, in order of first appearance.
+    dominant : ndarray of int (n_free,)
+        Index in ``recordings`` of the recording with the most information
+        on each parameter.
     """
 
     laplace: NDArray[np.float64]
@@ -513,6 +526,17 @@ class RobustCovariance:
     covariance: NDArray[np.float64]
     clusters: int
     beyond_profile: NDArray[np.float64]
+    informing: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    recordings: tuple[str, ...] = ()
+    dominant: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
+#: Fewer informing recordings (:attr:`RobustCovariance.informing`) than this
+#: and a parameter's interval rests on one recording: 1.5 is where the
+#: largest recording's share of the information exceeds ~80 % with the
+#: rest spread thin (two recordings sharing 80/20 give 1.47), so no second
+#: recording holds enough of it to disagree.
+ONE_RECORDING = 1.5
 
 
 #: Smallest eigenvalue, relative to the largest, of the equilibrated profile
@@ -576,16 +600,24 @@ def recording_robust_covariance(
     groups = getattr(problem, "noise_groups", None)
     names: dict[str, int] = {}
     block_grad = np.zeros((len(observations), zz.size))
+    block_info = np.zeros((len(observations), zz.size))
     cluster = np.empty(len(observations), dtype=np.int64)
     start = 0
     for j, (o, size) in enumerate(zip(observations, sizes, strict=True)):
         rows = slice(start, start + size)
         block_grad[j] = jac[rows].T @ res[rows]
+        block_info[j] = np.einsum("ij,ij->j", jac[rows], jac[rows])
         cluster[j] = names.setdefault(o.recording, len(names))
         start += size
     g = len(names)
     if g < 2:
         return None
+    info = np.zeros((g, zz.size))
+    np.add.at(info, cluster, block_info)
+    total = info.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        informing = np.where(total > 0.0, total**2 / np.sum(info**2, axis=0), 0.0)
+    dominant = np.argmax(info, axis=0).astype(np.int64)
     gauss_newton = jac.T @ jac
     laplace = equilibrated_pinv(gauss_newton)
     # each profiled noise level's share of the curvature: (2 / (n w)) g g^T,
@@ -630,7 +662,10 @@ def recording_robust_covariance(
         with np.errstate(invalid="ignore", divide="ignore"):
             r = np.where(pro_var > 0.0, np.diag(sandwich) / pro_var, 1.0)
         beyond = np.sqrt(np.maximum(np.nan_to_num(r, nan=1.0, posinf=1.0), 1.0))
-    return RobustCovariance(laplace, profile, sandwich, inflation, widened, g, beyond)
+    return RobustCovariance(
+        laplace, profile, sandwich, inflation, widened, g, beyond,
+        informing, tuple(names), dominant,
+    )  # fmt: skip
 
 
 def _laplace(jac: NDArray[np.float64]) -> NDArray[np.float64] | None:

@@ -50,6 +50,7 @@ __all__ = [
     "FitQuality",
     "assess_residuals",
     "estimate_noise",
+    "one_recording_caveat",
     "phases",
 ]
 
@@ -291,6 +292,13 @@ class FitQuality:
         Parameters whose chain is shorter than 50 tau or has R-hat > 1.01.
     unconverged : list of str
         Least-squares stages that stopped at their iteration limit.
+    one_recording : list of str
+        ``"name (recording)"`` for every parameter whose interval rests on
+        one recording (:attr:`~pneumafit.identification.optimise.
+        RobustCovariance.informing`): no other recording can show the error of
+        a law that is not the rig's, so the interval holds only as far as the
+        model is right. A caveat (:meth:`caveats`), not a reason to distrust
+        the fit.
     threshold : float
     """
 
@@ -299,6 +307,7 @@ class FitQuality:
     outside_interval: list[str] = field(default_factory=list)
     unreliable: list[str] = field(default_factory=list)
     unconverged: list[str] = field(default_factory=list)
+    one_recording: list[str] = field(default_factory=list)
     threshold: float = THRESHOLD
 
     def failing(self, role: str | None = None) -> list[ChannelQuality]:
@@ -359,6 +368,11 @@ class FitQuality:
             )
         return out
 
+    def caveats(self) -> list[str]:
+        """One sentence per limit of the intervals that does not make the fit
+        untrustworthy (empty when there is none)."""
+        return [one_recording_caveat(self.one_recording)] if self.one_recording else []
+
     def verdict(self) -> str:
         """One line for the top of the console summary and the report."""
         if self.trustworthy:
@@ -380,8 +394,24 @@ class FitQuality:
             "outside_interval": list(self.outside_interval),
             "unreliable": list(self.unreliable),
             "unconverged": list(self.unconverged),
+            "one_recording": list(self.one_recording),
+            "caveats": self.caveats(),
             "recordings": [c.as_dict() for c in self.channels],
         }
+
+
+def one_recording_caveat(items: Sequence[str]) -> str:
+    """The sentence on intervals that rest on one recording, grouped by
+    recording; ``items`` as :attr:`FitQuality.one_recording`."""
+    by_file: dict[str, list[str]] = {}
+    for item in items:
+        name, _, file = item.partition(" (")
+        by_file.setdefault(file.removesuffix(")"), []).append(name)
+    return (
+        "intervals resting on one recording, which no other can contradict (they hold only "
+        "as far as the model's laws are the rig's; add a test that informs them): "
+        + "; ".join(f"{file}: {', '.join(names)}" for file, names in by_file.items())
+    )
 
 
 def assess_residuals(

@@ -51,8 +51,10 @@ from pneumafit.identification.coverage import (
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
 from pneumafit.identification.noise import NoiseModel
 from pneumafit.identification.optimise import (
+    ONE_RECORDING,
     STALL_RULE,
     PointEstimate,
+    RobustCovariance,
     fit_least_squares,
     information_stall,
     laplace_covariance,
@@ -76,6 +78,7 @@ from pneumafit.identification.quality import (
     bound_problems,
     chain_problems,
     interval_problems,
+    one_recording_caveat,
 )
 from pneumafit.identification.reference import (
     REFERENCE_STATE,
@@ -1676,6 +1679,7 @@ def identify(
     robust = recording_robust_covariance(like, est.z) if opts.robust else None
     inflation: dict[str, float] = {}
     widening: dict[str, float] = {}
+    one_recording: dict[str, str] = {}
     cov = laplace_covariance(like, est.z) if opts.temper and robust is None else None
     if robust is not None:
         cov = robust.covariance
@@ -1687,6 +1691,11 @@ def identify(
         line = _robust_line(widening, robust.clusters)
         say(f"joint: {line}")
         stage.note = "; ".join(x for x in (stage.note, line) if x)
+        one_recording = _one_recording(robust, est.parameters)
+        if one_recording:
+            line = one_recording_caveat([f"{n} ({f})" for n, f in one_recording.items()])
+            say(f"joint: {line}")
+            stage.note = "; ".join(x for x in (stage.note, line) if x)
     if cov is not None:
         est.covariance = cov
         est.parameters = laplace_summary(est.parameters, est.z, cov)
@@ -1784,7 +1793,8 @@ def identify(
             structure, values, rig, laplace, est, friction_draws, seeds[7]
         )
     runs = [s.mcmc for s in stages if s.mcmc is not None]
-    quality = assess(campaign, rep, final, joint_free, runs, opts.channels)
+    quality = assess(campaign, rep, final, joint_free, runs, opts.channels,
+                     one_recording=one_recording)  # fmt: skip
     quality.unconverged = [
         f"{s.name} ({s.estimate.message})"
         for s in stages
@@ -1855,6 +1865,20 @@ def _reported_point(
         f"estimate is the most probable draw inside every 90 % interval (log posterior "
         f"{lp[best]:.1f})"
     )
+
+
+def _one_recording(robust: RobustCovariance, parameters: ParameterSet) -> dict[str, str]:
+    """Free model parameters whose information comes from one recording
+    (:attr:`RobustCovariance.informing` below :data:`ONE_RECORDING`), each
+    with that recording's name. Initial states and sensor parameters, which
+    belong to one recording by construction, are left out."""
+    out = {}
+    for j, p in enumerate(parameters.free):
+        if p.group in ("initial", "sensor") or j >= robust.informing.size:
+            continue
+        if 0.0 < robust.informing[j] < ONE_RECORDING:
+            out[p.name] = robust.recordings[int(robust.dominant[j])]
+    return out
 
 
 def _robust_line(widening: Mapping[str, float], clusters: int) -> str:
@@ -2049,11 +2073,16 @@ def assess(
     free: Sequence[str],
     runs: Sequence[MCMCResult],
     channels: Sequence[str],
+    *,
+    one_recording: Mapping[str, str] | None = None,
 ) -> FitQuality:
-    """Everything that says whether a fit can be trusted (:mod:`.quality`)."""
+    """Everything that says whether a fit can be trusted (:mod:`.quality`);
+    ``one_recording``: parameter -> the one recording its interval rests on
+    (:func:`_one_recording`)."""
     return FitQuality(
         channels=assess_residuals(campaign, rep.offset_free(), channels),
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
+        one_recording=[f"{n} ({f})" for n, f in (one_recording or {}).items()],
     )

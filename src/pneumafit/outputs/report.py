@@ -578,6 +578,7 @@ def _quality_html(doc: Mapping[str, Any]) -> str:
     items = "".join(f"<li>{esc(p)}</li>" for p in quality.get("problems") or [])
     parts = [note(f"<strong>{esc(quality.get('verdict', ''))}</strong>"
                   + (f"<ul>{items}</ul>" if items else ""), kind)]  # fmt: skip
+    parts += [note(esc(c), "warn") for c in quality.get("caveats") or []]
     rows = []
     for r in quality.get("recordings") or []:
         scale, unit = display_unit(str(r.get("channel", "")))

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from pneumafit.pipeline import RUN_MODELS, StageBook, fit_is_reusable
+from pneumafit.pipeline import FIT_ORDER, RUN_MODELS, StageBook, fit_is_reusable
 from pneumafit.pipeline import run as run_pipeline
 from pneumafit.virtual_rig import VirtualRig
 from pneumafit.virtual_rig.protocol import quick_protocol
@@ -46,6 +46,18 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
     for model in RUN_MODELS:
         fit = json.loads((out / "fits" / model / "fit.json").read_text())
         assert fit["model"] == model
+    # the convection fit chooses the friction law (auto); the others use it
+    # (the same law in all three, without fitting the second law again). The
+    # quick plan has no fit step test, so this checks the plumbing, not the
+    # choice (tests/test_friction_lugre.py and test_mismatched.py do that)
+    first, *later = FIT_ORDER
+    law = json.loads((out / "fits" / first / "fit.json").read_text())["structure"]["friction"]
+    for model in later:
+        fit = json.loads((out / "fits" / model / "fit.json").read_text())
+        assert fit["structure"]["friction"] == law
+        assert f"--friction {law}" in fit["provenance"]["command"]
+        assert "LuGre log-likelihood gain" not in (fit["stages"]["friction"].get("note") or "")
+    assert f"friction law {law}, as chosen by the {first} fit" in log
     comparison = json.loads((out / "comparison" / "comparison.json").read_text())
     assert set(comparison["models"]) == set(RUN_MODELS)
     discovery = json.loads((out / "discovery" / "discovery.json").read_text())

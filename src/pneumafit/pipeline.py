@@ -49,6 +49,7 @@ import hashlib
 import json
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -86,6 +87,11 @@ DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
 #: Models fitted and compared, in the order of the paper (simplest first: the
 #: heat laws of ``models.parts`` in reverse model-list order).
 RUN_MODELS = tuple(reversed(MODEL_NAMES))
+#: Order in which the models are fitted: the full heat law first (the model
+#: list's order). With ``--friction auto`` its friction law, chosen by BIC on
+#: the step tests, is then the law of the others, so the three fits differ
+#: in their heat law only, and the simpler ones skip the second law's fit.
+FIT_ORDER = tuple(MODEL_NAMES)
 
 #: Formats of the controller export.
 EXPORT_FORMATS = {"json": "controller.json", "yaml": "controller.yaml", "c": "controller.h",
@@ -119,12 +125,12 @@ def _sha256(path: Path) -> str:
 
 def fit_is_reusable(
     folder: Path, campaign: Campaign, model: str, valve: str | None = None,
-    inputs: str | None = None,
+    inputs: str | None = None, *, friction: str | None = None,
 ) -> bool:  # fmt: skip
     """True when ``folder/fit.json`` is a finished fit of ``model`` on this
-    campaign (and with the valve law ``valve`` and the input reading
-    ``inputs``, when given: a fit.json without ``structure.inputs``
-    interpolated them)."""
+    campaign (and with the valve law ``valve``, the input reading ``inputs``
+    and the friction law ``friction``, when given: a fit.json without
+    ``structure.inputs`` interpolated them)."""
     from pneumafit.identification.staged import FitResult
 
     try:
@@ -137,6 +143,7 @@ def fit_is_reusable(
         and fit.campaign_sha256 == campaign.sha256
         and (valve is None or fit.structure.valve == valve)
         and (inputs is None or fit.structure.inputs == inputs)
+        and (friction is None or fit.structure.friction == friction)
     )
 
 
@@ -341,7 +348,7 @@ def _fits(
     """Fit the three models (or reuse finished fits); fit.json path per model.
     Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
     from pneumafit.cli.fit import report_fit
-    from pneumafit.identification.staged import FitOptions
+    from pneumafit.identification.staged import FitOptions, FitResult
     from pneumafit.services.fit import (
         fit_command_line,
         fit_folder,
@@ -359,23 +366,30 @@ def _fits(
         inputs=inputs,
     )
     files = {}
-    for model in RUN_MODELS:
+    law: str | None = None  # the first fit's friction law, the others' too
+    for model in FIT_ORDER:
         folder = out / "fits" / model
         name = f"fit {model}"
-        if fit_is_reusable(folder, campaign, model, valve, inputs):
+        if fit_is_reusable(folder, campaign, model, valve, inputs, friction=law):
             console.print(f"[dim]{name}: reused {folder / 'fit.json'}[/dim]")
             timings[name] = 0.0
+            if law is None:
+                law = FitResult.load(folder / "fit.json").structure.friction
         else:
             console.rule(name)
             t0, n0 = time.perf_counter(), counter.simulations()
             console.print(f"fitting {model} to {campaign.name} "
                           f"({len(campaign.by_role('fit'))} fit recordings)")  # fmt: skip
+            if law is not None:
+                console.print(f"friction law {law}, as chosen by the {FIT_ORDER[0]} fit")
             command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc,
-                                       valve=valve, inputs=inputs)  # fmt: skip
+                                       valve=valve, inputs=inputs,
+                                       friction=law or "auto")  # fmt: skip
+            chosen = options if law is None else replace(options, friction=law)
             result = run_service(
                 console, name,
-                lambda m=model, f=folder, c=command: fit_folder(
-                    campaign, m, f, options=options, seed=seed, command=c, log=say,
+                lambda m=model, f=folder, c=command, o=chosen: fit_folder(
+                    campaign, m, f, options=o, seed=seed, command=c, log=say,
                     progress=Reporter(say, console=console),
                 ),
                 campaign=path, failed="fit failed",
@@ -386,8 +400,10 @@ def _fits(
             report_fit(result, folder, console)
             timings[name] = time.perf_counter() - t0
             sims[name] = counter.simulations() - n0
+            if law is None:
+                law = result.structure.friction
         files[model] = folder / "fit.json"
-    return files
+    return {m: files[m] for m in RUN_MODELS}
 
 
 def run_service(

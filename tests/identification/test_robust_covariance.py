@@ -162,6 +162,8 @@ def test_the_widening_is_shown_from_five_percent() -> None:
     assert [widening_label(f) for f in (None, math.nan, 1.0, 1.03, 1.06, 3.47, 12.4)] == [
         "-", "-", "-", "-", "x1.1", "x3.5", "x12",
     ]  # fmt: skip
+    # a hand-edited fit.json: shown as not widened, never raised
+    assert [widening_label(f) for f in ("3.5", [2.0], True)] == ["-", "-", "-"]
 
 
 class OffsetInOneProblem(LinesProblem):

@@ -686,10 +686,14 @@ def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructur
 WIDENING_SHOWN = 1.05
 
 
-def widening_label(factor: float | None) -> str:
+def widening_label(factor: Any) -> str:
     """How an interval's ``interval_widening`` is shown: "x3.5", or "-" below
-    :data:`WIDENING_SHOWN` or when it was not widened."""
-    if factor is None or not math.isfinite(factor) or factor < WIDENING_SHOWN:
+    :data:`WIDENING_SHOWN`, when it was not widened, or when the value is not
+    a number (a hand-edited fit.json: the report shows what it can)."""
+    if (
+        isinstance(factor, bool) or not isinstance(factor, (int, float))
+        or not math.isfinite(factor) or factor < WIDENING_SHOWN
+    ):  # fmt: skip
         return "-"
     return f"x{factor:.2g}" if factor < 10 else f"x{factor:.0f}"
 

@@ -152,7 +152,7 @@ def run_case(
         ),
     }  # fmt: skip
     figures: dict[str, Any] = {}
-    alone = {item.split(" ", 1)[0] for item in q.one_recording}
+    alone = set(q.one_recording)
     for name, (value, iv) in est.items():
         true = truths[name]
         rel = (value - true) / true if value is not None and true else math.nan
@@ -174,7 +174,7 @@ def run_case(
         "recordings": [c.as_dict() for c in q.channels],
         "figures": figures, "verdict": q.verdict(), "problems": q.problems(),
         "outside_interval": list(q.outside_interval), "at_bounds": list(q.at_bounds),
-        "one_recording": list(q.one_recording),
+        "one_recording": q.as_dict()["one_recording"],
         "recording_kinds": sorted({r.kind for r in camp.recordings}),
         "truth_file": run.truth.get("truth_model", {}).get("name", preset),
     }  # fmt: skip

@@ -176,7 +176,7 @@ def test_the_parameter_table_shows_the_interval_widening(
     fit = json.loads(path.read_text())
     fit["parameters"]["xi"]["interval_widening"] = 3.47
     fit["parameters"]["beta"].pop("interval_widening", None)
-    caveat = one_recording_caveat(["friction_static (step_1.h5)"])
+    caveat = one_recording_caveat({"friction_static": "step_1.h5"})
     fit["quality"]["caveats"] = [caveat]
     path.write_text(json.dumps(fit))
     params = _section_html(write_report(copy, tmp_path / "r.html").read_text(), "parameters")

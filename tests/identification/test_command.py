@@ -238,7 +238,11 @@ def test_no_mcmc_writes_laplace_uncertainties_only(small: tuple, tmp_path: Path,
     }
     widened = {n: e["interval_widening"] for n, e in doc["parameters"].items()
                if e.get("interval_widening", 1.0) >= WIDENING_SHOWN}  # fmt: skip
-    assert widened, "the small campaign's model is not its rig's: some interval widens"
+    # the small campaign is recorded with the fitted laws, but its sandwich has
+    # its own sampling spread (a quarter of right-model fits widen by more than
+    # 1.12, test_robust_covariance.py): some intervals widen, so the check
+    # below has rows to look at
+    assert widened
     for name, factor in widened.items():
         assert f" {widening_label(factor)} " in rows[name], (name, factor, rows[name])
 

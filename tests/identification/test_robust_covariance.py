@@ -214,15 +214,18 @@ def test_a_parameter_one_recording_informs_is_counted_once() -> None:
 
 
 def test_the_caveat_groups_the_parameters_by_recording() -> None:
-    """quality.one_recording ("name (file)") -> one sentence, by recording,
-    in a FitQuality's caveats (not its problems: the fit stays trustworthy)."""
+    """quality.one_recording (parameter -> recording) -> one sentence, by
+    recording, in a FitQuality's caveats (not its problems: the fit stays
+    trustworthy); fit.json lists "name (recording)"."""
+    alone = {"friction_static": "step_1.h5", "valve_C_leak": "discharge_P_1.h5",
+             "friction_coulomb": "step_1.h5"}  # fmt: skip
     items = ["friction_static (step_1.h5)", "valve_C_leak (discharge_P_1.h5)",
              "friction_coulomb (step_1.h5)"]  # fmt: skip
-    text = one_recording_caveat(items)
+    text = one_recording_caveat(alone)
     assert text.endswith(
         "step_1.h5: friction_static, friction_coulomb; discharge_P_1.h5: valve_C_leak"
     )
-    quality = FitQuality(channels=[], one_recording=items)
+    quality = FitQuality(channels=[], one_recording=alone)
     assert quality.caveats() == [text] and quality.trustworthy and not quality.problems()
     assert quality.as_dict()["one_recording"] == items
     assert FitQuality(channels=[]).caveats() == []

@@ -526,9 +526,9 @@ class RobustCovariance:
     covariance: NDArray[np.float64]
     clusters: int
     beyond_profile: NDArray[np.float64]
-    informing: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    recordings: tuple[str, ...] = ()
-    dominant: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    informing: NDArray[np.float64]
+    recordings: tuple[str, ...]
+    dominant: NDArray[np.int64]
 
 
 #: Fewer informing recordings (:attr:`RobustCovariance.informing`) than this

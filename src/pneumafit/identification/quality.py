@@ -33,7 +33,7 @@ R-hat above 1.01.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -292,12 +292,13 @@ class FitQuality:
         Parameters whose chain is shorter than 50 tau or has R-hat > 1.01.
     unconverged : list of str
         Least-squares stages that stopped at their iteration limit.
-    one_recording : list of str
-        ``"name (recording)"`` for every parameter whose interval rests on
-        one recording (:attr:`~pneumafit.identification.optimise.
-        RobustCovariance.informing`): no other recording can show the error of
-        a law that is not the rig's, so the interval holds only as far as the
-        model is right. A caveat (:meth:`caveats`), not a reason to distrust
+    one_recording : dict of str to str
+        Parameter -> the recording its interval rests on, for every parameter
+        whose information comes from one recording
+        (:attr:`~pneumafit.identification.optimise.RobustCovariance.informing`;
+        in fit.json a list of ``"name (recording)"``): no other recording can
+        show the error of a law that is not the rig's, so the interval holds
+        only as far as the model is right. A caveat (:meth:`caveats`), not a reason to distrust
         the fit.
     threshold : float
     """
@@ -307,7 +308,7 @@ class FitQuality:
     outside_interval: list[str] = field(default_factory=list)
     unreliable: list[str] = field(default_factory=list)
     unconverged: list[str] = field(default_factory=list)
-    one_recording: list[str] = field(default_factory=list)
+    one_recording: dict[str, str] = field(default_factory=dict)
     threshold: float = THRESHOLD
 
     def failing(self, role: str | None = None) -> list[ChannelQuality]:
@@ -394,19 +395,18 @@ class FitQuality:
             "outside_interval": list(self.outside_interval),
             "unreliable": list(self.unreliable),
             "unconverged": list(self.unconverged),
-            "one_recording": list(self.one_recording),
+            "one_recording": [f"{n} ({f})" for n, f in self.one_recording.items()],
             "caveats": self.caveats(),
             "recordings": [c.as_dict() for c in self.channels],
         }
 
 
-def one_recording_caveat(items: Sequence[str]) -> str:
+def one_recording_caveat(one_recording: Mapping[str, str]) -> str:
     """The sentence on intervals that rest on one recording, grouped by
-    recording; ``items`` as :attr:`FitQuality.one_recording`."""
+    recording; ``one_recording`` as :attr:`FitQuality.one_recording`."""
     by_file: dict[str, list[str]] = {}
-    for item in items:
-        name, _, file = item.partition(" (")
-        by_file.setdefault(file.removesuffix(")"), []).append(name)
+    for name, file in one_recording.items():
+        by_file.setdefault(file, []).append(name)
     return (
         "intervals resting on one recording, which no other can contradict (they hold only "
         "as far as the model's laws are the rig's; add a test that informs them): "

@@ -1693,7 +1693,7 @@ def identify(
         stage.note = "; ".join(x for x in (stage.note, line) if x)
         one_recording = _one_recording(robust, est.parameters)
         if one_recording:
-            line = one_recording_caveat([f"{n} ({f})" for n, f in one_recording.items()])
+            line = one_recording_caveat(one_recording)
             say(f"joint: {line}")
             stage.note = "; ".join(x for x in (stage.note, line) if x)
     if cov is not None:
@@ -1874,7 +1874,7 @@ def _one_recording(robust: RobustCovariance, parameters: ParameterSet) -> dict[s
     belong to one recording by construction, are left out."""
     out = {}
     for j, p in enumerate(parameters.free):
-        if p.group in ("initial", "sensor") or j >= robust.informing.size:
+        if p.group in ("initial", "sensor"):
             continue
         if 0.0 < robust.informing[j] < ONE_RECORDING:
             out[p.name] = robust.recordings[int(robust.dominant[j])]
@@ -2084,5 +2084,5 @@ def assess(
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
-        one_recording=[f"{n} ({f})" for n, f in (one_recording or {}).items()],
+        one_recording=dict(one_recording or {}),
     )

@@ -474,6 +474,7 @@ def test_an_early_phase_end_is_seeded_resumable_and_keeps_the_posterior(tmp_path
     full = run_mcmc(gaussian, params(), MEAN + 8.0, wide, backend=tmp_path / "full.h5", **kw)
     assert 50 <= full.adapted_after < 300 and full.discard >= full.adapted_after
     assert full.as_dict()["adapted_after"] == full.adapted_after
+    assert full.readapted == []  # a t fitted to settled walkers is kept
     calls = 0
 
     def flaky(z: np.ndarray) -> np.ndarray:
@@ -490,3 +491,53 @@ def test_an_early_phase_end_is_seeded_resumable_and_keeps_the_posterior(tmp_path
     assert resumed.adapted_after == full.adapted_after
     assert np.array_equal(resumed.chain, full.chain)
     _assert_exact_90(full)
+
+
+# ------------------------------------------------ the proposal fitted again
+# A phase that ends before the walkers settle fits a t that misses the
+# posterior; a check window with acceptance below READAPT_ACCEPTANCE fits it
+# again to the steps since (sampling.run_mcmc).
+
+
+@pytest.mark.parametrize("cut", [60, 100])  # before and after the new fit at step 70
+def test_a_proposal_fitted_to_unsettled_walkers_is_fitted_again(
+    tmp_path: Path, cut: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """From 30 sd away with a 20-step phase, the t is fitted to climbing
+    walkers: 7 % of the steps 20-70 are accepted, the t is fitted again at
+    step 70, and the chain converges (>= 50 tau, R-hat <= 1.01) by step 320
+    with acceptance 0.57 and the exact 90 % intervals (4 Monte-Carlo
+    standard errors). Without the new fit (MAX_READAPT = 0, measured the same
+    way) the acceptance stays at 0.04 and the chain is still unconverged at
+    its 2000-step limit (36 tau, R-hat 1.03). A run interrupted before or
+    after the new fit resumes to the same chain and the same decision."""
+    kw = {"n_walkers": 8, "n_steps": 1000, "seed": 1, "adapt": 20, "min_steps": 50,
+          "max_steps": 2000, "name": "stage"}  # fmt: skip
+    start, wide = MEAN + 30.0, np.diag([400.0, 400.0])
+    full = run_mcmc(gaussian, params(), start, wide, backend=tmp_path / "full.h5", **kw)
+    assert full.readapted == [70] and full.as_dict()["readapted_after"] == [70]
+    assert full.discard >= 70
+    assert full.n_steps < 1000 and full.acceptance > 0.4
+    assert full.tau_multiple >= 50 and max(full.rhat.values()) <= 1.01
+    _assert_exact_90(full)
+    calls = 0
+
+    def flaky(z: np.ndarray) -> np.ndarray:
+        nonlocal calls
+        calls += 1
+        if calls == cut:
+            raise Interrupt
+        return gaussian(z)
+
+    path = tmp_path / "cut.h5"
+    with pytest.raises(Interrupt):
+        run_mcmc(flaky, params(), start, wide, backend=path, **kw)
+    resumed = run_mcmc(gaussian, params(), start, wide, backend=path, **kw)
+    assert resumed.readapted == full.readapted
+    assert np.array_equal(resumed.chain, full.chain)
+
+    import pneumafit.identification.sampling as sampling
+
+    monkeypatch.setattr(sampling, "MAX_READAPT", 0)
+    kept = run_mcmc(gaussian, params(), start, wide, **kw)
+    assert kept.readapted == [] and kept.acceptance < 0.1 and kept.n_steps == 2000

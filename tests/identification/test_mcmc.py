@@ -32,6 +32,26 @@ class Interrupt(Exception):
     """Stands for Ctrl-C in the middle of a run."""
 
 
+def _resumed_after_interrupt(
+    path: Path, cut: int, start: np.ndarray, cov: np.ndarray | None, **kw: object
+) -> MCMCResult:
+    """A run of :func:`gaussian` stopped at its ``cut``-th log-posterior call
+    (one call per step once the walkers are placed), then the same run
+    resumed from its backend ``path``: what a user gets after Ctrl-C."""
+    calls = 0
+
+    def flaky(z: np.ndarray) -> np.ndarray:
+        nonlocal calls
+        calls += 1
+        if calls == cut:
+            raise Interrupt
+        return gaussian(z)
+
+    with pytest.raises(Interrupt):
+        run_mcmc(flaky, params(), start, cov, backend=path, **kw)  # type: ignore[arg-type]
+    return run_mcmc(gaussian, params(), start, cov, backend=path, **kw)  # type: ignore[arg-type]
+
+
 def test_same_seed_same_chain_and_seed_matters() -> None:
     a = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=50, seed=4)
     b = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8, n_steps=50, seed=4)
@@ -45,23 +65,10 @@ def test_interrupted_run_resumes_to_the_uninterrupted_chain(tmp_path: Path) -> N
         gaussian, params(), MEAN, COV, n_walkers=8, n_steps=120, seed=11,
         backend=tmp_path / "full.h5", name="stage",
     )  # fmt: skip
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == 70:  # well inside the run
-            raise Interrupt
-        return gaussian(z)
-
     path = tmp_path / "cut.h5"
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), MEAN, COV, n_walkers=8, n_steps=120, seed=11,
-                 backend=path, name="stage")  # fmt: skip
-    resumed = run_mcmc(
-        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=120, seed=11, backend=path,
-        name="stage",
-    )  # fmt: skip
+    # cut at call 70: well inside the run
+    resumed = _resumed_after_interrupt(path, 70, MEAN, COV, n_walkers=8, n_steps=120, seed=11,
+                                       name="stage")  # fmt: skip
     assert 0 < resumed.resumed_from < 120
     assert np.array_equal(resumed.chain, full.chain)
     assert np.array_equal(resumed.log_prob, full.log_prob)
@@ -140,23 +147,9 @@ def test_short_chain_is_extended_until_50_tau_and_resumes(tmp_path: Path) -> Non
     # it stops at the first round that reaches 50 tau and R-hat <= 1.01, or at the limit
     converged = full.tau_multiple >= 50 and max(full.rhat.values()) <= 1.01
     assert converged or full.n_steps == 600
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == 100:  # inside the extension rounds
-            raise Interrupt
-        return gaussian(z)
-
-    path = tmp_path / "cut.h5"
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3, max_steps=600,
-                 backend=path, name="stage")  # fmt: skip
-    resumed = run_mcmc(
-        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=30, seed=3, max_steps=600,
-        backend=path, name="stage",
-    )  # fmt: skip
+    # cut at call 100: inside the extension rounds
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", 100, MEAN, COV, n_walkers=8,
+                                       n_steps=30, seed=3, max_steps=600, name="stage")  # fmt: skip
     assert resumed.n_steps == full.n_steps
     assert np.array_equal(resumed.chain, full.chain)
 
@@ -182,23 +175,10 @@ def test_early_stop_at_the_first_converged_check_and_resumes(tmp_path: Path) -> 
         shorter = run_mcmc(gaussian, params(), MEAN, COV, n_walkers=8,
                            n_steps=full.n_steps - 200, seed=6)  # fmt: skip
         assert shorter.tau_multiple < 50 or max(shorter.rhat.values()) > 1.01
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == full.n_steps - 50:  # inside the last check's stretch
-            raise Interrupt
-        return gaussian(z)
-
-    path = tmp_path / "cut.h5"
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), MEAN, COV, n_walkers=8, n_steps=3000, seed=6, min_steps=200,
-                 backend=path, name="stage")  # fmt: skip
-    resumed = run_mcmc(
-        gaussian, params(), MEAN, COV, n_walkers=8, n_steps=3000, seed=6, min_steps=200,
-        backend=path, name="stage",
-    )  # fmt: skip
+    # cut inside the last check's stretch
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", full.n_steps - 50, MEAN, COV,
+                                       n_walkers=8, n_steps=3000, seed=6, min_steps=200,
+                                       name="stage")  # fmt: skip
     assert resumed.n_steps == full.n_steps
     assert np.array_equal(resumed.chain, full.chain)
 
@@ -317,19 +297,7 @@ def test_adapted_run_is_seeded_and_resumes_to_the_same_chain(tmp_path: Path, cut
     full = run_mcmc(gaussian, params(), MEAN, COV, backend=tmp_path / "full.h5", **kw)
     again = run_mcmc(gaussian, params(), MEAN, COV, **kw)
     assert np.array_equal(full.chain, again.chain)
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == cut:
-            raise Interrupt
-        return gaussian(z)
-
-    path = tmp_path / "cut.h5"
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), MEAN, COV, backend=path, **kw)
-    resumed = run_mcmc(gaussian, params(), MEAN, COV, backend=path, **kw)
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", cut, MEAN, COV, **kw)
     assert np.array_equal(resumed.chain, full.chain)
 
 
@@ -475,19 +443,8 @@ def test_an_early_phase_end_is_seeded_resumable_and_keeps_the_posterior(tmp_path
     assert 50 <= full.adapted_after < 300 and full.discard >= full.adapted_after
     assert full.as_dict()["adapted_after"] == full.adapted_after
     assert full.readapted == []  # a t fitted to settled walkers is kept
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == 30:  # inside the phase (every step is one call)
-            raise Interrupt
-        return gaussian(z)
-
-    path = tmp_path / "cut.h5"
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), MEAN + 8.0, wide, backend=path, **kw)
-    resumed = run_mcmc(gaussian, params(), MEAN + 8.0, wide, backend=path, **kw)
+    # cut at call 30: inside the phase (every step is one call)
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", 30, MEAN + 8.0, wide, **kw)
     assert resumed.adapted_after == full.adapted_after
     assert np.array_equal(resumed.chain, full.chain)
     _assert_exact_90(full)
@@ -520,19 +477,7 @@ def test_a_proposal_fitted_to_unsettled_walkers_is_fitted_again(
     assert full.n_steps < 1000 and full.acceptance > 0.4
     assert full.tau_multiple >= 50 and max(full.rhat.values()) <= 1.01
     _assert_exact_90(full)
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == cut:
-            raise Interrupt
-        return gaussian(z)
-
-    path = tmp_path / "cut.h5"
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), start, wide, backend=path, **kw)
-    resumed = run_mcmc(gaussian, params(), start, wide, backend=path, **kw)
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", cut, start, wide, **kw)
     assert resumed.readapted == full.readapted
     assert np.array_equal(resumed.chain, full.chain)
 

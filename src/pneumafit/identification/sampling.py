@@ -458,6 +458,9 @@ def run_mcmc(
         burn-in: the summaries start after them, the convergence checks
         start ``min_steps`` steps after them, and ``n_steps`` and
         ``max_steps`` count them. ``moves`` applies to the adaptation phase.
+        With ``min_steps``, a check whose window accepted fewer than
+        :data:`READAPT_ACCEPTANCE` of its steps fits the proposal again
+        (module doc; ``MCMCResult.readapted``).
     adapt_check : int
         With ``adapt``, end the adaptation phase early: checked every
         ``adapt_check`` steps from ``2 adapt_check``, it ends at the first

@@ -647,15 +647,19 @@ def run_mcmc(
     return result
 
 
+def _moved(chain: NDArray[np.float64], start: int) -> NDArray[np.bool_]:
+    """Whether each walker moved at each step from ``start`` to the end of
+    ``chain`` (steps, walkers, n): (steps - start, walkers). The acceptance
+    read from the stored chain (a refused proposal repeats the position
+    exactly; emcee's own counts start at step 0)."""
+    return np.any(np.diff(chain[max(start - 1, 0) :], axis=0) != 0.0, axis=2)
+
+
 def _moved_fraction(chain: NDArray[np.float64], start: int) -> float:
-    """Share of the walker-steps from step ``start`` to the end of ``chain``
-    (steps, walkers, n) in which the walker moved: the acceptance of those
-    steps, read from the stored chain (a refused proposal repeats the
-    position exactly; emcee's own counts start at step 0)."""
-    window = chain[max(start - 1, 0) :]
-    if window.shape[0] < 2:
-        return math.nan
-    return float(np.mean(np.any(np.diff(window, axis=0) != 0.0, axis=2)))
+    """Share of the walker-steps from step ``start`` on in which the walker
+    moved (:func:`_moved`); NaN without a step."""
+    moved = _moved(chain, start)
+    return float(moved.mean()) if moved.size else math.nan
 
 
 def _settled(log_prob: NDArray[np.float64]) -> int:
@@ -736,7 +740,7 @@ def summarize_chain(
     discard = burn + int(min(rest // 2, max(transient, _settled(log_prob[burn:]))))
     kept = chain[discard:]
     if burn:
-        moved = np.any(np.diff(chain[discard - 1 :], axis=0) != 0.0, axis=2)
+        moved = _moved(chain, discard)
         acceptance_per_walker = moved.mean(axis=0) if moved.size else acceptance_per_walker
     tau = _tau(kept)
     tau_max = float(np.max(tau)) if n_free and np.all(np.isfinite(tau)) else math.nan

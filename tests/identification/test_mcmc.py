@@ -442,7 +442,7 @@ def test_an_early_phase_end_is_seeded_resumable_and_keeps_the_posterior(tmp_path
     full = run_mcmc(gaussian, params(), MEAN + 8.0, wide, backend=tmp_path / "full.h5", **kw)
     assert 50 <= full.adapted_after < 300 and full.discard >= full.adapted_after
     assert full.as_dict()["adapted_after"] == full.adapted_after
-    assert full.readapted == []  # a t fitted to settled walkers is kept
+    assert full.readapted_after == []  # a t fitted to settled walkers is kept
     # cut at call 30: inside the phase (every step is one call)
     resumed = _resumed_after_interrupt(tmp_path / "cut.h5", 30, MEAN + 8.0, wide, **kw)
     assert resumed.adapted_after == full.adapted_after
@@ -472,17 +472,17 @@ def test_a_proposal_fitted_to_unsettled_walkers_is_fitted_again(
           "max_steps": 2000, "name": "stage"}  # fmt: skip
     start, wide = MEAN + 30.0, np.diag([400.0, 400.0])
     full = run_mcmc(gaussian, params(), start, wide, backend=tmp_path / "full.h5", **kw)
-    assert full.readapted == [70] and full.as_dict()["readapted_after"] == [70]
+    assert full.readapted_after == [70] and full.as_dict()["readapted_after"] == [70]
     assert full.discard >= 70
     assert full.n_steps < 1000 and full.acceptance > 0.4
     assert full.tau_multiple >= 50 and max(full.rhat.values()) <= 1.01
     _assert_exact_90(full)
     resumed = _resumed_after_interrupt(tmp_path / "cut.h5", cut, start, wide, **kw)
-    assert resumed.readapted == full.readapted
+    assert resumed.readapted_after == full.readapted_after
     assert np.array_equal(resumed.chain, full.chain)
 
     import pneumafit.identification.sampling as sampling
 
     monkeypatch.setattr(sampling, "MAX_READAPT", 0)
     kept = run_mcmc(gaussian, params(), start, wide, **kw)
-    assert kept.readapted == [] and kept.acceptance < 0.1 and kept.n_steps == 2000
+    assert kept.readapted_after == [] and kept.acceptance < 0.1 and kept.n_steps == 2000

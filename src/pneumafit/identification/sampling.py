@@ -158,7 +158,7 @@ class MCMCResult:
     adapted_after : int
         Steps of the adaptation phase (0: none; ``run_mcmc(adapt_check=)``
         may end it before its ``adapt`` steps).
-    readapted : list of int
+    readapted_after : list of int
         Steps at which the independence proposal was fitted again
         (:data:`READAPT_ACCEPTANCE`); the summaries start after the last.
     seed : int
@@ -184,7 +184,7 @@ class MCMCResult:
     evaluations: int = 0
     resumed_from: int = 0
     adapted_after: int = 0
-    readapted: list[int] = field(default_factory=list)
+    readapted_after: list[int] = field(default_factory=list)
     seed: int = 0
 
     def to_inference_data(self) -> Any:
@@ -229,7 +229,7 @@ class MCMCResult:
             "evaluations": self.evaluations,
             "resumed_from": self.resumed_from,
             "adapted_after": self.adapted_after,
-            "readapted_after": list(self.readapted),
+            "readapted_after": list(self.readapted_after),
             "seed": self.seed,
             "warnings": list(self.warnings),
         }
@@ -460,7 +460,7 @@ def run_mcmc(
         ``max_steps`` count them. ``moves`` applies to the adaptation phase.
         With ``min_steps``, a check whose window accepted fewer than
         :data:`READAPT_ACCEPTANCE` of its steps fits the proposal again
-        (module doc; ``MCMCResult.readapted``).
+        (module doc; ``MCMCResult.readapted_after``).
     adapt_check : int
         With ``adapt``, end the adaptation phase early: checked every
         ``adapt_check`` steps from ``2 adapt_check``, it ends at the first
@@ -643,7 +643,7 @@ def run_mcmc(
     result.evaluations = evaluations
     result.resumed_from = done
     result.adapted_after = adapt
-    result.readapted = readapted
+    result.readapted_after = readapted
     return result
 
 

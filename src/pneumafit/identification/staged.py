@@ -501,8 +501,8 @@ JOINT_NFEV = 500
 WALKERS_PER_PARAMETER = {"valve": 3, "heat": 2, "friction": 3}
 
 
-def default_walkers(n_free: int, stage: str = "friction") -> int:
-    """Walkers of a sampled stage with ``n_free`` parameters:
+def default_walkers(n_free: int, stage: str) -> int:
+    """Walkers of the sampled stage ``stage`` with ``n_free`` parameters:
     max(6, k n_free), k from :data:`WALKERS_PER_PARAMETER` (heat 2, else 3).
 
     emcee's ensemble needs at least 2 n_free. With the independence
@@ -518,7 +518,7 @@ def default_walkers(n_free: int, stage: str = "friction") -> int:
     the friction chains of table-valve-asym and lugre-pressure ended
     unconverged at their limit (R-hat 1.016-1.023), so friction keeps 3
     n_free (docs/identification.md, "Moves and walkers")."""
-    return max(6, WALKERS_PER_PARAMETER.get(stage, 3) * n_free)
+    return max(6, WALKERS_PER_PARAMETER[stage] * n_free)
 
 
 def _with_law(

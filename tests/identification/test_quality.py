@@ -276,3 +276,115 @@ def _without_level(recording, level: float):
     u[np.isclose(u, level)] = 4.0
     return dataclasses.replace(recording, channels={**recording.channels,
                                                     f"u_{recording.chamber}": u})  # fmt: skip
+
+
+def _step_with_rest_offset(offset: float) -> tuple[Recording, dict[str, np.ndarray]]:
+    """A PD step (kp 60 V/m) from 250 to 350 mm over 0.5-1.0 s, then at rest;
+    the "model" is the same motion ending ``offset`` further, with the
+    controller's answer to it in u_P."""
+    from pneumafit.campaign.model import PDController
+
+    ts = np.arange(0.0, 2.0, 1.0 / RATE)
+    ramp = np.clip((ts - 0.5) / 0.5, 0.0, 1.0)
+    y = 0.25 + 0.1 * ramp
+    ym = 0.25 + (0.1 + offset) * ramp
+    y_ref = np.where(ts >= 0.5, 0.35, 0.25)
+    kp = 60.0
+    rec = Recording.from_arrays(
+        ts, {"y": y, "y_ref": y_ref, "p_P": np.full(ts.size, 3e5), "p_N": np.full(ts.size, 4e5),
+             "u_P": kp * (y_ref - y), "u_N": -kp * (y_ref - y)},
+        kind="step", role="validate", file="s.h5",
+        controller=PDController(kp=kp, kd=0.0, u0=0.0, umax=10.0),
+    )  # fmt: skip
+    return rec, {"y": ym, "u_P": kp * (y_ref - ym)}
+
+
+def _channel(channel: str, ratio: float, phase: str, noise: float) -> object:
+    from pneumafit.identification.quality import ChannelQuality
+
+    return ChannelQuality(
+        recording="s.h5", role="validate", kind="step", channel=channel, fitted=False, n=100,
+        rms=ratio * noise, noise=noise, noise_source="rest",
+        phases={phase: {"n": 100, "rms": ratio * noise, "ratio": ratio}},
+    )  # fmt: skip
+
+
+def test_rest_offsets_of_a_step_test_are_its_rest_phases_medians() -> None:
+    """Synthetic, exact: the model's piston rests 2 mm beyond the measured one
+    after the step; the first rest phase agrees. The controller answers with
+    -kp x 2 mm = -0.12 V. The offset is named only where the pressures fail
+    at rest and it exceeds 3x the position noise."""
+    from pneumafit.identification.quality import rest_offsets
+
+    rec, sim = _step_with_rest_offset(2e-3)
+    first, last = rest_offsets(rec, sim)
+    assert first.start == 0.0 and first.end < 0.5
+    assert first.offset == pytest.approx(0.0, abs=1e-12)
+    assert 1.0 < last.start < 1.1 and last.end == pytest.approx(1.999)
+    assert last.measured == pytest.approx(0.35) and last.model == pytest.approx(0.352)
+    assert last.offset == pytest.approx(2e-3)
+    assert last.command == pytest.approx(-0.12)
+    y_noise = 5e-6
+
+    def named(p_phase: str, offset: float) -> list:
+        rec, sim = _step_with_rest_offset(offset)
+        q = FitQuality(
+            [_channel("p_N", 8.0, p_phase, 400.0), _channel("y", 50.0, "rest", y_noise)],
+            rest_positions=rest_offsets(rec, sim),
+        )
+        return q.stops_elsewhere()
+
+    (stop,) = named("rest", 2e-3)
+    assert stop.offset == pytest.approx(2e-3)
+    assert named("motion", 2e-3) == []  # the pressures fail while moving only
+    assert named("rest", 2.0 * y_noise) == []  # within 3x the position noise
+    q = FitQuality([_channel("p_N", 8.0, "rest", 400.0), _channel("y", 50.0, "rest", y_noise)],
+                   rest_positions=rest_offsets(*_step_with_rest_offset(-1.5e-3)))  # fmt: skip
+    text = " ".join(q.problems())
+    assert "comes to rest elsewhere" in text
+    assert "s.h5 -1.50 mm at 1.1-2.0 s, command +0.09 V" in text
+    q.recorded_commands = {"s.h5": 1.25}
+    assert "s.h5 -1.50 mm at 1.1-2.0 s, command +0.09 V, pressures 8.0x, 1.2x with the " in (
+        " ".join(q.problems())
+    )
+    assert q.as_dict()["recorded_commands"] == {"s.h5": 1.25}
+    assert q.as_dict()["rest_positions"][1]["offset"] == pytest.approx(-1.5e-3)
+
+
+def test_a_wrong_static_friction_is_named_where_the_piston_rests(small: tuple) -> None:
+    """The small campaign replayed at its truth (the rig's own laws, true
+    initial states: the model must stop where the rig stopped, to the
+    encoder's resolution) names no rest position; with the static friction
+    30 % too high the piston of step_2 sticks millimetres short of the
+    measured rest, its pressures fail at rest, and the offset is named, with
+    the PD controller's answer -kp x offset (kd v = 0 at rest), and the
+    step replayed with the recorded commands."""
+    from pneumafit.identification.problem import MAX_STEP
+    from pneumafit.identification.staged import _recorded_commands, assess
+
+    folder, campaign, truth = small
+    truth = {**truth, **_true_initial_states(folder)}
+    recs = {r.file: r for r in campaign.recordings}
+
+    def quality(values: dict[str, float]) -> FitQuality:
+        rep = replay(campaign, fit_structure("convection"), values)
+        return assess(campaign, rep, [], [], [], ("p_P", "p_N", "y"), values=values)
+
+    good = quality(truth)
+    y_noise = {c.recording: c.noise for c in good.channels if c.channel == "y"}
+    assert good.rest_positions and good.stops_elsewhere() == []
+    assert all(abs(r.offset) <= THRESHOLD * y_noise[r.recording] for r in good.rest_positions)
+    assert good.recorded_commands == {}  # nothing to explain, nothing replayed
+    # the replay with the recorded commands, at the truth: the rig's own laws
+    # driven by its own held commands follow it to the noise as the closed loop does
+    (opened,) = _recorded_commands(
+        campaign, [recs["step_2.h5"]], fit_structure("convection"), truth, MAX_STEP
+    ).values()
+    assert opened < 1.5
+    wrong = quality({**truth, "friction_static": 1.3 * truth["friction_static"]})
+    (stop,) = wrong.stops_elsewhere()
+    assert stop.recording == "step_2.h5" and abs(stop.offset) > 1e-3
+    kp = recs["step_2.h5"].controller.kp
+    assert stop.command == pytest.approx(-kp * stop.offset, rel=0.02)
+    assert math.isfinite(wrong.recorded_commands["step_2.h5"] or math.nan)
+    assert "step_2.h5" in " ".join(p for p in wrong.problems() if "comes to rest" in p)

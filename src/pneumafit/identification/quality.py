@@ -24,6 +24,17 @@ recording). The ratio RMS / noise is 1 for a model that follows the rig;
 above :data:`THRESHOLD` the fit "does not reach the noise", and the phases
 (``rest``, ``filling``, ``motion``, ``flow``) that fail are named.
 
+Where a step test does not reach the noise, the fit also says where the
+model's piston came to rest against the measured one (:func:`rest_offsets`):
+a piston held by static friction stops where its speed first falls to zero
+with the drive below the breakaway force, a position that depends on the
+friction law and on the whole motion before it. A stop a millimetre away
+changes the chamber volumes at rest and, in closed loop, the controller's
+command there (kp times the offset: 0.06 V per mm at 60 V/m), which near
+the valve's null moves the pressures at rest by tens of kPa over a second
+(measured on the mixed truth's held-out step test,
+``docs/identification.md``, "Where held-out step tests fail").
+
 Besides the residuals, :class:`FitQuality` collects the other reasons not to
 trust a result: an estimate at a bound, an estimate outside its own 90 %
 interval, and MCMC chains shorter than 50 autocorrelation times or with
@@ -48,10 +59,12 @@ __all__ = [
     "WINDOW",
     "ChannelQuality",
     "FitQuality",
+    "RestOffset",
     "assess_residuals",
     "estimate_noise",
     "one_recording_caveat",
     "phases",
+    "rest_offsets",
 ]
 
 #: RMS residual over noise above which a recording "does not reach the noise".
@@ -74,6 +87,11 @@ MAX_RHAT = 1.01
 MIN_TAU = 50.0
 
 PHASES = ("rest", "filling", "motion", "flow")
+#: Shortest rest phase (s) of a step test whose rest position is compared
+#: (:func:`rest_offsets`): long enough for the median to see past the
+#: encoder's quantisation and the phase margin, shorter than the 0.3-1 s a
+#: closed loop usually holds a set-point.
+MIN_REST = 0.2
 
 
 def _commands(rec: Recording) -> list[NDArray[np.float64]]:
@@ -219,6 +237,106 @@ def phases(rec: Recording) -> NDArray[np.str_]:
     return out
 
 
+@dataclass(frozen=True)
+class RestOffset:
+    """The model's piston against the measured one in one rest phase of a step test.
+
+    Attributes
+    ----------
+    recording : str
+    start, end : float
+        The rest phase (s, recording time; :func:`phases`).
+    measured, model : float
+        Median positions over the phase (m).
+    command : float or None
+        Median of the model's valve-P command minus the recorded one over the
+        phase (V): in closed loop the controller's answer to the offset
+        (-kp times it for a PD law), 0 in open loop; None without recorded
+        or simulated commands.
+    """
+
+    recording: str
+    start: float
+    end: float
+    measured: float
+    model: float
+    command: float | None
+
+    @property
+    def offset(self) -> float:
+        """Model minus measured position (m)."""
+        return self.model - self.measured
+
+    def describe(self) -> str:
+        """``step_4.csv +2.03 mm at 1.4-2.5 s, command -0.12 V``."""
+        tail = f", command {self.command:+.2f} V" if self.command is not None else ""
+        return (
+            f"{self.recording} {self.offset * 1e3:+.2f} mm at {self.start:.1f}-{self.end:.1f} s"
+            + tail
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "recording": self.recording, "start": self.start, "end": self.end,
+            "measured": self.measured, "model": self.model, "offset": self.offset,
+            "command": self.command,
+        }  # fmt: skip
+
+
+def rest_offsets(rec: Recording, simulated: Mapping[str, NDArray[np.float64]]) -> list[RestOffset]:
+    """Where the model's piston rests against the measured one, per rest phase.
+
+    Parameters
+    ----------
+    rec : Recording
+        A step test with a measured position ``y``.
+    simulated : mapping of str to ndarray
+        The model's channels on every sample of ``rec`` (SI; the replay's
+        ``RecordingReplay.simulated``): ``y`` and, when present, ``u_P``.
+
+    Returns
+    -------
+    list of RestOffset
+        One per rest phase (:func:`phases`) of at least :data:`MIN_REST` s
+        in which both positions are finite, in time order; empty for other
+        kinds of test or without positions.
+    """
+    if rec.kind != "step" or "y" not in rec.channels or "y" not in simulated:
+        return []
+    t = np.asarray(rec.time, float)
+    y = np.asarray(rec.channels["y"], float)
+    ym = np.asarray(simulated["y"], float)
+    u = rec.channels.get("u_P")
+    um = simulated.get("u_P")
+    rest = phases(rec) == "rest"
+    # contiguous rest runs: [starts[i], ends[i])
+    edges = np.diff(np.concatenate(([0], rest.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = []
+    for a, b in zip(starts, ends, strict=True):
+        if t[b - 1] - t[a] < MIN_REST:
+            continue
+        good = np.isfinite(y[a:b]) & np.isfinite(ym[a:b])
+        if not np.any(good):
+            continue
+        command = None
+        if u is not None and um is not None:
+            du = np.asarray(um[a:b], float) - np.asarray(u[a:b], float)
+            du = du[np.isfinite(du)]
+            command = float(np.median(du)) if du.size else None
+        out.append(
+            RestOffset(
+                recording=rec.file,
+                start=float(t[a]),
+                end=float(t[b - 1]),
+                measured=float(np.median(y[a:b][good])),
+                model=float(np.median(ym[a:b][good])),
+                command=command,
+            )
+        )
+    return out
+
+
 @dataclass
 class ChannelQuality:
     """Residual against noise for one recording and channel.
@@ -300,6 +418,20 @@ class FitQuality:
         show the error of a law that is not the rig's, so the interval holds
         only as far as the model is right. A caveat (:meth:`caveats`), not a reason to distrust
         the fit.
+    rest_positions : list of RestOffset
+        Every rest phase of the step tests (:func:`rest_offsets`). The one
+        with the largest offset of each step test whose pressures do not
+        reach the noise at rest is named in :meth:`problems` when its offset
+        exceeds :data:`THRESHOLD` times the position noise
+        (:meth:`stops_elsewhere`).
+    recorded_commands : dict of str to float or None
+        For those closed-loop step tests: the largest pressure RMS over noise
+        of the same replay with the model's valves driven by the recorded
+        commands instead of its controller (the loop opened; the position
+        then follows the model's forces). Far below the closed loop's, the
+        misfit is the loop's answer to where the piston rests; about equal,
+        it is in the valves, chambers or forces themselves. None where that
+        replay failed.
     threshold : float
     """
 
@@ -309,6 +441,8 @@ class FitQuality:
     unreliable: list[str] = field(default_factory=list)
     unconverged: list[str] = field(default_factory=list)
     one_recording: dict[str, str] = field(default_factory=dict)
+    rest_positions: list[RestOffset] = field(default_factory=list)
+    recorded_commands: dict[str, float | None] = field(default_factory=dict)
     threshold: float = THRESHOLD
 
     def failing(self, role: str | None = None) -> list[ChannelQuality]:
@@ -351,6 +485,29 @@ class FitQuality:
                 f"{'s' if len(recs) > 1 else ''} (residual RMS up to {worst.ratio:.1f}x the "
                 f"sensor noise, threshold {self.threshold:g}x): " + "; ".join(items)
             )
+        stops = self.stops_elsewhere()
+        if stops:
+            items = []
+            for r in stops:
+                text = r.describe()
+                opened = self.recorded_commands.get(r.recording)
+                closed = max(
+                    (c.ratio or 0.0 for c in self.channels
+                     if c.recording == r.recording and c.channel.startswith("p_")),
+                    default=0.0,
+                )  # fmt: skip
+                if opened is not None and math.isfinite(opened):
+                    text += f", pressures {closed:.1f}x, {opened:.1f}x with the recorded commands"
+                items.append(text)
+            out.append(
+                "the model's piston comes to rest elsewhere than the rig's (model minus "
+                "measured position where they differ most, and the model's command minus "
+                "the recorded one there; where a piston sticks depends on the friction law "
+                "and the motion before, and a closed loop answers the offset with its "
+                "command; with the recorded commands instead of the model's controller, a "
+                "misfit far smaller than in closed loop is the loop's, one about as large is "
+                "in the valves, chambers or forces): " + "; ".join(items)
+            )
         if self.unconverged:
             out.append(
                 "least squares stopped before converging (the estimate may not be the "
@@ -368,6 +525,26 @@ class FitQuality:
                 "unreliable: " + ", ".join(self.unreliable)
             )
         return out
+
+    def stops_elsewhere(self) -> list[RestOffset]:
+        """Per step test whose pressures do not reach the noise at rest, its
+        rest phase with the largest offset, when that exceeds
+        :data:`THRESHOLD` times the recording's position noise (largest
+        offset first): the rest positions that can explain a pressure misfit
+        at rest."""
+        failing = {
+            c.recording
+            for c in self.failing()
+            if c.channel.startswith("p_") and "rest" in c.failing_phases()
+        }
+        noise = {c.recording: c.noise for c in self.channels if c.channel == "y" and c.noise}
+        worst: dict[str, RestOffset] = {}
+        for r in self.rest_positions:
+            if r.recording in failing and r.recording in noise:
+                if r.recording not in worst or abs(r.offset) > abs(worst[r.recording].offset):
+                    worst[r.recording] = r
+        named = [r for r in worst.values() if abs(r.offset) > self.threshold * noise[r.recording]]
+        return sorted(named, key=lambda r: -abs(r.offset))
 
     def caveats(self) -> list[str]:
         """One sentence per limit of the intervals that does not make the fit
@@ -397,6 +574,8 @@ class FitQuality:
             "unconverged": list(self.unconverged),
             "one_recording": [f"{n} ({f})" for n, f in self.one_recording.items()],
             "caveats": self.caveats(),
+            "rest_positions": [r.as_dict() for r in self.rest_positions],
+            "recorded_commands": dict(self.recorded_commands),
             "recordings": [c.as_dict() for c in self.channels],
         }
 

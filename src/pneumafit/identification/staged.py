@@ -26,6 +26,7 @@ separately keeps each chain low-dimensional, which is what makes chains of
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import os
 import time
@@ -79,6 +80,7 @@ from pneumafit.identification.quality import (
     chain_problems,
     interval_problems,
     one_recording_caveat,
+    rest_offsets,
 )
 from pneumafit.identification.reference import (
     REFERENCE_STATE,
@@ -1813,7 +1815,8 @@ def identify(
         )
     runs = [s.mcmc for s in stages if s.mcmc is not None]
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels,
-                     one_recording=one_recording)  # fmt: skip
+                     one_recording=one_recording, values=values,
+                     max_step=opts.max_step)  # fmt: skip
     quality.unconverged = [
         f"{s.name} ({s.estimate.message})"
         for s in stages
@@ -2094,14 +2097,59 @@ def assess(
     channels: Sequence[str],
     *,
     one_recording: Mapping[str, str] | None = None,
+    values: Mapping[str, float] | None = None,
+    max_step: float | None = MAX_STEP,
 ) -> FitQuality:
     """Everything that says whether a fit can be trusted (:mod:`.quality`);
     ``one_recording``: parameter -> the one recording its interval rests on
-    (:func:`_one_recording`)."""
-    return FitQuality(
+    (:func:`_one_recording`); ``values`` (the replay's, with the fitted
+    initial states) and ``max_step``: replay the closed-loop step tests whose
+    piston rests elsewhere with the recorded commands too
+    (:attr:`FitQuality.recorded_commands`; not without ``values``)."""
+    recs = {r.file: r for r in campaign.recordings}
+    rest = [
+        offset
+        for r in rep.recordings
+        if r.ok and r.file in recs
+        for offset in rest_offsets(recs[r.file], r.simulated)
+    ]
+    quality = FitQuality(
         channels=assess_residuals(campaign, rep.offset_free(), channels),
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
         one_recording=dict(one_recording or {}),
+        rest_positions=rest,
     )
+    if values is not None:
+        looped = [
+            recs[r.recording] for r in quality.stops_elsewhere()
+            if recs[r.recording].controller is not None
+        ]  # fmt: skip
+        quality.recorded_commands = _recorded_commands(
+            campaign, looped, rep.structure, values, max_step
+        )
+    return quality
+
+
+def _recorded_commands(
+    campaign: Campaign,
+    recordings: Sequence[Recording],
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    max_step: float | None,
+) -> dict[str, float | None]:
+    """Largest pressure RMS over noise of each closed-loop step test replayed
+    with the recorded commands instead of the model's controller
+    (:attr:`FitQuality.recorded_commands`); None where that replay fails."""
+    out: dict[str, float | None] = {}
+    for rec in recordings:
+        opened = dataclasses.replace(rec, controller=None)
+        rep = replay([opened], structure, values, channels=("p_P", "p_N"), max_step=max_step)
+        ratios = [
+            c.ratio
+            for c in assess_residuals(campaign, rep.offset_free(), ())
+            if c.ratio is not None
+        ]
+        out[rec.file] = max(ratios) if ratios and rep.recordings[0].ok else None
+    return out

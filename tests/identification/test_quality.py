@@ -388,3 +388,17 @@ def test_a_wrong_static_friction_is_named_where_the_piston_rests(small: tuple) -
     assert stop.command == pytest.approx(-kp * stop.offset, rel=0.02)
     assert math.isfinite(wrong.recorded_commands["step_2.h5"] or math.nan)
     assert "step_2.h5" in " ".join(p for p in wrong.problems() if "comes to rest" in p)
+    # a closed loop recorded without its commands: the stop is named, without
+    # a command difference, and there is nothing to replay it with
+    bare = dataclasses.replace(
+        recs["step_2.h5"],
+        channels={k: v for k, v in recs["step_2.h5"].channels.items() if k not in ("u_P", "u_N")},
+    )
+    campaign = dataclasses.replace(
+        campaign, recordings=[bare if r.file == "step_2.h5" else r for r in campaign.recordings]
+    )
+    recs = {r.file: r for r in campaign.recordings}
+    without = quality({**truth, "friction_static": 1.3 * truth["friction_static"]})
+    (stop,) = without.stops_elsewhere()
+    assert stop.recording == "step_2.h5" and stop.command is None
+    assert without.recorded_commands == {}

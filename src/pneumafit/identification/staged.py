@@ -2122,9 +2122,12 @@ def assess(
         rest_positions=rest,
     )
     if values is not None:
+        # a closed loop recorded with its commands (a step test may declare
+        # its controller and leave the commands out: then there is nothing to drive)
         looped = [
             recs[r.recording] for r in quality.stops_elsewhere()
             if recs[r.recording].controller is not None
+            and {"u_P", "u_N"} <= set(recs[r.recording].channels)
         ]  # fmt: skip
         quality.recorded_commands = _recorded_commands(
             campaign, looped, rep.structure, values, max_step

@@ -402,3 +402,44 @@ def test_a_wrong_static_friction_is_named_where_the_piston_rests(small: tuple) -
     (stop,) = without.stops_elsewhere()
     assert stop.recording == "step_2.h5" and stop.command is None
     assert without.recorded_commands == {}
+
+
+def test_an_opening_edge_between_distant_flow_levels_is_named(small: tuple) -> None:
+    """The small campaign's flow levels 0, +-0.2, +-0.4 V bracket its valve's
+    dead-band edges (+-0.3 V): nothing is said. Keep only 0, +-3 and +-10 V and
+    each path's edge lies in a 3-V gap: the step tests' commands there, on
+    that path's side, are named, once for both valves (both share the levels);
+    with the edges moved by a null offset, the named ranges follow. A fit
+    without an overlap (the map) is not asked."""
+    from pneumafit.campaign import Campaign
+    from pneumafit.identification.coverage import unbracketed_edges
+
+    _, campaign, truth = small
+    values = {"valve_overlap": truth["valve_overlap"], "valve_u_sat": 10.0}
+    assert unbracketed_edges(campaign, values) == []
+    coarse = []
+    for rec in campaign.recordings:
+        if rec.kind == "flow":
+            u = np.asarray(rec.channels[f"u_{rec.chamber}"])
+            keep = (np.abs(u) > 1.0) | (u == 0.0)
+            chans = {k: np.asarray(v)[keep] for k, v in rec.channels.items()}
+            rec = Recording.from_arrays(rec.time[keep], chans, kind="flow", role=rec.role,
+                                        file=rec.file, chamber=rec.chamber)  # fmt: skip
+        coarse.append(rec)
+    sparse = Campaign(path=None, name="coarse", description="", rig=campaign.rig,
+                      recordings=coarse)  # fmt: skip
+    lines = unbracketed_edges(sparse, values)
+    assert len(lines) == 2 and all(line.startswith("valves P and N: ") for line in lines)
+    supply, exhaust = lines
+    assert (
+        "supply path's opening edge (fitted +0.30 V) lies between flow levels +0.00 V and "
+        in supply
+    )
+    assert "+3.00 V" in supply and "step_1.h5" in supply
+    assert "exhaust path's opening edge (fitted -0.30 V)" in exhaust and "-3.00 V" in exhaust
+    spans = [re.search(r"commands ([-+.\d]+)\.\.([-+.\d]+) V", line) for line in lines]
+    assert 0.0 < float(spans[0][1]) < float(spans[0][2]) < 3.0
+    assert -3.0 < float(spans[1][1]) < float(spans[1][2]) < 0.0
+    shifted = unbracketed_edges(sparse, {**values, "valve_null_offset": 0.5})
+    assert "fitted +0.80 V" in shifted[0] and "fitted +0.20 V" in shifted[1]
+    assert unbracketed_edges(sparse, {"valve_u_sat": 10.0}) == []

@@ -21,6 +21,7 @@ holds at least :data:`MIN_SHARE` of the recording's samples.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -33,6 +34,7 @@ __all__ = [
     "TOLERANCE",
     "centre_measured",
     "opened_paths",
+    "unbracketed_edges",
     "uncovered_commands",
 ]
 
@@ -45,6 +47,16 @@ TOLERANCE = 0.05
 MAX_GAP = 0.4
 #: Smallest share of a recording's samples in a command bin that is reported.
 MIN_SHARE = 0.01
+#: Widest gap (fraction of u_sat) between the two flow levels around a
+#: path's fitted dead-band edge for the edge to count as measured
+#: (:func:`unbracketed_edges`): 1 V of a 10-V valve, twice the tolerance.
+#: Between them the conductance rises from the centre leakage to the next
+#: level's, by the law's opening shape alone; a closed loop holds its
+#: piston with commands there.
+EDGE_GAP = 0.1
+#: Command bins (fraction of u_sat) of :func:`unbracketed_edges`: 0.1 V of a
+#: 10-V valve, finer than a dead band.
+EDGE_BIN = 0.01
 
 
 def _levels(campaign: Campaign) -> dict[str, np.ndarray]:
@@ -282,5 +294,84 @@ def _unused_without_flow(campaign: Campaign, width: float) -> list[str]:
                 f"valve {valve}: commands {lo:+.2f}..{hi:+.2f} V, used by {shown}, were used "
                 "by no fit recording and there is no flow test: the valve flows there are "
                 "extrapolated from the fitted characteristic"
+            )
+    return out
+
+
+def unbracketed_edges(campaign: Campaign, values: Mapping[str, float]) -> list[str]:
+    """One warning per valve path whose opening edge no pair of close flow
+    levels brackets, naming the commands there that other tests use.
+
+    A path starts to open at the fitted dead-band edge (``valve_null_offset
+    +- valve_overlap``). When the flow levels on either side of it are more
+    than :data:`EDGE_GAP` x u_sat apart, the conductance between them (from
+    the centre leakage to the next level's) is the law's opening shape,
+    fitted elsewhere; the commands other tests use strictly between those
+    levels, binned at :data:`EDGE_BIN` x u_sat, rest on it. Independent of
+    :func:`uncovered_commands`, whose tolerance counts a command half a dead
+    band from a level as measured.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    values : mapping
+        Fitted values: ``valve_overlap`` (V; without it, e.g. the measured
+        map, nothing is said), ``valve_null_offset`` (V, default 0),
+        ``valve_u_sat`` (V, default 10).
+
+    Returns
+    -------
+    list of str
+        Empty without flow tests, without an overlap, or when every edge is
+        bracketed or no test uses commands around it.
+    """
+    if "valve_overlap" not in values:
+        return []
+    u_sat = float(values.get("valve_u_sat", 10.0))
+    overlap = float(values["valve_overlap"])
+    offset = float(values.get("valve_null_offset", 0.0))
+    levels = _levels(campaign)
+    if not any(v.size for v in levels.values()):
+        return []
+    width = EDGE_BIN * u_sat
+    out = []
+    for path, edge, sign in (("supply", offset + overlap, 1.0),
+                             ("exhaust", offset - overlap, -1.0)):  # fmt: skip
+        # per gap around the edge (the valves may differ in levels): the valves,
+        # and the commands used there (bins) with their recordings
+        gaps: dict[tuple[float, float], tuple[list[str], dict[int, set[str]]]] = {}
+        for valve in ("P", "N"):
+            ref = levels[valve] if levels[valve].size else levels["N" if valve == "P" else "P"]
+            inner = ref[sign * ref <= sign * edge]
+            outer = ref[sign * ref > sign * edge]
+            near = float(inner[np.argmax(sign * inner)]) if inner.size else -math.inf * sign
+            far = float(outer[np.argmin(sign * outer)]) if outer.size else math.inf * sign
+            if abs(far - near) <= EDGE_GAP * u_sat:
+                continue
+            lo, hi = min(near, far), max(near, far)
+            valves, users = gaps.setdefault((lo, hi), ([], {}))
+            for rec in campaign.recordings:
+                if rec.kind == "flow":
+                    continue
+                for b in _bins(rec, valve, width):
+                    # strictly between the levels, on the path's side of the centre
+                    if lo < b * width < hi and sign * (b * width - offset) > 0.0:
+                        users.setdefault(b, set()).add(rec.file)
+                        if valve not in valves:
+                            valves.append(valve)
+        for (lo, hi), (valves, users) in gaps.items():
+            if not users:
+                continue
+            between = " and ".join(f"{x:+.2f} V" for x in (lo, hi) if math.isfinite(x))
+            where = (f"between flow levels {between}" if math.isfinite(lo + hi)
+                     else f"beyond every flow level on that side (nearest {between})")  # fmt: skip
+            recs = sorted(set().union(*users.values()))
+            shown = ", ".join(recs[:4]) + (f" and {len(recs) - 4} more" if len(recs) > 4 else "")
+            a, z = (min(users) - 0.5) * width, (max(users) + 0.5) * width
+            out.append(
+                f"valve{'s' if len(valves) > 1 else ''} {' and '.join(valves)}: the {path} "
+                f"path's opening edge (fitted {edge:+.2f} V) lies {where}; commands "
+                f"{a:+.2f}..{z:+.2f} V, used by {shown}, rest on the fitted law there, not on a "
+                "measured flow (a flow level between them would measure it)"
             )
     return out

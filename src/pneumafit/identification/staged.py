@@ -47,6 +47,7 @@ from pneumafit.identification.coverage import (
     full_informed,
     opened_paths,
     shape_informed,
+    unbracketed_edges,
     uncovered_commands,
 )
 from pneumafit.identification.likelihood import LogLikelihood, LogPosterior
@@ -1689,6 +1690,10 @@ def identify(
             "check the campaign's rig parameters"
         )
     say(f"joint: {stage.seconds:.1f} s, log-likelihood {est.log_likelihood:.1f}")
+    if structure.valve != "map":  # the map's knots are its measured levels
+        for line in unbracketed_edges(campaign, est.parameters.values()):
+            warns.append(line)
+            say(f"warning: {line}")
     like = LogLikelihood(joint_problem, est.parameters)
     if opts.temper:
         # intervals from the data's effective information: each block's

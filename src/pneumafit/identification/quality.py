@@ -89,8 +89,8 @@ MIN_TAU = 50.0
 PHASES = ("rest", "filling", "motion", "flow")
 #: Shortest rest phase (s) of a step test whose rest position is compared
 #: (:func:`rest_offsets`): long enough for the median to see past the
-#: encoder's quantisation and the phase margin, shorter than the 0.3-1 s a
-#: closed loop usually holds a set-point.
+#: encoder's quantisation and the phase margin, shorter than the rests
+#: between set-points of the virtual rig's plans (0.3 s sparse, 0.6-1.2 s demo).
 MIN_REST = 0.2
 
 

@@ -485,3 +485,27 @@ def test_the_report_reads_the_saved_residual_analysis(
     section = _section_html(html, "residuals")
     assert "run here (comparison/residuals.json was saved for another convection fit)" in section
     assert row.findall(section) == row.findall(first)
+
+
+def test_a_fit_folders_rest_figure_is_shown_under_its_verdict(
+    run_folder: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """A fit folder's rest_position.png (the fit service draws it when the
+    verdict names a step test's rest position) is embedded in that fit's part
+    of the parameter section, under its verdict; without one, nothing is."""
+    from pneumafit.identification.quality import RestOffset
+    from pneumafit.outputs.rest_figure import REST_FIGURE, rest_position_figure
+
+    run, folder = run_folder
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    before = _section_html(write_report(copy, tmp_path / "a.html").read_text(), "parameters")
+    rec = next(r for r in read_campaign(folder).recordings if r.kind == "step")
+    shifted = {"y": rec.channels["y"] + 2e-3, "p_P": rec.channels["p_P"],
+               "p_N": rec.channels["p_N"], "u_P": rec.channels["u_P"] - 0.12}  # fmt: skip
+    stop = RestOffset(rec.file, 1.0, 1.5, 0.22, 0.222, -0.12)
+    rest_position_figure(rec, shifted, None, stop, copy / "fits" / "convection" / REST_FIGURE)
+    after = _section_html(write_report(copy, tmp_path / "b.html").read_text(), "parameters")
+    assert after.count("data:image/png;base64") == before.count("data:image/png;base64") + 1
+    verdict = after.index("<h3>convection")
+    assert verdict < after.index("data:image/png;base64") < after.index("<h3>polytropic")

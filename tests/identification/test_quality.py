@@ -443,3 +443,34 @@ def test_an_opening_edge_between_distant_flow_levels_is_named(small: tuple) -> N
     shifted = unbracketed_edges(sparse, {**values, "valve_null_offset": 0.5})
     assert "fitted +0.80 V" in shifted[0] and "fitted +0.20 V" in shifted[1]
     assert unbracketed_edges(sparse, {"valve_u_sat": 10.0}) == []
+
+
+def test_the_fit_folder_draws_the_step_test_named_and_drops_a_stale_drawing(
+    small: tuple, tmp_path
+) -> None:
+    """The fit service draws the step test whose piston the verdict names
+    (the static friction 30 % too high, as above) beside fit.json, and
+    removes that drawing when a later fit names none (the truth)."""
+    from types import SimpleNamespace
+
+    from pneumafit.identification import FitOptions
+    from pneumafit.identification.staged import assess
+    from pneumafit.outputs.rest_figure import REST_FIGURE
+    from pneumafit.services.fit import _rest_figure
+
+    folder, campaign, truth = small
+    truth = {**truth, **_true_initial_states(folder)}
+    structure = fit_structure("convection")
+
+    def fitted(values: dict[str, float]) -> SimpleNamespace:
+        rep = replay(campaign, structure, values)
+        quality = assess(campaign, rep, [], [], [], ("p_P", "p_N", "y"), values=values)
+        return SimpleNamespace(quality=quality, structure=structure, options=FitOptions(),
+                               parameters=SimpleNamespace(values=lambda: values))  # fmt: skip
+
+    path = tmp_path / REST_FIGURE
+    _rest_figure(campaign, fitted({**truth, "friction_static": 1.3 * truth["friction_static"]}),
+                 path)  # fmt: skip
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    _rest_figure(campaign, fitted(truth), path)
+    assert not path.exists()

@@ -48,6 +48,7 @@ from pneumafit.outputs.report_html import (
     page,
     table,
 )
+from pneumafit.outputs.rest_figure import REST_FIGURE
 
 __all__ = ["FIT_MODELS", "SECTIONS", "write_report"]
 
@@ -643,6 +644,9 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
             f"properties {esc(structure.get('air_properties', '?'))})</small></h3>"
         )
         parts.append(_quality_html(doc))
+        rest = Path(path).parent / REST_FIGURE
+        if rest.is_file():
+            parts.append(_figures([rest]))
         rows = []
         for name, e in doc["parameters"].items():
             if not isinstance(e, Mapping):

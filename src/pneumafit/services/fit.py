@@ -17,6 +17,7 @@ interrupted fit (``KeyboardInterrupt``) keeps it, and
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -29,8 +30,10 @@ import h5py
 from pneumafit.campaign.model import Campaign
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
+from pneumafit.identification.replay import replay
 from pneumafit.identification.staged import FitOptions, FitResult, identify
 from pneumafit.models.structure import INPUT_MODE
+from pneumafit.outputs.rest_figure import REST_FIGURE, rest_position_figure
 from pneumafit.progress import Reporter
 
 __all__ = [
@@ -273,6 +276,7 @@ def fit_folder(
             (out / CHAINS_FILE).unlink(missing_ok=True)  # no stale chains beside a new fit
         result.save(out / FIT_FILE, command=command,
                     chains=CHAINS_FILE if options.mcmc else None)  # fmt: skip
+        _rest_figure(campaign, result, out / REST_FIGURE)
     except OSError as exc:
         raise PneumafitComputationError(
             f"{os.fspath(out)}: cannot write the results: {exc}"
@@ -280,3 +284,25 @@ def fit_folder(
     if options.mcmc:
         write_inference_data(result, out)
     return result
+
+
+def _rest_figure(campaign: Campaign, result: FitResult, path: Path) -> None:
+    """The step test whose piston the verdict names first as resting elsewhere
+    (:meth:`~pneumafit.identification.quality.FitQuality.stops_elsewhere`),
+    drawn with the fit's closed loop and its replay on the recorded commands
+    (:func:`~pneumafit.outputs.rest_figure.rest_position_figure`) at ``path``;
+    a figure of an earlier fit there is removed when none is named."""
+    stops = result.quality.stops_elsewhere() if result.quality is not None else []
+    recs = {r.file: r for r in campaign.recordings}
+    if not stops or stops[0].recording not in recs:
+        path.unlink(missing_ok=True)  # no stale figure beside a new fit
+        return
+    stop, rec = stops[0], recs[stops[0].recording]
+    values = result.parameters.values()
+    opts = result.options if isinstance(result.options, FitOptions) else FitOptions()
+    closed = replay([rec], result.structure, values, max_step=opts.max_step).recordings[0]
+    opened = None
+    if rec.controller is not None and {"u_P", "u_N"} <= set(rec.channels):
+        looped = dataclasses.replace(rec, controller=None)
+        opened = replay([looped], result.structure, values, max_step=opts.max_step).recordings[0]
+    rest_position_figure(rec, closed.simulated, opened.simulated if opened else None, stop, path)

@@ -380,11 +380,14 @@ def test_a_wrong_static_friction_is_named_where_the_piston_rests(small: tuple) -
     (opened,) = _recorded_commands(
         campaign, [recs["step_2.h5"]], fit_structure("convection"), truth, MAX_STEP
     ).values()
-    assert opened < 1.5
+    assert opened < 1.5  # the closed loop's bound at the truth (1.01-1.07 measured)
     wrong = quality({**truth, "friction_static": 1.3 * truth["friction_static"]})
     (stop,) = wrong.stops_elsewhere()
     assert stop.recording == "step_2.h5" and abs(stop.offset) > 1e-3
     kp = recs["step_2.h5"].controller.kp
+    # the medians of the command and position differences part from -kp only
+    # by kd v (the bristles' creep at rest) and sample alignment: 0.1 %
+    # measured; 2 % is twenty times that and far from any other gain
     assert stop.command == pytest.approx(-kp * stop.offset, rel=0.02)
     assert math.isfinite(wrong.recorded_commands["step_2.h5"] or math.nan)
     assert "step_2.h5" in " ".join(p for p in wrong.problems() if "comes to rest" in p)

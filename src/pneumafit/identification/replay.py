@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,6 +50,7 @@ __all__ = [
     "RecordingReplay",
     "Replay",
     "replay",
+    "with_recorded_commands",
 ]
 
 #: Reference solver of every replay: method and step refinement over the
@@ -324,3 +325,14 @@ def replay(
                             int(status[0, i]), compared)
         )  # fmt: skip
     return Replay(structure, tuple(replays), lag, lag_source)
+
+
+def with_recorded_commands(recording: Recording) -> Recording | None:
+    """A closed-loop test replayed open loop: the model's valves get the
+    recorded commands instead of its controller's (the position then follows
+    the model's forces). None when ``recording`` declares no controller or
+    does not record both commands (a closed loop may leave them out: then
+    there is nothing to drive the valves with)."""
+    if recording.controller is None or not {"u_P", "u_N"} <= set(recording.channels):
+        return None
+    return replace(recording, controller=None)

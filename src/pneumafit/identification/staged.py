@@ -26,7 +26,6 @@ separately keeps each chain low-dimensional, which is what makes chains of
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import os
 import time
@@ -89,7 +88,7 @@ from pneumafit.identification.reference import (
     reference_lambda,
     reference_sliding,
 )
-from pneumafit.identification.replay import Replay, replay
+from pneumafit.identification.replay import Replay, replay, with_recorded_commands
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
 from pneumafit.identification.starts import (
     friction_starts,
@@ -2127,15 +2126,9 @@ def assess(
         rest_positions=rest,
     )
     if values is not None:
-        # a closed loop recorded with its commands (a step test may declare
-        # its controller and leave the commands out: then there is nothing to drive)
-        looped = [
-            recs[r.recording] for r in quality.stops_elsewhere()
-            if recs[r.recording].controller is not None
-            and {"u_P", "u_N"} <= set(recs[r.recording].channels)
-        ]  # fmt: skip
+        named = [recs[r.recording] for r in quality.stops_elsewhere()]
         quality.recorded_commands = _recorded_commands(
-            campaign, looped, rep.structure, values, max_step
+            campaign, named, rep.structure, values, max_step
         )
     return quality
 
@@ -2147,12 +2140,16 @@ def _recorded_commands(
     values: Mapping[str, float],
     max_step: float | None,
 ) -> dict[str, float | None]:
-    """Largest pressure RMS over noise of each closed-loop step test replayed
-    with the recorded commands instead of the model's controller
-    (:attr:`FitQuality.recorded_commands`); None where that replay fails."""
+    """Largest pressure RMS over noise of each closed-loop step test of
+    ``recordings`` replayed with the recorded commands instead of the model's
+    controller (:func:`~pneumafit.identification.replay.with_recorded_commands`;
+    :attr:`FitQuality.recorded_commands`); None where that replay fails, no
+    entry for a test that cannot be driven so."""
     out: dict[str, float | None] = {}
     for rec in recordings:
-        opened = dataclasses.replace(rec, controller=None)
+        opened = with_recorded_commands(rec)
+        if opened is None:
+            continue
         rep = replay([opened], structure, values, channels=("p_P", "p_N"), max_step=max_step)
         ratios = [
             c.ratio

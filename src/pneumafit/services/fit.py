@@ -17,7 +17,6 @@ interrupted fit (``KeyboardInterrupt``) keeps it, and
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import os
@@ -30,7 +29,7 @@ import h5py
 from pneumafit.campaign.model import Campaign
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
-from pneumafit.identification.replay import replay
+from pneumafit.identification.replay import replay, with_recorded_commands
 from pneumafit.identification.staged import FitOptions, FitResult, identify
 from pneumafit.models.structure import INPUT_MODE
 from pneumafit.outputs.rest_figure import REST_FIGURE, rest_position_figure
@@ -301,8 +300,9 @@ def _rest_figure(campaign: Campaign, result: FitResult, path: Path) -> None:
     values = result.parameters.values()
     opts = result.options if isinstance(result.options, FitOptions) else FitOptions()
     closed = replay([rec], result.structure, values, max_step=opts.max_step).recordings[0]
-    opened = None
-    if rec.controller is not None and {"u_P", "u_N"} <= set(rec.channels):
-        looped = dataclasses.replace(rec, controller=None)
-        opened = replay([looped], result.structure, values, max_step=opts.max_step).recordings[0]
+    looped = with_recorded_commands(rec)
+    opened = (
+        None if looped is None
+        else replay([looped], result.structure, values, max_step=opts.max_step).recordings[0]
+    )  # fmt: skip
     rest_position_figure(rec, closed.simulated, opened.simulated if opened else None, stop, path)

@@ -184,6 +184,11 @@ class EffectParameter:
         a friction asymmetry around 0, an area factor around 1). None (the
         default): the effect vanishes at the lower bound (at the upper one
         for the wall's heat capacity), every departure is one-sided.
+    negligible : float
+        For a signed parameter, the largest departure from ``neutral`` that
+        is not an effect of its own (a manufacturing tolerance); NaN: the
+        refit loop's generic margin (:data:`pneumafit.discovery.refit.VANISHING`
+        of the half range).
     """
 
     name: str
@@ -194,6 +199,7 @@ class EffectParameter:
     typical: float
     description: str = ""
     neutral: float | None = None
+    negligible: float = math.nan
 
     @property
     def signed(self) -> bool:
@@ -447,6 +453,7 @@ def catalog_entry(part: parts.Effect) -> Effect:
                 typical=part.typical(name),
                 description=r.description,
                 neutral=spec.default if r.signed else None,
+                negligible=r.negligible,
             )
         )
     return Effect(

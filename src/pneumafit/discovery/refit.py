@@ -653,15 +653,18 @@ def _vanishing(model: Model, effect: str) -> str | None:
     """A message when the effect's principal parameter sits at the bound where
     the effect vanishes (lower bound; upper for the wall's heat capacity), or
     for a signed effect (a neutral value inside the bounds: friction
-    asymmetry 0, area factor 1) within VANISHING of the half-range on its
-    side of the neutral value (asymmetry |a| < 0.05, area |k_A - 1| < 0.02)."""
+    asymmetry 0, area factor 1) within its negligible departure
+    (``EffectParameter.negligible``: area |k_A - 1| < 0.01, a bore's H11
+    tolerance), else within VANISHING of the half-range on its side of the
+    neutral value (asymmetry |a| < 0.05)."""
     eff = get_effect(effect)
     name = eff.parameter_names(model.structure.effects.get(effect))[0]
     par = eff.parameter(name)
     value = model.values.get(name, math.nan)
     if par.neutral is not None:
         half = par.upper - par.neutral if value >= par.neutral else par.neutral - par.lower
-        near = math.isfinite(value) and abs(value - par.neutral) < VANISHING * half
+        margin = par.negligible if math.isfinite(par.negligible) else VANISHING * half
+        near = math.isfinite(value) and abs(value - par.neutral) < margin
     else:
         bound = par.upper if _vanishes_at_upper(effect) else par.lower
         near = math.isfinite(value) and value > 0 and abs(math.log(value / bound)) < VANISHING

@@ -317,6 +317,7 @@ def seal_effect_part(
                 e.prior,
                 description=e.description,
                 signed=e.signed,
+                negligible=e.negligible,
             ),
         ),
         coefficient_unit=coefficient_unit,

@@ -240,6 +240,10 @@ class FitRange:
         The effect acts on either side of its neutral value (the
         parameter's default, strictly inside [lower, upper]): a friction
         asymmetry around 0, an area factor around 1.
+    negligible : float
+        For a signed parameter, the largest departure from its neutral value
+        that discovery counts as no effect (parameter unit); NaN: its
+        generic margin.
     """
 
     parameter: str
@@ -249,6 +253,7 @@ class FitRange:
     scale: float = math.nan
     description: str = ""
     signed: bool = False
+    negligible: float = math.nan
 
 
 @dataclass(frozen=True)

@@ -189,6 +189,9 @@ class EffectParameter:
         is not an effect of its own (a manufacturing tolerance); NaN: the
         refit loop's generic margin (:data:`pneumafit.discovery.refit.VANISHING`
         of the half range).
+    vanishes_at_upper : bool
+        For a one-sided parameter (``neutral`` None), the effect vanishes at
+        the upper bound instead of the lower one (the wall's heat capacity).
     """
 
     name: str
@@ -200,6 +203,7 @@ class EffectParameter:
     description: str = ""
     neutral: float | None = None
     negligible: float = math.nan
+    vanishes_at_upper: bool = False
 
     @property
     def signed(self) -> bool:
@@ -454,6 +458,7 @@ def catalog_entry(part: parts.Effect) -> Effect:
                 description=r.description,
                 neutral=spec.default if r.signed else None,
                 negligible=r.negligible,
+                vanishes_at_upper=r.vanishes_at_upper,
             )
         )
     return Effect(

@@ -651,7 +651,8 @@ def channel_losses(
 
 def _vanishing(model: Model, effect: str) -> str | None:
     """A message when the effect's principal parameter sits at the bound where
-    the effect vanishes (lower bound; upper for the wall's heat capacity), or
+    the effect vanishes (lower bound; upper where the part says so,
+    ``EffectParameter.vanishes_at_upper``: the wall's heat capacity), or
     for a signed effect (a neutral value inside the bounds: friction
     asymmetry 0, area factor 1) within its negligible departure
     (``EffectParameter.negligible``: area |k_A - 1| < 0.01, a bore's H11
@@ -666,7 +667,7 @@ def _vanishing(model: Model, effect: str) -> str | None:
         margin = par.negligible if math.isfinite(par.negligible) else VANISHING * half
         near = math.isfinite(value) and abs(value - par.neutral) < margin
     else:
-        bound = par.upper if _vanishes_at_upper(effect) else par.lower
+        bound = par.upper if par.vanishes_at_upper else par.lower
         near = math.isfinite(value) and value > 0 and abs(math.log(value / bound)) < VANISHING
     if near:
         return (
@@ -674,13 +675,6 @@ def _vanishing(model: Model, effect: str) -> str | None:
             "gain came from the other parameters"
         )
     return None
-
-
-def _vanishes_at_upper(effect: str) -> bool:
-    """True for the one-sided effect that vanishes at its upper bound (the
-    wall's heat capacity: an infinite one holds the wall at its temperature);
-    the others vanish at their lower bound or, signed, at a neutral value."""
-    return effect == "wall_thermal_mass"
 
 
 def _unpinned(model: Model, effect: str) -> str | None:
@@ -973,7 +967,7 @@ def _near_vanishing(effect: str) -> dict[str, float]:
     par = eff.parameter(name)
     if par.neutral is not None:
         return {name: float(par.neutral)}
-    if _vanishes_at_upper(effect):
+    if par.vanishes_at_upper:
         return {name: float(par.upper * math.exp(-0.5 * VANISHING))}
     return {name: float(par.lower * math.exp(0.5 * VANISHING))}
 

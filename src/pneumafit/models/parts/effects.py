@@ -195,6 +195,7 @@ register_effect(
                 1e5,
                 "log-uniform",
                 description="heat capacity C_w of the wall per unit exchange area",
+                vanishes_at_upper=True,
             ),
             FitRange(
                 "wall_outer_coefficient",

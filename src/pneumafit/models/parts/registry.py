@@ -244,6 +244,10 @@ class FitRange:
         For a signed parameter, the largest departure from its neutral value
         that discovery counts as no effect (parameter unit); NaN: its
         generic margin.
+    vanishes_at_upper : bool
+        For a one-sided parameter, the effect vanishes at the upper bound
+        (the wall's heat capacity: an infinite one holds the wall at its
+        temperature); False: at the lower bound.
     """
 
     parameter: str
@@ -254,6 +258,7 @@ class FitRange:
     description: str = ""
     signed: bool = False
     negligible: float = math.nan
+    vanishes_at_upper: bool = False
 
 
 @dataclass(frozen=True)

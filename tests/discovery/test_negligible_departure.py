@@ -79,8 +79,9 @@ def test_a_bore_beyond_its_tolerance_is_found_and_one_within_it_is_not(
         return
     assert res.selected[:1] == ["effective_area"], steps
     truth = (bore / 0.032) ** 2
-    # the departure from 1 within 10 % (the loop tests' factor for the
-    # independent truth's effects is 1.2; the barrel code is exact here)
+    # the departure from 1 within 10 % (measured 0.3 %: 0.01627 for 0.01632;
+    # the loop tests allow 20 % for the independent truth's effects, whose
+    # size the model's other laws can bend; here only the bristles differ)
     assert res.final.values["area_factor"] - 1.0 == pytest.approx(truth - 1.0, rel=0.1)
     # at least halved, as the loop tests ask of a found effect
     assert res.final.pressure_rmse("validate") < 0.5 * res.base.pressure_rmse("validate")

@@ -414,38 +414,60 @@ def test_propagation_widens_by_the_inflation_to_the_widened_marginal() -> None:
 def test_a_settled_phase_ends_at_its_first_check_and_a_climbing_one_does_not() -> None:
     """The rule on log posteriors made to order: walkers at equilibrium (mean
     log posterior flat, the spread of a 2-d Gaussian's) end the phase at the
-    first check; walkers still climbing (by 0.05 per step, far above the
-    0.25 sqrt(d/2) allowed per quarter) do not, so the phase runs its full
-    length; a climb that levels off ends at the first check after it does."""
-    from pneumafit.identification.sampling import _phase_end, _phase_settled
+    first check, with no fit within it; walkers still climbing (by 0.05 per
+    step, above the 0.25 sqrt(d/2) allowed per quarter) do not, so the phase
+    runs its full length with the t fitted at every check; a climb that
+    levels off at step 120 ends at the first check whose steps since the
+    last fit (100-125 still climb, 125-150 do not) have settled: 150, where
+    judged from step 0 it would have run to 250; but not where the walkers
+    barely moved since that fit."""
+    from pneumafit.identification.sampling import PHASE_MIXED, _phase_plan, _phase_settled
 
     rng = np.random.default_rng(0)
     flat = -rng.chisquare(2, size=(300, 8)) / 2
-    assert _phase_settled(flat[:50], 2) and _phase_end(flat, 300, 25, 2) == 50
+    moving = rng.normal(size=(300, 8, 2))  # every walker moves at every step
+    assert _phase_settled(flat[:50], 2) and _phase_plan(flat, moving, 300, 25, 2) == (50, [])
     climbing = flat - 0.05 * np.arange(300)[::-1, None]
-    assert not any(_phase_settled(climbing[:n], 2) for n in range(50, 300, 25))
-    assert _phase_end(climbing, 300, 25, 2) == 300
-    assert _phase_end(climbing[:200], 300, 25, 2) is None  # not decided yet
+    assert not any(_phase_settled(climbing[n - 25 : n], 2) for n in range(75, 300, 25))
+    assert _phase_plan(climbing, moving, 300, 25, 2) == (300, list(range(50, 300, 25)))
+    assert _phase_plan(climbing[:200], moving[:200], 300, 25, 2) == (
+        None, [50, 75, 100, 125, 150, 175, 200]
+    )  # fmt: skip
     levels = flat - 0.2 * np.clip(120 - np.arange(300), 0, None)[:, None]  # flat from 120
-    end = _phase_end(levels, 300, 25, 2)
-    assert end is not None and 150 <= end < 300 and _phase_settled(levels[:end], 2)
+    assert _phase_plan(levels, moving, 300, 25, 2) == (150, [50, 75, 100, 125])
+    assert _phase_settled(levels[125:150], 2) and not _phase_settled(levels[:150], 2)
+    # walkers that moved in a fifth of the steps since the fit at 125: their
+    # t is the one they were drawn with, so the phase goes on to 175
+    stuck = moving.copy()
+    for step in range(126, 150):  # no move at steps 126-149 but every fifth
+        stuck[step] = stuck[step - 1] + (step % 5 == 0)
+    assert 0.15 < np.mean(np.any(np.diff(stuck[124:150], axis=0) != 0, axis=2)) < PHASE_MIXED
+    assert _phase_plan(levels, stuck, 300, 25, 2) == (175, [50, 75, 100, 125, 150])
 
 
-def test_an_early_phase_end_is_seeded_resumable_and_keeps_the_posterior(tmp_path: Path) -> None:
-    """From a wide start on the correlated Gaussian the phase ends before its
-    300 steps (recorded in ``adapted_after``, never summarised); a run
-    interrupted in the phase resumes to the same chain and phase end; the 90 %
-    intervals are the exact ones to 4 Monte-Carlo standard errors."""
+@pytest.mark.parametrize("cut", [30, 60])  # before and after the fit within the phase
+def test_an_early_phase_end_is_seeded_resumable_and_keeps_the_posterior(
+    tmp_path: Path, cut: int
+) -> None:
+    """From a wide start on the correlated Gaussian the walkers still climb
+    at the first check (step 50), where the t is fitted to them; the phase
+    ends at the next (75), before its 300 steps (recorded in
+    ``adapted_after`` and ``phase_fits``, never summarised); a run
+    interrupted in the phase, before or after that fit, resumes to the same
+    chain and phase end; the 90 % intervals are the exact ones to 4
+    Monte-Carlo standard errors."""
     kw = {"n_walkers": 8, "n_steps": 1500, "seed": 4, "adapt": 300, "adapt_check": 25,
           "name": "stage"}  # fmt: skip
     wide = np.diag([25.0, 25.0])
     full = run_mcmc(gaussian, params(), MEAN + 8.0, wide, backend=tmp_path / "full.h5", **kw)
     assert 50 <= full.adapted_after < 300 and full.discard >= full.adapted_after
     assert full.as_dict()["adapted_after"] == full.adapted_after
+    assert full.phase_fits == [50] and full.as_dict()["phase_fits"] == [50]
     assert full.readapted_after == []  # a t fitted to settled walkers is kept
-    # cut at call 30: inside the phase (every step is one call)
-    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", 30, MEAN + 8.0, wide, **kw)
+    # the cut inside the phase (every step is one call)
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", cut, MEAN + 8.0, wide, **kw)
     assert resumed.adapted_after == full.adapted_after
+    assert resumed.phase_fits == full.phase_fits
     assert np.array_equal(resumed.chain, full.chain)
     _assert_exact_90(full)
 

@@ -113,6 +113,16 @@ INDEPENDENCE_WEIGHT = 0.9
 #: t that fits gives 0.5-0.8 on the demo's stages; 0.15 is far below that
 #: and above what the DE share alone accepts (0.1 x its 0.2-0.3).
 READAPT_ACCEPTANCE = 0.15
+#: A check of the adaptation phase after a t fitted within it
+#: (:func:`_phase_plan`) ends the phase only when the walkers moved in at
+#: least this share of the walker-steps since that fit: a t fitted to walkers
+#: that barely moved is the t they were drawn with. On the demo's friction
+#: stages (2026-11-29) the t fitted to the DE walkers at step 100 (still 4-10
+#: log units below their level) accepted 0.12-0.32; ended there, the kept t
+#: accepted 0.41 on constant-lambda's (0.60 with the phase run to 300 steps)
+#: and its chain needed 1150 steps instead of 600. A t that fits accepts
+#: 0.5-0.8 there.
+PHASE_MIXED = 0.3
 #: Fits of the t after the first, at most (a posterior that no t fits keeps
 #: a low acceptance whatever the fit: the chain then goes on with the last).
 MAX_READAPT = 2
@@ -161,6 +171,10 @@ class MCMCResult:
     readapted_after : list of int
         Steps at which the independence proposal was fitted again
         (:data:`READAPT_ACCEPTANCE`); the summaries start after the last.
+    phase_fits : list of int
+        Checks of the adaptation phase at which the walkers had not settled
+        and the t was fitted to them to carry on the phase with
+        (``run_mcmc(adapt_check=)``); all burn-in.
     seed : int
     """
 
@@ -185,6 +199,7 @@ class MCMCResult:
     resumed_from: int = 0
     adapted_after: int = 0
     readapted_after: list[int] = field(default_factory=list)
+    phase_fits: list[int] = field(default_factory=list)
     seed: int = 0
 
     def to_inference_data(self) -> Any:
@@ -230,6 +245,7 @@ class MCMCResult:
             "resumed_from": self.resumed_from,
             "adapted_after": self.adapted_after,
             "readapted_after": list(self.readapted_after),
+            "phase_fits": list(self.phase_fits),
             "seed": self.seed,
             "warnings": list(self.warnings),
         }
@@ -309,15 +325,22 @@ class StudentTProposal(emcee.moves.MHMove):
         return x, self.log_density(coords) - self.log_density(x)
 
 
-def _adapted_moves(chain: NDArray[np.float64], log_prob: NDArray[np.float64]) -> list[Any]:
+def _adapted_moves(
+    chain: NDArray[np.float64], log_prob: NDArray[np.float64], after_fit: bool = False
+) -> list[Any]:
     """The moves after an adaptation phase of ``chain`` (steps, walkers, n).
 
     The t is fitted to every walker over the settled part of the phase (from
     the later of its middle and the end of its transient, :func:`_settled`,
     keeping at least its last quarter): a function of the stored steps only.
+    ``after_fit``: the steps followed a t fitted within the phase, whose
+    draws reach the posterior within a few steps, so the sample starts at
+    the end of the transient, not at the middle (still keeping the last
+    quarter).
     """
     n_adapt = chain.shape[0]
-    first = min(max(n_adapt // 2, _settled(log_prob)), n_adapt - max(n_adapt // 4, 1))
+    settled = _settled(log_prob) if after_fit else max(n_adapt // 2, _settled(log_prob))
+    first = min(settled, n_adapt - max(n_adapt // 4, 1))
     sample = chain[first:].reshape(-1, chain.shape[2])
     mean = sample.mean(axis=0)
     cov = np.atleast_2d(np.cov(sample, rowvar=False))
@@ -546,15 +569,31 @@ def run_mcmc(
         return emcee.State(walkers, random_state=np.random.RandomState(seed % 2**32).get_state())
 
     adapt_check = max(int(adapt_check), 0)
+    phase_fits: list[int] = []
     if adapt and adapt_check and 2 * adapt_check < adapt:
-        # the phase, run (or resumed) check by check until it is decided
+        # the phase, run (or resumed) check by check until it is decided; a
+        # check that finds the walkers still climbing fits the t to them and
+        # the phase goes on with it (_phase_plan): a function of the stored
+        # steps, so a resumed run samples on with the same moves
+        moves_from = 0
         while True:
             have = int(store.iteration) if store.initialized else 0
             stored = store.get_log_prob() if have else np.empty((0, n_walkers))
-            end = _phase_end(stored, adapt, adapt_check, n_free)
+            end, phase_fits = _phase_plan(
+                stored, store.get_chain() if have else None, adapt, adapt_check, n_free
+            )
             if end is not None:
                 adapt = end
                 break
+            if phase_fits and phase_fits[-1] != moves_from:
+                since = phase_fits[-2] if len(phase_fits) > 1 else 0
+                fit_at = phase_fits[-1]
+                sampler = sampler_with(
+                    _adapted_moves(
+                        store.get_chain()[since:fit_at], stored[since:fit_at], after_fit=since > 0
+                    )
+                )
+                moves_from = fit_at
             target = min(adapt, max(2 * adapt_check, (have // adapt_check + 1) * adapt_check))
             for result_state in sampler.sample(
                 first_state() if have == 0 else sampler.get_last_sample(),
@@ -581,8 +620,13 @@ def run_mcmc(
             state = advance(state, adapt - have)
             return advance(None, have + n - adapt)
         if adapt and not adapted and have >= adapt:
+            since = phase_fits[-1] if phase_fits else 0
             sampler = sampler_with(
-                _adapted_moves(store.get_chain()[:adapt], store.get_log_prob()[:adapt])
+                _adapted_moves(
+                    store.get_chain()[since:adapt],
+                    store.get_log_prob()[since:adapt],
+                    after_fit=since > 0,
+                )
             )
             adapted = True
             state = None
@@ -644,6 +688,7 @@ def run_mcmc(
     result.resumed_from = done
     result.adapted_after = adapt
     result.readapted_after = readapted
+    result.phase_fits = phase_fits
     return result
 
 
@@ -695,19 +740,57 @@ def _phase_settled(log_prob: NDArray[np.float64], n_free: int) -> bool:
     return math.isfinite(rise) and rise < SETTLED_RISE * math.sqrt(max(n_free, 1) / 2.0)
 
 
-def _phase_end(
-    log_prob: NDArray[np.float64], adapt: int, adapt_check: int, n_free: int
-) -> int | None:
-    """The step at which an adaptation phase of at most ``adapt`` steps,
-    checked every ``adapt_check`` steps from ``2 adapt_check``, ends, when the
-    stored ``log_prob`` already decides it; None while it does not."""
+def _phase_plan(
+    log_prob: NDArray[np.float64],
+    chain: NDArray[np.float64] | None,
+    adapt: int,
+    adapt_check: int,
+    n_free: int,
+) -> tuple[int | None, list[int]]:
+    """The course of an adaptation phase of at most ``adapt`` steps, checked
+    every ``adapt_check`` steps from ``2 adapt_check``, as far as the stored
+    ``log_prob`` (steps, walkers) and ``chain`` (steps, walkers, n) decide it.
+
+    Returns the step at which the phase ends (None while undecided) and the
+    checks at which it did not end, where the t is fitted to the walkers
+    and the phase goes on with it. A check ends the phase when the steps
+    since the last such fit (from step 0 before the first) have settled
+    (:func:`_phase_settled`), or the whole phase so far has, and, after a
+    fit, the walkers moved in at least :data:`PHASE_MIXED` of the steps
+    since.
+
+    The whole phase is judged too because a window of one check is short:
+    on the demo's heat stage (6 walkers, checks every 25 steps; convection,
+    seed 2) the walkers had settled by step 50, but two 25-step windows in
+    a row failed the rule by chance (a rise of 0.44 against 0.31 between
+    quarters of 6 steps), and the phase ran to 125 steps where, judged
+    from step 0, it ends at 100.
+
+    Why: from the wide start the DE moves climb the last few log units
+    slowly. On the demo's friction stages (2026-11-29, seed 0) the walkers'
+    mean log posterior was 3-5 units below its level at step 100 and crept
+    up to it by steps 130-170, so the phase, judged from step 0, ran its
+    full 300 steps in all three fits. A t fitted to the walkers at step 100
+    is close enough to draw from the posterior at once; the phase ends at
+    the next check that finds the walkers settled since, and the t kept is
+    fitted to those settled steps.
+    """
     have = log_prob.shape[0]
+    fits: list[int] = []
     for end in range(2 * adapt_check, adapt, adapt_check):
         if end > have:
-            return None
-        if _phase_settled(log_prob[:end], n_free):
-            return end
-    return adapt if have >= adapt else None
+            return None, fits
+        since = fits[-1] if fits else 0
+        mixed = since == 0 or (
+            chain is not None and _moved_fraction(chain[:end], since) >= PHASE_MIXED
+        )
+        if mixed and (
+            _phase_settled(log_prob[since:end], n_free)
+            or (since > 0 and _phase_settled(log_prob[:end], n_free))
+        ):
+            return end, fits
+        fits.append(end)
+    return (adapt if have >= adapt else None), fits
 
 
 def summarize_chain(

@@ -37,7 +37,10 @@ chain. On the demo's friction stage (six LuGre parameters, 18 walkers,
 largest tau fell from 24.5 steps (DE alone) to 4.0 and the acceptance rose
 from 0.21 to 0.57; every 90 % interval end moved by at most 3 % of the
 interval's width; a step cost 1.2x as much (the independent draws reach
-stiffer friction parameters), so 50 tau cost 5x less.
+stiffer friction parameters), so 50 tau cost 5x less. With
+``run_mcmc(adapt_check=)`` the phase is checked as it runs and may end
+early; a check that finds the walkers still climbing fits the t to them
+there and the phase goes on with it (:func:`_phase_plan`).
 
 The t is fitted again (at most :data:`MAX_READAPT` times) when a check
 window after the adaptation accepts fewer than :data:`READAPT_ACCEPTANCE`
@@ -487,10 +490,12 @@ def run_mcmc(
     adapt_check : int
         With ``adapt``, end the adaptation phase early: checked every
         ``adapt_check`` steps from ``2 adapt_check``, it ends at the first
-        check where the walkers have settled (:func:`_phase_settled`), at
-        ``adapt`` steps at the latest. 0: exactly ``adapt`` steps. The
-        decision depends on the stored chain only (a resumed run ends its
-        phase at the same step); ``MCMCResult.adapted_after`` gives it.
+        check where the walkers have settled, at ``adapt`` steps at the
+        latest; a check that finds them still climbing fits the t to them
+        and the phase goes on with it (:func:`_phase_plan`). 0: exactly
+        ``adapt`` steps of the given moves. The decisions depend on the
+        stored chain only (a resumed run makes them at the same steps);
+        ``MCMCResult.adapted_after`` and ``phase_fits`` give them.
 
     Returns
     -------

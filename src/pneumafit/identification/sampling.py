@@ -584,9 +584,8 @@ def run_mcmc(
         while True:
             have = int(store.iteration) if store.initialized else 0
             stored = store.get_log_prob() if have else np.empty((0, n_walkers))
-            end, phase_fits = _phase_plan(
-                stored, store.get_chain() if have else None, adapt, adapt_check, n_free
-            )
+            positions = store.get_chain() if have else np.empty((0, n_walkers, n_free))
+            end, phase_fits = _phase_plan(stored, positions, adapt, adapt_check, n_free)
             if end is not None:
                 adapt = end
                 break
@@ -595,7 +594,7 @@ def run_mcmc(
                 fit_at = phase_fits[-1]
                 sampler = sampler_with(
                     _adapted_moves(
-                        store.get_chain()[since:fit_at], stored[since:fit_at], after_fit=since > 0
+                        positions[since:fit_at], stored[since:fit_at], after_fit=since > 0
                     )
                 )
                 moves_from = fit_at
@@ -747,7 +746,7 @@ def _phase_settled(log_prob: NDArray[np.float64], n_free: int) -> bool:
 
 def _phase_plan(
     log_prob: NDArray[np.float64],
-    chain: NDArray[np.float64] | None,
+    chain: NDArray[np.float64],
     adapt: int,
     adapt_check: int,
     n_free: int,
@@ -786,9 +785,7 @@ def _phase_plan(
         if end > have:
             return None, fits
         since = fits[-1] if fits else 0
-        mixed = since == 0 or (
-            chain is not None and _moved_fraction(chain[:end], since) >= PHASE_MIXED
-        )
+        mixed = since == 0 or _moved_fraction(chain[:end], since) >= PHASE_MIXED
         if mixed and (
             _phase_settled(log_prob[since:end], n_free)
             or (since > 0 and _phase_settled(log_prob[:end], n_free))

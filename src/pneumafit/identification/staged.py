@@ -190,6 +190,14 @@ SEAL = EFFECT_SLOTS["seal_friction"][1][0]
 JOINT_STARTS = 3
 #: Iterations of the short joint solve that screens those starts.
 JOINT_SCREEN_NFEV = 20
+#: With ``--friction auto`` the switch model is first solved from LuGre's
+#: levels; its own starts (:func:`friction_starts`, the Stribeck screen) are
+#: solved too unless LuGre's gain over that solve, in effective samples, is
+#: above this many times the BIC threshold ln n_eff. Own starts can only
+#: raise the switch model's optimum, so a margin this wide leaves the choice
+#: as it was: measured 2026-11-29 (docs/identification.md, "Friction law:
+#: the switch model from LuGre's levels").
+FRICTION_DECISIVE = 10.0
 #: Centre leakage tried with every heat start in stage (b), as fractions of
 #: the supply path's full-opening conductance (servo-distributors leak
 #: 0.1-1 % of their rated flow at the centre; the virtual rigs 0.2-0.4 %), on
@@ -1471,40 +1479,68 @@ def identify(
         # not see friction): LuGre's two bristle parameters must buy more than
         # ln(n) in log-likelihood
         before, tried = dict(values), {}
-        for cand in FRICTION_LAWS:
+        over = penalty = math.nan
+        seconds = 0.0
+        # LuGre first: the switch model is then solved from LuGre's levels
+        # (its four parameters are LuGre's less the bristles'), and from its
+        # own starts only when that solve leaves the choice open
+        # (FRICTION_DECISIVE)
+        for cand in sorted(FRICTION_LAWS, key=lambda law: law != "lugre"):
             structure = replace(structure, friction=cand)
             params = _with_law(params, structure, rig, nuisance)
             names = tuple(structure.friction_parameter_names)
-            trial = StageResult("friction", [r.file for r in steps], names)
             starts = friction_starts(steps, rig, cand)
-            prob = run_stage(
-                trial,
-                steps,
-                names,
-                starts,
-                seeds[2],
-                opts.random_starts,
-                label=f"friction ({cand})",
-                candidates=stribeck_candidates(starts[0]),
-            )
-            tried[cand] = (trial, dict(values), prob.n_data, prob)
+            runs: list[tuple[StageResult, dict[str, float], Problem]] = []
+            if cand == "switch" and "lugre" in tried:
+                trial = StageResult("friction", [r.file for r in steps], names)
+                levels = {n: tried["lugre"][1][n] for n in names}
+                prob = run_stage(trial, steps, names, [levels], seeds[2],
+                                 label="friction (switch, from LuGre's levels)")  # fmt: skip
+                runs.append((trial, dict(values), prob))
+                values.clear()
+                values.update(before)
+                gain = tried["lugre"][0].estimate.log_likelihood - trial.estimate.log_likelihood
+                if math.isfinite(gain) and gain / over > FRICTION_DECISIVE * penalty:
+                    starts = []
+                    say(
+                        f"friction (switch): from LuGre's levels, LuGre's gain {gain / over:.1f} "
+                        f"effective is over {FRICTION_DECISIVE:g}x the BIC threshold "
+                        f"{penalty:.1f}: the switch model's own starts are not solved"
+                    )
+            if starts:
+                trial = StageResult("friction", [r.file for r in steps], names)
+                prob = run_stage(trial, steps, names, starts, seeds[2], opts.random_starts,
+                                 label=f"friction ({cand})",
+                                 candidates=stribeck_candidates(starts[0]))  # fmt: skip
+                runs.append((trial, dict(values), prob))
+                values.clear()
+                values.update(before)
+                if len(runs) == 2:
+                    lls_run = [run[0].estimate.log_likelihood for run in runs]
+                    say(
+                        f"friction ({cand}): log-likelihood {lls_run[0]:.1f} from LuGre's "
+                        f"levels, {lls_run[1]:.1f} from its own starts"
+                    )
+            seconds += sum(run[0].seconds for run in runs)
+            trial, chosen, prob = max(runs, key=lambda run: run[0].estimate.log_likelihood)
+            tried[cand] = (trial, chosen, prob.n_data, prob)
             say(
-                f"friction ({cand}): {trial.seconds:.1f} s, log-likelihood "
-                f"{trial.estimate.log_likelihood:.1f}, " + _brief(trial.estimate, names)
+                f"friction ({cand}): {sum(run[0].seconds for run in runs):.1f} s, "
+                f"log-likelihood {trial.estimate.log_likelihood:.1f}, "
+                + _brief(trial.estimate, names)
             )
-            values.clear()
-            values.update(before)
+            if cand == "lugre":
+                # BIC in effective samples, as for the seal friction and the
+                # area convention: the gain and n divided by the residuals'
+                # overcount at the LuGre optimum (correlated residuals of a
+                # model that is not the rig's count each sample many times over)
+                over = _overcount(prob, trial.estimate)
+                penalty = math.log(max(prob.n_data / over, 2.0))
         lls = {k: t[0].estimate.log_likelihood for k, t in tried.items()}
         gain = lls["lugre"] - lls["switch"]
-        # BIC in effective samples, as for the seal friction and the area
-        # convention: the gain and n divided by the residuals' overcount at
-        # the LuGre optimum (correlated residuals of a model that is not the
-        # rig's count each sample many times over)
-        over = _overcount(tried["lugre"][3], tried["lugre"][0].estimate)
-        penalty = math.log(max(tried["lugre"][2] / over, 2.0))
         law = "lugre" if math.isfinite(gain) and gain / over > penalty else "switch"
         stage, chosen, _, _ = tried[law]
-        stage.seconds = sum(t[0].seconds for t in tried.values())
+        stage.seconds = seconds
         stage.note = (
             f"friction law {law}: LuGre log-likelihood gain {gain:.1f} / {over:.3g} (residual "
             f"correlation) = {gain / over:.1f} over the switch model (BIC threshold "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import io
 import json
@@ -170,3 +171,32 @@ def test_cli_truth_option(tmp_path: Path, console: Console) -> None:
     assert "friction.sigma0: missing" in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "b").exists()
+
+
+def test_a_campaign_is_recorded_again_from_its_truth_json(tmp_path: Path, console: Console) -> None:
+    """A truth given as a file: README.md's command names the campaign's own
+    truth.json, which ``--truth`` reads back (its ``truth_model.config``), and
+    the campaign recorded from it again is the same, file for file. A preset
+    stays named (``test_preset_campaign_passes_check``)."""
+    custom = copy.deepcopy(dict(PRESETS["mixed"]))
+    custom["name"] = "not-a-preset"
+    custom["friction"] = {**custom["friction"], "F_c": 33.3}
+    given = tmp_path / "given.json"
+    given.write_text(json.dumps(custom))
+    first, again = tmp_path / "first", tmp_path / "again"
+    assert run_rig(first, seed=4, console=console, protocol="sparse", truth=str(given)) == 0
+    readme = (first / "README.md").read_text(encoding="utf-8")
+    assert f"pneumafit rig --out DIR --truth {TRUTH_FILE} --protocol sparse --seed 4" in readme
+    assert get_truth(first / TRUTH_FILE) == TruthConfig.from_dict(custom)
+    assert run_rig(again, seed=4, console=console, protocol="sparse",
+                   truth=str(first / TRUTH_FILE)) == 0  # fmt: skip
+    assert read_campaign(again).sha256 == read_campaign(first).sha256
+
+
+def test_a_truth_json_without_an_independent_truth_is_refused(tmp_path: Path) -> None:
+    """truth.json of a campaign recorded with the fitted models' own laws holds
+    no truth configuration: ``--truth`` says so and what to do instead."""
+    path = tmp_path / TRUTH_FILE
+    path.write_text(json.dumps({"format": "pneumafit-truth", "version": 1, "parameters": {}}))
+    with pytest.raises(PneumafitInputError, match=r"truth_model\.config: expected the independent"):
+        get_truth(path)

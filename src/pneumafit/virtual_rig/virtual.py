@@ -62,6 +62,7 @@ from pneumafit.simulation import (
 from pneumafit.virtual_rig.effects import resolve_effects
 from pneumafit.virtual_rig.protocol import (
     FLOW_COMPUTE_RATE,
+    PROTOCOLS,
     BlockedTest,
     FlowTest,
     Protocol,
@@ -71,6 +72,8 @@ from pneumafit.virtual_rig.protocol import (
 )
 from pneumafit.virtual_rig.sensors import SensorModel
 from pneumafit.virtual_rig.truth import (
+    PRESETS,
+    TRUTH_FORMAT,
     TruthConfig,
     TruthSimulation,
     TruthSimulator,
@@ -134,8 +137,7 @@ TRUTH_STEP = 1.0e-4
 TRUTH_METHOD = "dp5"
 #: Name of the truth file in a campaign folder (not listed in campaign.toml).
 TRUTH_FILE = "truth.json"
-#: ``format`` and ``version`` of the truth file.
-TRUTH_FORMAT = "pneumafit-truth"
+#: ``version`` of the truth file (its ``format``: :data:`TRUTH_FORMAT`).
 TRUTH_VERSION = 1
 #: Version of the virtual rig's protocols and sensor models; bump it when the
 #: same seed would give a different campaign.
@@ -818,6 +820,27 @@ def _independent_truth_lines(independent: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _rig_command(truth: Mapping[str, Any]) -> str:
+    """The ``pneumafit rig`` command that records the campaign of ``truth``
+    (truth.json's content) again: a preset truth by name, any other by this
+    folder's truth.json; a protocol the command does not name, as a comment."""
+    protocol = truth["protocol"]
+    head = "" if protocol in PROTOCOLS else f"# protocol {protocol!r}: a Python Protocol, run_rig\n"
+    command = "pneumafit rig --out DIR"
+    model = truth.get("truth_model")
+    if model is not None:
+        name = model["config"].get("name")
+        preset = name in PRESETS and TruthConfig.from_dict(model["config"]) == get_truth(name)
+        command += f" --truth {name}" if preset else f" --truth {TRUTH_FILE}"
+    if protocol in PROTOCOLS and protocol != "demo":
+        command += f" --protocol {protocol}"
+    command += "".join(
+        f" --effect {name}" + ("" if value is None else f"={value!r}")
+        for name, value in truth["effects_requested"].items()
+    )
+    return head + command + f" --seed {truth['seed']}"
+
+
 def truth_readme(run: RigRun) -> str:
     """The campaign folder's README.md: how it was made and the true parameters."""
     truth = run.truth
@@ -833,18 +856,7 @@ def truth_readme(run: RigRun) -> str:
         f"{truth['seed']}:",
         "",
         "```",
-        ("" if truth["protocol"] == "demo" else f"# protocol {truth['protocol']!r}: run_rig\n")
-        + "pneumafit rig --out DIR"
-        + (
-            ""
-            if "truth_model" not in truth
-            else f" --truth {truth['truth_model']['config']['name']}"
-        )
-        + "".join(
-            f" --effect {name}" + ("" if value is None else f"={value!r}")
-            for name, value in truth["effects_requested"].items()
-        )
-        + f" --seed {truth['seed']}",
+        _rig_command(truth),
         "```",
         "",
         "`campaign.toml` and the recordings are what a rig engineer would hand over. "

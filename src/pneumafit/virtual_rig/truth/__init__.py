@@ -25,6 +25,7 @@ or the fitting simulator.
 from pneumafit.virtual_rig.truth.config import (
     PRESETS,
     REFERENCE_STATE,
+    TRUTH_FORMAT,
     TruthConfig,
     get_truth,
     reference_quantities,
@@ -65,6 +66,7 @@ __all__ = [
     "PRESETS",
     "PROBE_MODELS",
     "REFERENCE_STATE",
+    "TRUTH_FORMAT",
     "BumpLeak",
     "ConstantLeak",
     "DahlFriction",

@@ -74,10 +74,15 @@ from pneumafit.virtual_rig.truth.valve import CONDUCTANCE_FAMILIES, LEAK_SHAPES,
 __all__ = [
     "PRESETS",
     "REFERENCE_STATE",
+    "TRUTH_FORMAT",
     "TruthConfig",
     "get_truth",
     "reference_quantities",
 ]
+
+#: ``format`` of a campaign's truth.json (written by the virtual rig);
+#: :meth:`TruthConfig.from_file` reads its ``truth_model.config``.
+TRUTH_FORMAT = "pneumafit-truth"
 
 _SECTIONS = ("name", "description", "valve", "friction", "heat", "end_stops", "probe", "barrel",
              "external_leak", "parameters")  # fmt: skip
@@ -292,7 +297,9 @@ class TruthConfig:
 
     @classmethod
     def from_file(cls, path: str | os.PathLike[str]) -> TruthConfig:
-        """Read a configuration from a ``.toml`` or ``.json`` file.
+        """Read a configuration from a ``.toml`` or ``.json`` file, or from a
+        campaign's ``truth.json`` (its ``truth_model.config``: the truth that
+        recorded the campaign).
 
         Raises
         ------
@@ -315,6 +322,15 @@ class TruthConfig:
             raise PneumafitInputError(
                 f"truth file {where!r}: not valid {p.suffix[1:]}: {exc}"
             ) from None
+        if isinstance(data, Mapping) and data.get("format") == TRUTH_FORMAT:
+            model = data.get("truth_model")
+            if not isinstance(model, Mapping) or not isinstance(model.get("config"), Mapping):
+                raise PneumafitInputError(
+                    f"truth file {where!r}: truth_model.config: expected the independent truth "
+                    "that recorded the campaign, found none (the campaign was recorded with the "
+                    "fitted models' own laws: record it without --truth)"
+                )
+            return cls.from_dict(model["config"], source=f"{where}: truth_model.config")
         return cls.from_dict(data, source=where)
 
     def as_dict(self) -> dict[str, Any]:

@@ -200,3 +200,44 @@ def test_a_truth_json_without_an_independent_truth_is_refused(tmp_path: Path) ->
     path.write_text(json.dumps({"format": "pneumafit-truth", "version": 1, "parameters": {}}))
     with pytest.raises(PneumafitInputError, match=r"truth_model\.config: expected the independent"):
         get_truth(path)
+
+
+def test_named_protocols_scale_to_the_stroke_and_others_are_checked() -> None:
+    """The named protocols are written for the demo rig's 500-mm stroke: on a
+    100-mm cylinder their positions scale by 0.2 and the PD gains by 5 (the
+    same commands for the same share of the stroke); at 500 mm they are
+    unchanged. A protocol of the user's own keeps its metres, and one that
+    leaves the stroke is refused naming the test (before: a truth simulation
+    that failed with non-finite states)."""
+    sparse = get_protocol("sparse")
+    assert sparse.for_stroke(0.5) is sparse
+    short = sparse.for_stroke(0.1)
+    for old, new in zip(sparse.tests, short.tests, strict=True):
+        if hasattr(old, "position"):
+            assert new.position == pytest.approx(0.2 * old.position, rel=1e-9)
+        if hasattr(old, "start"):
+            assert new.start == pytest.approx(0.2 * old.start, rel=1e-9)
+            assert [y for _t, y in new.steps] == pytest.approx([0.2 * y for _t, y in old.steps])
+            assert (new.kp, new.kd) == pytest.approx((5.0 * old.kp, 5.0 * old.kd))
+    own = dataclasses.replace(sparse, design_stroke=None)
+    refused = r"test 'charge_P_1\.h5': position: expected a position within the rig's stroke"
+    with pytest.raises(PneumafitInputError, match=refused + r" \[0, 100\] mm, found 120 mm"):
+        own.for_stroke(0.1)
+
+
+def test_a_short_cylinder_records_the_sparse_plan(tmp_path: Path, console: Console) -> None:
+    """``pneumafit rig --protocol sparse`` on a truth file with a 100-mm stroke
+    writes a valid campaign whose positions lie within the stroke."""
+    custom = copy.deepcopy(dict(PRESETS["mixed"]))
+    custom["parameters"] = {**custom.get("parameters", {}), "stroke": 0.1}
+    given = tmp_path / "short.json"
+    given.write_text(json.dumps(custom))
+    out = tmp_path / "short"
+    assert run_rig(out, seed=2, console=console, protocol="sparse", truth=str(given)) == 0
+    assert validate_campaign(out) == []
+    campaign = read_campaign(out)
+    assert campaign.rig.stroke == pytest.approx(0.1)
+    for rec in campaign.recordings:
+        if "y" in rec.channels:
+            y = rec.channels["y"]
+            assert 0.0 <= float(np.min(y)) and float(np.max(y)) <= 0.1

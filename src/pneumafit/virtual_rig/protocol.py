@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import PurePosixPath
 from types import MappingProxyType
 
@@ -298,11 +298,16 @@ class Protocol:
         One line, used as the campaign description.
     tests : tuple of FlowTest, BlockedTest or StepTest
         In campaign order; file names unique.
+    design_stroke : float or None
+        Stroke (m) the positions are written for; a rig of another stroke
+        records them scaled (:meth:`for_stroke`). None: positions in the
+        rig's own metres, only checked against its stroke.
     """
 
     name: str
     description: str
     tests: tuple[Test, ...]
+    design_stroke: float | None = None
 
     def __post_init__(self) -> None:
         if not self.tests:
@@ -315,6 +320,62 @@ class Protocol:
                 )
             seen.add(test.file.lower())
 
+    def for_stroke(self, stroke: float) -> Protocol:
+        """The protocol on a rig of stroke ``stroke`` (m).
+
+        A protocol written for a stroke (``design_stroke``, the named ones:
+        the demo rig's 500 mm) is scaled to it: piston positions and
+        set-points by stroke / design_stroke, the ``pd`` gains kp and kd by
+        its inverse, so that the commands are the design's. Without a
+        ``design_stroke`` the positions are the rig's own and are only
+        checked.
+
+        Raises
+        ------
+        PneumafitInputError
+            A position or set-point outside [0, stroke], naming the test.
+        """
+        out = self
+        if self.design_stroke is not None and stroke != self.design_stroke:
+            k = stroke / self.design_stroke
+
+            def scaled(x: float, factor: float) -> float:
+                # nine digits: 0.07 m, not 0.06999999999999999 m in campaign.toml
+                return float(f"{x * factor:.9g}")
+
+            tests: list[Test] = []
+            for test in self.tests:
+                if isinstance(test, BlockedTest):
+                    test = replace(test, position=scaled(test.position, k))
+                elif isinstance(test, StepTest):
+                    test = replace(
+                        test, start=scaled(test.start, k), kp=scaled(test.kp, 1.0 / k),
+                        kd=scaled(test.kd, 1.0 / k),
+                        steps=tuple((t, scaled(y, k)) for t, y in test.steps),
+                    )  # fmt: skip
+                tests.append(test)
+            out = replace(self, tests=tuple(tests), design_stroke=stroke)
+        for test in out.tests:
+            where = f"protocol {self.name!r}, test {test.file!r}"
+            if isinstance(test, BlockedTest):
+                positions = [("position", test.position)]
+            elif isinstance(test, StepTest):
+                positions = [("start", test.start)] + [("steps", y) for _t, y in test.steps]
+            else:
+                positions = []
+            for key, y in positions:
+                if not 0.0 <= y <= stroke:
+                    raise PneumafitInputError(
+                        f"{where}: {key}: expected a position within the rig's stroke "
+                        f"[0, {stroke * 1e3:g}] mm, found {y * 1e3:g} mm"
+                    )
+        return out
+
+
+#: Stroke (m) the named protocols' positions are written for (the demo
+#: rig's); :meth:`Protocol.for_stroke` scales them to another rig's. The
+#: tutorial's are not scaled: its file names give its positions in mm.
+DESIGN_STROKE = 0.5
 
 _CSV_UNITS = {"y": "mm", "y_ref": "mm", "p_P": "bar", "p_N": "bar", "T_P": "degC", "T_N": "degC"}
 _CSV_COLUMNS = {
@@ -389,6 +450,7 @@ def demo_protocol() -> Protocol:
         name="demo",
         description="Virtual rig demo campaign: flow, charge/discharge and closed-loop step tests",
         tests=flows + blocked + steps,
+        design_stroke=DESIGN_STROKE,
     )
 
 
@@ -410,7 +472,8 @@ def quick_protocol() -> Protocol:
                  preroll=2.0, temperature=True, role="validate", units=_CSV_UNITS,
                  columns=_CSV_COLUMNS),
     )  # fmt: skip
-    return Protocol(name="quick", description="Virtual rig quick campaign (tests)", tests=tests)
+    return Protocol(name="quick", description="Virtual rig quick campaign (tests)", tests=tests,
+                    design_stroke=DESIGN_STROKE)  # fmt: skip
 
 
 #: Column names of the tutorial's "new rig" (its acquisition software's own).
@@ -505,6 +568,7 @@ def sparse_protocol() -> Protocol:
         description="Virtual rig sparse campaign: one flow test (valve P, no 0 V), chamber P "
         "charge/discharge only, two short steps",
         tests=tests,
+        design_stroke=DESIGN_STROKE,
     )
 
 

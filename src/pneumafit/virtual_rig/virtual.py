@@ -334,7 +334,7 @@ class VirtualRig:
         RigError
             A truth simulation failed.
         """
-        proto = get_protocol(protocol)
+        proto = get_protocol(protocol).for_stroke(self.parameters["stroke"])
         root = np.random.default_rng(self.seed)
         children = root.spawn(len(proto.tests) + 1)
         offsets = self.sensors.draw_offsets(children[0])

@@ -13,6 +13,7 @@ import dataclasses
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -477,3 +478,39 @@ def test_the_fit_folder_draws_the_step_test_named_and_drops_a_stale_drawing(
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     _rest_figure(campaign, fitted(truth), path)
     assert not path.exists()
+
+
+def test_a_group_no_recording_informs_makes_the_fit_untrustworthy() -> None:
+    """Parameters held at the rig's defaults are named as a problem: the
+    reported set, the linear analysis, the closed loop and the exports use
+    values the fit did not estimate."""
+    q = FitQuality([_channel("p_N", 1.0, "rest", 400.0)])
+    assert q.trustworthy
+    q.not_identified = ["friction (friction_static; no fit step test)"]
+    assert not q.trustworthy
+    assert q.problems() == [
+        "not identified, held at the rig's defaults (the reported parameters, the linear "
+        "analysis, the closed loop and the exports use these values): friction "
+        "(friction_static; no fit step test)"
+    ]
+    assert q.as_dict()["not_identified"] == q.not_identified
+
+
+def test_a_fit_without_step_tests_names_the_friction_it_did_not_identify(tmp_path: Path) -> None:
+    """A campaign without step tests (the sparse plan less its steps, recorded
+    on the fitted laws' own rig: a reporting test, not a recovery one): the
+    friction is held at its defaults, and the fit says so among its problems."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.identification import FitOptions, identify
+    from pneumafit.virtual_rig import VirtualRig, get_protocol
+
+    sparse = get_protocol("sparse")
+    plan = dataclasses.replace(sparse, tests=tuple(t for t in sparse.tests if t.kind != "step"))
+    VirtualRig(seed=3).write(tmp_path / "c", plan)
+    result = identify(read_campaign(tmp_path / "c"), "convection",
+                      options=FitOptions(mcmc=False), seed=3)  # fmt: skip
+    assert result.quality is not None
+    (held,) = result.quality.not_identified
+    assert held.startswith("friction (friction_static, friction_coulomb") and "no fit step" in held
+    assert not result.quality.trustworthy
+    assert any(p.startswith("not identified, held at") for p in result.quality.problems())

@@ -410,6 +410,10 @@ class FitQuality:
         Parameters whose chain is shorter than 50 tau or has R-hat > 1.01.
     unconverged : list of str
         Least-squares stages that stopped at their iteration limit.
+    not_identified : list of str
+        Parameter groups no fit recording informs, held at the rig's
+        defaults (e.g. ``"friction (no fit step test)"``): the fit reports,
+        exports and designs on values it did not estimate.
     one_recording : dict of str to str
         Parameter -> the recording its interval rests on, for every parameter
         whose information comes from one recording
@@ -440,6 +444,7 @@ class FitQuality:
     outside_interval: list[str] = field(default_factory=list)
     unreliable: list[str] = field(default_factory=list)
     unconverged: list[str] = field(default_factory=list)
+    not_identified: list[str] = field(default_factory=list)
     one_recording: dict[str, str] = field(default_factory=dict)
     rest_positions: list[RestOffset] = field(default_factory=list)
     recorded_commands: dict[str, float | None] = field(default_factory=dict)
@@ -455,13 +460,15 @@ class FitQuality:
 
     @property
     def trustworthy(self) -> bool:
-        """Reaches the noise, no estimate at a bound or outside its interval, chains long."""
+        """Reaches the noise, no estimate at a bound or outside its interval,
+        chains long, every parameter group identified."""
         return (
             self.reaches_noise
             and not self.at_bounds
             and not self.outside_interval
             and not self.unreliable
             and not self.unconverged
+            and not self.not_identified
         )
 
     def problems(self) -> list[str]:
@@ -507,6 +514,12 @@ class FitQuality:
                 "command; with the recorded commands instead of the model's controller, a "
                 "misfit far smaller than in closed loop is the loop's, one about as large is "
                 "in the valves, chambers or forces): " + "; ".join(items)
+            )
+        if self.not_identified:
+            out.append(
+                "not identified, held at the rig's defaults (the reported parameters, the "
+                "linear analysis, the closed loop and the exports use these values): "
+                + "; ".join(self.not_identified)
             )
         if self.unconverged:
             out.append(
@@ -572,6 +585,7 @@ class FitQuality:
             "outside_interval": list(self.outside_interval),
             "unreliable": list(self.unreliable),
             "unconverged": list(self.unconverged),
+            "not_identified": list(self.not_identified),
             "one_recording": [f"{n} ({f})" for n, f in self.one_recording.items()],
             "caveats": self.caveats(),
             "rest_positions": [r.as_dict() for r in self.rest_positions],

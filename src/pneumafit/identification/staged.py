@@ -1132,6 +1132,7 @@ def identify(
     params = ParameterSet.for_model(structure, rig, nuisance=nuisance)
     seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(seed).spawn(8)]
     warns: list[str] = []
+    unidentified: list[str] = []  # parameter groups no fit recording informs
     stages: list[StageResult] = []
     evaluations = 0
 
@@ -1470,6 +1471,10 @@ def identify(
             else "no fit charge/discharge or step test: heat parameters held at their defaults"
         )
         warns.append(f"heat: {stage.note}")
+        if not steps and heat_names:
+            unidentified.append(
+                f"heat law ({', '.join(heat_names)}; no fit charge/discharge or step test)"
+            )
     stages.append(stage)
 
     # ---------------------------------------------------------- (c) friction
@@ -1559,6 +1564,7 @@ def identify(
     else:
         stage.note = "no fit step test: friction parameters held at their defaults"
         warns.append(f"friction: {stage.note}")
+        unidentified.append(f"friction ({', '.join(friction_names)}; no fit step test)")
     if (
         steps and opts.seal != "off" and stage.estimate is not None
         and not isinstance(model, ModelStructure)
@@ -1862,6 +1868,7 @@ def identify(
         for s in stages
         if s.estimate is not None and not s.estimate.success and s.name == "joint"
     ]
+    quality.not_identified = unidentified
     say(f"quality: {quality.verdict()}")
     return FitResult(
         model=name, structure=structure, parameters=final, laplace=laplace, stages=stages,

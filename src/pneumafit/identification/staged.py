@@ -194,9 +194,10 @@ JOINT_SCREEN_NFEV = 20
 #: levels; its own starts (:func:`friction_starts`, the Stribeck screen) are
 #: solved too unless LuGre's gain over that solve, in effective samples, is
 #: above this many times the BIC threshold ln n_eff. Own starts can only
-#: raise the switch model's optimum, so a margin this wide leaves the choice
-#: as it was: measured 2026-11-29 (docs/identification.md, "Friction law:
-#: the switch model from LuGre's levels").
+#: raise the switch model's optimum; the choice would flip only if they
+#: recovered over 90 % of LuGre's margin, and on nine campaigns they
+#: recovered at most 24 % (2026-11-29; docs/identification.md, "Friction
+#: law: the switch model from LuGre's levels").
 FRICTION_DECISIVE = 10.0
 #: Centre leakage tried with every heat start in stage (b), as fractions of
 #: the supply path's full-opening conductance (servo-distributors leak

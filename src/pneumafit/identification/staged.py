@@ -193,9 +193,10 @@ JOINT_SCREEN_NFEV = 20
 #: With ``--friction auto`` the switch model is first solved from LuGre's
 #: levels; its own starts (:func:`friction_starts`, the Stribeck screen) are
 #: solved too unless LuGre's gain over that solve, in effective samples, is
-#: above this many times the BIC threshold ln n_eff. Own starts can only
-#: raise the switch model's optimum; the choice would flip only if they
-#: recovered over 90 % of LuGre's margin, and on nine campaigns they
+#: above this many times the BIC threshold ln n_eff; when they are, their
+#: optimum is compared with LuGre's, as before. The choice would differ from
+#: the one against the own starts only if those recovered over 90 % of
+#: LuGre's margin over the solve from its levels; on nine campaigns they
 #: recovered at most 24 % (2026-11-29; docs/identification.md, "Friction
 #: law: the switch model from LuGre's levels").
 FRICTION_DECISIVE = 10.0
@@ -1528,7 +1529,11 @@ def identify(
                         f"levels, {lls_run[1]:.1f} from its own starts"
                     )
             seconds += sum(run[0].seconds for run in runs)
-            trial, chosen, prob = max(runs, key=lambda run: run[0].estimate.log_likelihood)
+            # the solve from LuGre's levels only screens: when the choice is
+            # open, the switch model's own optimum decides it, as before (the
+            # better of the two flipped a case to the switch model; see
+            # FRICTION_DECISIVE)
+            trial, chosen, prob = runs[-1]
             tried[cand] = (trial, chosen, prob.n_data, prob)
             say(
                 f"friction ({cand}): {sum(run[0].seconds for run in runs):.1f} s, "

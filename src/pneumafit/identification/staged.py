@@ -1488,55 +1488,64 @@ def identify(
         before, tried = dict(values), {}
         over = penalty = math.nan
         seconds = 0.0
+
         # LuGre first: the switch model is then solved from LuGre's levels
         # (its four parameters are LuGre's less the bristles'), and from its
         # own starts only when that solve leaves the choice open
         # (FRICTION_DECISIVE)
+        def solve(
+            names: tuple[str, ...],
+            starts: list[dict[str, float]],
+            label: str,
+            random_starts: int = 0,
+            candidates: Sequence[Mapping[str, float]] = (),
+        ) -> tuple[StageResult, dict[str, float], Problem]:
+            # one law's solve; the values are put back for the next one
+            nonlocal seconds
+            trial = StageResult("friction", [r.file for r in steps], names)
+            prob = run_stage(trial, steps, names, starts, seeds[2], random_starts, label=label,
+                             candidates=candidates)  # fmt: skip
+            solved = dict(values)
+            values.clear()
+            values.update(before)
+            seconds += trial.seconds
+            return trial, solved, prob
+
         for cand in sorted(FRICTION_LAWS, key=lambda law: law != "lugre"):
             structure = replace(structure, friction=cand)
             params = _with_law(params, structure, rig, nuisance)
             names = tuple(structure.friction_parameter_names)
             starts = friction_starts(steps, rig, cand)
-            runs: list[tuple[StageResult, dict[str, float], Problem]] = []
+            at_start = seconds
+            run = screen = None
             if cand == "switch" and "lugre" in tried:
-                trial = StageResult("friction", [r.file for r in steps], names)
                 levels = {n: tried["lugre"][1][n] for n in names}
-                prob = run_stage(trial, steps, names, [levels], seeds[2],
-                                 label="friction (switch, from LuGre's levels)")  # fmt: skip
-                runs.append((trial, dict(values), prob))
-                values.clear()
-                values.update(before)
-                gain = tried["lugre"][0].estimate.log_likelihood - trial.estimate.log_likelihood
+                screen = solve(names, [levels], "friction (switch, from LuGre's levels)")
+                gain = tried["lugre"][0].estimate.log_likelihood - screen[0].estimate.log_likelihood
                 if math.isfinite(gain) and gain / over > FRICTION_DECISIVE * penalty:
-                    starts = []
+                    run = screen
                     say(
                         f"friction (switch): from LuGre's levels, LuGre's gain {gain / over:.1f} "
                         f"effective is over {FRICTION_DECISIVE:g}x the BIC threshold "
                         f"{penalty:.1f}: the switch model's own starts are not solved"
                     )
-            if starts:
-                trial = StageResult("friction", [r.file for r in steps], names)
-                prob = run_stage(trial, steps, names, starts, seeds[2], opts.random_starts,
-                                 label=f"friction ({cand})",
-                                 candidates=stribeck_candidates(starts[0]))  # fmt: skip
-                runs.append((trial, dict(values), prob))
-                values.clear()
-                values.update(before)
-                if len(runs) == 2:
-                    lls_run = [run[0].estimate.log_likelihood for run in runs]
+            if run is None:
+                # the solve from LuGre's levels only screens: when the choice
+                # is open, the switch model's own optimum decides it, as
+                # before (the better of the two flipped a case to the switch
+                # model; see FRICTION_DECISIVE)
+                run = solve(names, starts, f"friction ({cand})", opts.random_starts,
+                            stribeck_candidates(starts[0]))  # fmt: skip
+                if screen is not None:
                     say(
-                        f"friction ({cand}): log-likelihood {lls_run[0]:.1f} from LuGre's "
-                        f"levels, {lls_run[1]:.1f} from its own starts"
+                        f"friction ({cand}): log-likelihood "
+                        f"{screen[0].estimate.log_likelihood:.1f} from LuGre's levels, "
+                        f"{run[0].estimate.log_likelihood:.1f} from its own starts"
                     )
-            seconds += sum(run[0].seconds for run in runs)
-            # the solve from LuGre's levels only screens: when the choice is
-            # open, the switch model's own optimum decides it, as before (the
-            # better of the two flipped a case to the switch model; see
-            # FRICTION_DECISIVE)
-            trial, chosen, prob = runs[-1]
+            trial, chosen, prob = run
             tried[cand] = (trial, chosen, prob.n_data, prob)
             say(
-                f"friction ({cand}): {sum(run[0].seconds for run in runs):.1f} s, "
+                f"friction ({cand}): {seconds - at_start:.1f} s, "
                 f"log-likelihood {trial.estimate.log_likelihood:.1f}, "
                 + _brief(trial.estimate, names)
             )

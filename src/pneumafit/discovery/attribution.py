@@ -77,6 +77,7 @@ from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.quality import campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
 from pneumafit.models import kernel, layout, parts
+from pneumafit.models.part_kernel import kernel_for_config, rebound
 from pneumafit.models.parts import RegistryView
 from pneumafit.models.structure import ModelStructure
 from pneumafit.numba_stamp import njit
@@ -542,9 +543,11 @@ def model_rates(
         xs_: NDArray[np.float64], q: NDArray[np.float64], dq: NDArray[np.float64],
         cfg_: NDArray[np.int64],
     ) -> NDArray[np.float64]:  # fmt: skip
-        r = _rates_along(xs_, modes, cmds, q, dq, cfg_)
+        # the cached kernel, or its copy for parts from outside (models.part_kernel)
+        along = rebound(_rates_along, kernel_for_config(cfg_))
+        r = along(xs_, modes, cmds, q, dq, cfg_)
         if held:
-            r = 0.5 * (r + _rates_along(xs_, modes, cmds_before, q, dq, cfg_))
+            r = 0.5 * (r + along(xs_, modes, cmds_before, q, dq, cfg_))
         return r
 
     base = rates_along(xs, p, d, cfg)

@@ -12,10 +12,14 @@ chamber just after filling), with the fitted air properties.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pneumafit.models.layout import P
+from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.physics.air import conductivity, viscosity
 from pneumafit.physics.heat import convection_coefficient
 
@@ -70,7 +74,9 @@ def reference_lambda(
         ``xi``, ``beta``, ``characteristic_length`` (m) for the convection law
         (arrays of draws allowed), ``lambda`` for the constant-lambda law.
     heat : str
-        Heat law; the polytropic law has no coefficient (None).
+        Heat law; the polytropic law has no coefficient (None); a law
+        registered with its kernel code (``HeatLaw.kernel``) is evaluated
+        by it, with the gas and wall temperatures of the state.
     air_properties : {"sutherland", "constant"}
         Viscosity and conductivity at the gas (Sutherland) or wall temperature.
 
@@ -80,6 +86,9 @@ def reference_lambda(
     """
     if heat == "constant-lambda":
         return values["lambda"]
+    law = HEAT_LAWS.get(heat)
+    if law is not None and law.kernel is not None:
+        return _part_lambda(law.kernel, values)
     if heat != "convection":
         return None
     s = REFERENCE_STATE
@@ -98,3 +107,27 @@ def reference_lambda(
         ]
     )  # fmt: skip
     return float(out[0]) if out.size == 1 and np.ndim(values["xi"]) == 0 else out
+
+
+def _part_lambda(
+    law: Any, values: Mapping[str, float | NDArray[np.float64]]
+) -> float | NDArray[np.float64]:
+    """lambda at :data:`REFERENCE_STATE` from a heat law's own kernel code.
+
+    Parameters given as arrays of draws are evaluated draw by draw; others
+    keep their value (table defaults for the ones not given).
+    """
+    s = REFERENCE_STATE
+    scalars = {n: float(v) for n, v in values.items() if n in P and np.ndim(v) == 0}
+    arrays = {n: np.asarray(v, float).ravel() for n, v in values.items() if n in P and np.ndim(v)}
+    vec = parameter_vector(scalars)
+    state = (s["pressure"], s["gas_temperature"], s["wall_temperature"])
+    if not arrays:
+        return float(law(vec, *state))
+    n = max(a.size for a in arrays.values())
+    out = np.empty(n)
+    for i in range(n):
+        for name, a in arrays.items():
+            vec[P[name]] = a[i if a.size == n else 0]
+        out[i] = law(vec, *state)
+    return out

@@ -60,6 +60,7 @@ from pneumafit.models.layout import (
     C_HEAT,
     C_INPUT,
     C_INPUT_HOLD,
+    C_PART_EFFECTS,
     C_SEAL_FRICTION,
     C_STATIC_FLOW,
     C_SUPPLY_DROP,
@@ -357,6 +358,32 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
     valve_arrays(p, d[D_VC:D_VM], d[D_VM:])
 
 
+# ----------------------------------------------------------------- hooks for outside parts
+# A heat law or an effect registered from outside the package with kernel code
+# (``HeatLaw.kernel``, ``Effect.kernel``; pneumafit.models.part_kernel) is
+# called through these two functions. In this module, the cached kernel of
+# the built-in parts, they do nothing: a structure that uses such a part runs
+# on a copy of this module compiled with the hooks bound to its parts
+# (``part_kernel.kernel_for``), never on this one.
+@njit(cache=True, fastmath=_FM, _nrt=False)
+def part_heat(heat: int, p: np.ndarray, pres: float, temp: float, t_wall: float) -> float:
+    """lambda (W/m^2/K) of a heat law registered outside the package: none here (NaN)."""
+    return math.nan
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
+def part_effects(
+    mask: int, x: np.ndarray, p: np.ndarray
+) -> tuple[float, float, float, float, float, float]:
+    """Sum of the outside effects switched on in ``mask``: none here (zeros).
+
+    Returns (q_P, H_P, q_N, H_N, q_atm, F): mass flows into the chambers
+    (kg/s), the enthalpy they carry as sum q_i T_i (kg K/s), mass sent to
+    atmosphere (kg/s) and force on the piston along +y (N).
+    """
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
 @njit(cache=True, fastmath=_FM, _nrt=False)
 def heat_coefficient(
     heat: int,
@@ -377,6 +404,8 @@ def heat_coefficient(
                 conductivity(temp),
             )  # fmt: skip
         return convection_coefficient_scaled(d[D_LAMC], d[D_GRC], p[P_BETA], pres, temp, t_wall)
+    if heat > 2:
+        return part_heat(heat, p, pres, temp, t_wall)
     return 0.0
 
 
@@ -619,6 +648,15 @@ def rhs(
         q_n -= q_l2
         h_n -= q_l2 * t_l2
         qe_total += q_l + q_l2
+    f_part = 0.0
+    if cfg[C_PART_EFFECTS] != 0:
+        # effects registered outside the package (hook part_effects)
+        e_qp, e_hp, e_qn, e_hn, e_qa, f_part = part_effects(cfg[C_PART_EFFECTS], x, p)
+        q_p += e_qp
+        h_p += e_hp
+        q_n += e_qn
+        h_n += e_hn
+        qe_total += e_qa
 
     # --- wall heat exchange (paper eqs. 6-8)
     wall_mass = cfg[C_WALL_MASS] == 1
@@ -686,7 +724,7 @@ def rhs(
         dx[X_PN] = dp_n
         dx[X_TN] = dt_n
         f_stop = end_stop_force(y, v, stroke, p[P_KSTOP], p[P_CSTOP])
-        f_drive = s_p * p_p - s_n * p_n - d[D_FEXT] + f_stop
+        f_drive = s_p * p_p - s_n * p_n - d[D_FEXT] + f_stop + f_part
         f_s = p[P_FS]
         f_c = p[P_FC]
         if cfg[C_SEAL_FRICTION] == 1:

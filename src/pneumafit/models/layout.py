@@ -74,7 +74,8 @@ C_FRICTION_LAW = 14  # friction law: 0 switch model (stick-slip modes), 1 LuGre 
 C_FRICTION_ASYM = 15  # effect friction_asymmetry on/off
 C_AREA_FACTOR = 16  # effect effective_area on/off
 C_INPUT_HOLD = 17  # sampled inputs (commands, y_ref): 1 held between samples, 0 linear
-NCFG = 18
+C_PART_EFFECTS = 18  # bit mask of the effects registered with kernel code outside the package
+NCFG = 19
 
 # HEAT_LAWS, VALVE_LAWS, FRICTION_LAWS (law name -> its code in C_HEAT,
 # C_VALVE_LAW, C_FRICTION_LAW) are live views of the parts registries

@@ -25,6 +25,7 @@ from pneumafit.models.layout import (
     C_HEAT,
     C_INPUT,
     C_INPUT_HOLD,
+    C_PART_EFFECTS,
     C_STATIC_FLOW,
     C_VALVE_LAW,
     NCFG,
@@ -226,16 +227,39 @@ class ModelStructure:
         cfg[C_VALVE_LAW] = VALVE_LAWS[self.valve]
         cfg[C_FRICTION_LAW] = FRICTION_LAWS[self.friction]
         cfg[C_INPUT_HOLD] = int(self.inputs == "hold")
+        law = parts.HEAT_LAWS[self.heat]
+        if law.code not in parts.KERNEL_HEAT_CODES and law.kernel is None:
+            raise PneumafitInputError(
+                f"model structure {self.name}: heat law {self.heat}: expected a law the compiled "
+                "kernel implements (codes 0-2) or one registered with its kernel code "
+                "(HeatLaw.kernel), found neither (a part known to the Python side only)"
+            )
+        for kind, registry, codes in (
+            ("valve law", parts.VALVE_LAWS[self.valve], parts.KERNEL_VALVE_CODES),
+            ("friction law", parts.FRICTION_LAWS[self.friction], parts.KERNEL_FRICTION_CODES),
+        ):
+            if registry.code not in codes:
+                raise PneumafitInputError(
+                    f"model structure {self.name}: {kind} {registry.name}: expected a law the "
+                    f"compiled kernel implements (codes {sorted(codes)}), found code "
+                    f"{registry.code} (a part known to the Python side only: valve and friction "
+                    "laws have no hook for outside code)"
+                )
         for name, value in self.effects.items():
             slot = EFFECT_SLOTS[name][0]
-            if slot is None:
+            if slot is not None:
+                cfg[slot] = value
+            elif parts.EFFECTS[name].kernel is not None:
+                if value:
+                    from pneumafit.models.part_kernel import effect_bit
+
+                    cfg[C_PART_EFFECTS] |= effect_bit(name)
+            else:
                 raise PneumafitInputError(
                     f"model structure {self.name}: effect {name}: expected an effect the compiled "
-                    "kernel implements (a configuration slot), found one registered without a "
-                    "slot (pneumafit.models.parts: parts defined outside the package have no "
-                    "kernel code)"
+                    "kernel implements (a configuration slot) or one registered with its kernel "
+                    "code (Effect.kernel), found neither (a part known to the Python side only)"
                 )
-            cfg[slot] = value
         return cfg
 
 

@@ -34,6 +34,7 @@ from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.part_kernel import kernel_for
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.numba_stamp import njit
 from pneumafit.simulation.experiment import Experiment
@@ -153,8 +154,12 @@ def solve_reference(
             f"solve_reference: experiment {experiment.name!r}: kind: expected a dynamic test "
             "(flow tests are static; nothing to integrate), found 'flow'"
         )
-    rhs = kernel.rhs if compiled else pure_python(kernel.rhs)
-    commands = kernel.commands if compiled else pure_python(kernel.commands)
+    # a structure with outside parts (models.part_kernel) runs on the kernel's
+    # copy bound to them: its compiled rhs, called from Python
+    kern = kernel_for(structure)
+    outside = kern is not kernel
+    rhs = kern.rhs if compiled else pure_python(kern.rhs)
+    commands = kern.commands if compiled else pure_python(kern.commands)
     law = experiment.controller.law if experiment.closed_loop else 0
     cfg = structure.config(blocked=experiment.blocked, chamber=experiment.chamber, closed_loop=law)
     ctrl = experiment.controller.as_array() if experiment.controller else np.zeros(NCTRL)
@@ -177,7 +182,7 @@ def solve_reference(
         atol_v = np.full(NX, atol)
 
     span = [0, t.size - 2]  # the sample intervals evaluate() may use
-    if compiled:
+    if compiled and not outside:
         inp_c = np.ascontiguousarray(inp, dtype=float)
 
         def evaluate(tt: float, xx: np.ndarray, mode: int) -> np.ndarray:

@@ -25,6 +25,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.kernel import (
     A_FD,
@@ -57,6 +58,7 @@ from pneumafit.models.layout import (
     X_Z,
 )
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.part_kernel import uses_outside_parts
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.numba_stamp import njit
 from pneumafit.simulation import counter
@@ -245,6 +247,12 @@ def simulate_sampled(
     from pneumafit.simulation.experiment import Experiment
 
     structure = get_structure(model)
+    if uses_outside_parts(structure):
+        raise PneumafitInputError(
+            f"sampled closed loop: model {structure.name}: expected parts the cached kernel "
+            "implements, found a heat law or effect registered with kernel code from outside "
+            "the package (pneumafit.models.part_kernel; simulate it with Simulator)"
+        )
     t = np.asarray(time, dtype=float)
     ref = np.asarray(y_ref, dtype=float)
     exp = Experiment(time=t, kind="step", y_ref=ref, u_P=np.zeros_like(t),

@@ -31,6 +31,7 @@ from pneumafit.models.layout import (
     P,
 )
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.part_kernel import kernel_for
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation import counter
 from pneumafit.simulation.experiment import Experiment
@@ -173,6 +174,8 @@ class Simulator:
         channels: Sequence[str] | None = None,
     ) -> None:
         self.structure = get_structure(model)
+        # the cached kernel, or its copy bound to outside parts (models.part_kernel)
+        self._kernel = kernel_for(self.structure)
         if not step > 0:
             raise PneumafitInputError(
                 f"simulator: step: expected a positive step in s, found {step}"
@@ -316,7 +319,7 @@ class Simulator:
             same[0] = False
             if same.any():
                 jobs = _balanced_jobs(~same, packed.offsets, nsub_all)
-                kernel.integrate_jobs(
+                self._kernel.integrate_jobs(
                     jobs, params, packed.cfgs, packed.ctrls, x0s, packed.t_all,
                     packed.inp_all, nsub_all, packed.offsets, tab.a, tab.b, tab.c,
                     self._ch_sel, out, status,
@@ -330,9 +333,9 @@ class Simulator:
                 counter.add(int(jobs.size))
                 return out, status
         run = (
-            kernel.integrate_many
+            self._kernel.integrate_many
             if n_sets * len(packed.experiments) > 1
-            else (kernel.integrate_many_serial)
+            else (self._kernel.integrate_many_serial)
         )
         run(
             params, packed.cfgs, packed.ctrls, x0s, packed.t_all, packed.inp_all,

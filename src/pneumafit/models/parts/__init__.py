@@ -25,15 +25,16 @@ live view of them: ``layout.HEAT_LAWS`` (name -> code), ``structure``'s
 the comparison and report colours and model lists.
 
 Limit: the compiled kernel (:mod:`pneumafit.models.kernel`) has fixed codes
-and slots. A part registered from outside the package is known to the Python
-side (structures, parameter lists, the catalog, model lists and colours) but
-the kernel has no code for it: an effect registered with ``slot=None`` cannot
-be put into a configuration vector (``ModelStructure.config`` raises), and a
-heat, valve or friction law with a new code reaches a kernel that does not
-branch on that code. Adding a part the kernel simulates means editing
-``models/layout.py`` (slot, parameters), ``models/kernel.py`` (the law) and
-this package (the part): docs/architecture.md, "Adding a part", and
-docs/effects.md, "Adding an effect".
+and slots for the built-in parts. A heat law or an effect registered from
+outside the package brings its compiled law (``HeatLaw.kernel``,
+``Effect.kernel``): its structures run on a copy of the kernel whose hooks
+call it (:mod:`pneumafit.models.part_kernel`). Without one it is known to
+the Python side only (structures, parameter lists, the catalog, model lists
+and colours) and ``ModelStructure.config`` refuses it; a valve or friction
+law with a new code has no hook at all. Every part names parameters of
+``models/layout.py``'s table. docs/architecture.md, "Adding a part", and
+docs/effects.md, "Adding an effect" and "An effect from outside the
+package".
 
 >>> HEAT_LAWS["convection"].parameters
 ('xi', 'beta')
@@ -53,6 +54,9 @@ from pneumafit.models.parts.registry import (
     EFFECTS,
     FRICTION_LAWS,
     HEAT_LAWS,
+    KERNEL_FRICTION_CODES,
+    KERNEL_HEAT_CODES,
+    KERNEL_VALVE_CODES,
     PRIOR_KINDS,
     VALVE_LAWS,
     Effect,
@@ -82,6 +86,9 @@ __all__ = [
     "FRICTION_LAW_CODES",
     "HEAT_LAWS",
     "HEAT_LAW_CODES",
+    "KERNEL_FRICTION_CODES",
+    "KERNEL_HEAT_CODES",
+    "KERNEL_VALVE_CODES",
     "MODEL_COLOURS",
     "MODEL_NAMES",
     "PRIOR_KINDS",

@@ -28,6 +28,7 @@ from pneumafit.models.layout import (
     C_HEAT,
     C_INPUT,
     C_INPUT_HOLD,
+    C_PART_EFFECTS,
     C_STATIC_FLOW,
     C_VALVE_LAW,
     NCFG,
@@ -38,6 +39,9 @@ __all__ = [
     "EFFECTS",
     "FRICTION_LAWS",
     "HEAT_LAWS",
+    "KERNEL_FRICTION_CODES",
+    "KERNEL_HEAT_CODES",
+    "KERNEL_VALVE_CODES",
     "MOVED_RECORDINGS",
     "PRIOR_KINDS",
     "VALVE_LAWS",
@@ -69,6 +73,15 @@ MOVED_RECORDINGS: frozenset[str] = frozenset({"blocked", "motion"})
 #: Prior kinds of a :class:`FitRange` (the discovery catalog's ``EffectPrior``).
 PRIOR_KINDS: tuple[str, ...] = ("log-uniform", "half-normal", "uniform")
 
+#: Heat-law codes the compiled kernel has a branch for (polytropic, constant
+#: lambda, convection); a law with another code brings its ``kernel``.
+KERNEL_HEAT_CODES: frozenset[int] = frozenset({0, 1, 2})
+#: Valve- and friction-law codes the compiled kernel has a branch for (ISO
+#: 6358 and the measured map; the switch model and LuGre): these laws have no
+#: hook for outside code.
+KERNEL_VALVE_CODES: frozenset[int] = frozenset({0, 1})
+KERNEL_FRICTION_CODES: frozenset[int] = frozenset({0, 1})
+
 #: Configuration slots that are not an effect's: the laws and the experiment.
 _RESERVED_SLOTS = {
     C_HEAT: "heat law",
@@ -80,6 +93,7 @@ _RESERVED_SLOTS = {
     C_VALVE_LAW: "valve law",
     C_FRICTION_LAW: "friction law",
     C_INPUT_HOLD: "input hold",
+    C_PART_EFFECTS: "effects with kernel code from outside the package",
 }
 
 
@@ -145,6 +159,15 @@ class HeatLaw:
         Further parameters the law uses, held at their table default (the law
         as written) unless the heat stage's likelihood-ratio test frees them,
         e.g. ``heat_area_ends``, the exchange area's convention.
+    kernel : numba function or None
+        The law's compiled code when it is not one of the kernel's own
+        (codes outside :data:`KERNEL_HEAT_CODES`): an ``@njit`` function
+        ``lam(p, pres, temp, t_wall) -> float``, lambda (W/m^2/K) from the
+        parameter vector (SI, ``layout.P``), the chamber pressure (Pa) and
+        the gas and wall temperatures (K); it may not allocate arrays
+        (:mod:`pneumafit.models.part_kernel`). None: the kernel's branch
+        (built-in laws), or a law known to the Python side only, whose
+        structure cannot be simulated.
     """
 
     name: str
@@ -156,6 +179,7 @@ class HeatLaw:
     order: int
     starts: tuple[Mapping[str, float], ...] = ()
     extensions: tuple[str, ...] = ()
+    kernel: Callable[..., float] | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -290,10 +314,10 @@ class Effect:
         Name (``ModelStructure.effects``, the discovery catalog, ``--effect``).
     slot : int or None
         Configuration slot (``layout.C_*``) the compiled kernel reads; the
-        structure writes the option value there. None: the kernel does not
-        implement the effect (a part defined outside the package): the
-        Python side knows it, but a structure with it switched on cannot
-        make a configuration vector.
+        structure writes the option value there. None: the kernel has no
+        slot for the effect (a part defined outside the package): it brings
+        its ``kernel``, or it is known to the Python side only and a
+        structure with it switched on cannot make a configuration vector.
     parameters : tuple of str
         All its parameters over all options (``PARAMETER_SPECS`` names).
     description : str
@@ -336,6 +360,15 @@ class Effect:
         declares ``{"motion"}``, so a finite-difference Jacobian does not
         re-simulate the blocked tests for it
         (:meth:`pneumafit.identification.Problem.unaffected`).
+    kernel : numba function or None
+        The effect's compiled code when it has no slot (``slot=None``): an
+        ``@njit`` function ``eff(x, p) -> (q_P, H_P, q_N, H_N, q_atm, F)``
+        of the state (``layout.X_*``) and the parameters (SI): mass flows
+        into chambers P and N (kg/s), the enthalpy they carry as sum q_i T_i
+        (kg K/s), mass sent to atmosphere (kg/s) and a force on the piston
+        along +y (N); it may not allocate arrays
+        (:mod:`pneumafit.models.part_kernel`). Such an effect has the single
+        option 1.
     """
 
     name: str
@@ -353,6 +386,7 @@ class Effect:
     inverse_coefficient: bool = False
     start_floor: float = 0.0
     moves: frozenset[str] = frozenset({"blocked", "motion"})
+    kernel: Callable[..., tuple[float, ...]] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         options = {int(k): tuple(v) for k, v in self.options.items()} or {1: self.parameters}
@@ -463,6 +497,17 @@ def _check_law(registry: Mapping[str, Any], part: Any, kind: str, replace: bool)
     return where
 
 
+def _check_kernel(where: str, function: object) -> None:
+    """A part's kernel code is a numba njit function (or None)."""
+    if function is not None and not (
+        callable(function) and callable(getattr(function, "py_func", None))
+    ):
+        raise PneumafitInputError(
+            f"{where}: kernel: expected a numba @njit function or None, "
+            f"found {type(function).__name__}"
+        )
+
+
 def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
     """Add a heat law to :data:`HEAT_LAWS` after checking it.
 
@@ -481,6 +526,12 @@ def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
         A failed check; nothing is registered.
     """
     where = _check_law(_HEAT, law, "heat law", replace)
+    _check_kernel(where, law.kernel)
+    if law.kernel is not None and law.code in KERNEL_HEAT_CODES:
+        raise PneumafitInputError(
+            f"{where}: kernel: expected a code outside {sorted(KERNEL_HEAT_CODES)} (the "
+            f"kernel's own branches), found {law.code}"
+        )
     if law.extensions:
         _check_parameters(f"{where}: extensions", (*law.parameters, *law.extensions))
     for start in law.starts:
@@ -505,7 +556,8 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
 
     Checks: an identifier as name, new unless ``replace``; a configuration
     slot inside the layout, not a law's or the experiment's, not another
-    effect's (or None: no kernel code); parameters in the parameter table;
+    effect's (or None: no slot, with or without kernel code of its own);
+    parameters in the parameter table;
     options >= 1 using only its parameters and together all of them; the
     principal parameter among them with its rig default inside its
     physical bounds; one fit range per parameter, inside the physical
@@ -538,6 +590,18 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
         raise PneumafitInputError(
             f"{where}: an effect of this name is registered; pass replace=True"
         )
+    _check_kernel(where, effect.kernel)
+    if effect.kernel is not None:
+        if effect.slot is not None:
+            raise PneumafitInputError(
+                f"{where}: kernel: expected slot=None for an effect with kernel code of its "
+                f"own, found slot {effect.slot!r}"
+            )
+        if set(effect.options) != {1}:
+            raise PneumafitInputError(
+                f"{where}: options: expected the single option 1 for an effect with kernel "
+                f"code of its own, found {sorted(effect.options)}"
+            )
     if effect.slot is not None:
         if not isinstance(effect.slot, int) or not 0 <= effect.slot < NCFG:
             raise PneumafitInputError(

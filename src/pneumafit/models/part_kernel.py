@@ -1,0 +1,271 @@
+"""The compiled kernel for structures that use parts registered outside the package.
+
+The cached kernel (:mod:`pneumafit.models.kernel`) has a fixed branch per
+built-in heat law and a configuration slot per built-in effect. A part
+registered from outside the package (a notebook, a plug-in module) brings
+its own compiled code instead:
+
+- a heat law (``HeatLaw.kernel``): ``lam(p, pres, temp, t_wall) -> float``,
+  the heat-transfer coefficient lambda (W/m^2/K) of one chamber from the
+  parameter vector p (SI, ``layout.P``), its pressure (Pa), gas temperature
+  and wall temperature (K). The chamber balance is the kernel's (paper eqs.
+  2-5 with Q = lambda A (T_w - T)): a heat law is a lambda law;
+- an effect (``Effect.kernel``): ``eff(x, p) -> (q_P, H_P, q_N, H_N, q_atm,
+  F)``, from the state x (``layout.X_*``) and p: mass flows into chambers P
+  and N (kg/s), the enthalpy they carry as sum q_i T_i (kg K/s: inflows at
+  their upstream temperature, outflows at the chamber's), the mass sent to
+  atmosphere (kg/s, for the air consumed) and a force on the piston along
+  +y (N). The structure switches it on by its bit in the configuration slot
+  ``C_PART_EFFECTS``.
+
+Both are numba ``@njit`` functions. They are compiled again here with the
+kernel's own flags (``fastmath`` as the kernel, no reference counting): they
+may not allocate arrays.
+
+:func:`kernel_for` returns the module a structure runs on: the cached
+kernel when it uses built-in parts only, else a copy of the kernel's source
+compiled, without numba's disk cache, with its two hooks
+(``kernel.part_heat``, ``kernel.part_effects``) bound to every outside part
+registered at the time. The copy is made once per set of registered parts
+(the first simulation compiles it: about a minute on the 2-core machine,
+every time a process starts) and is exactly the kernel otherwise: the same
+integrator, events and health checks.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import types
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pneumafit.errors import PneumafitInputError
+from pneumafit.models import kernel, parts
+from pneumafit.models.layout import C_HEAT, C_PART_EFFECTS, NX
+from pneumafit.physics.friction import FASTMATH
+
+if TYPE_CHECKING:
+    from pneumafit.models.structure import ModelStructure
+
+__all__ = [
+    "MAX_PART_EFFECTS",
+    "effect_bit",
+    "hooked_effects",
+    "hooked_heat_laws",
+    "kernel_for",
+    "kernel_for_config",
+    "rebound",
+    "uses_outside_parts",
+]
+
+#: Outside effects with kernel code that can be registered at once (bits of
+#: the int64 configuration slot ``C_PART_EFFECTS``).
+MAX_PART_EFFECTS = 62
+
+_BUILT: dict[tuple[object, ...], ModuleType] = {}
+_REBOUND: dict[tuple[Any, str], Any] = {}
+
+
+def hooked_heat_laws() -> list[parts.HeatLaw]:
+    """The registered heat laws with kernel code of their own, by code."""
+    laws = [h for h in parts.HEAT_LAWS.values() if h.kernel is not None]
+    return sorted(laws, key=lambda h: h.code)
+
+
+def hooked_effects() -> list[parts.Effect]:
+    """The registered effects with kernel code of their own, in registration order."""
+    return [e for e in parts.EFFECTS.values() if e.kernel is not None]
+
+
+def effect_bit(name: str) -> int:
+    """The bit of an outside effect in the configuration slot ``C_PART_EFFECTS``.
+
+    Raises
+    ------
+    PneumafitInputError
+        ``name`` is not a registered effect with kernel code.
+    """
+    names = [e.name for e in hooked_effects()]
+    if name not in names:
+        raise PneumafitInputError(
+            f"effect {name!r}: expected an effect registered with kernel code "
+            f"(Effect.kernel), found {'none' if name not in parts.EFFECTS else 'no kernel code'}"
+        )
+    index = names.index(name)
+    if index >= MAX_PART_EFFECTS:
+        raise PneumafitInputError(
+            f"effect {name!r}: expected at most {MAX_PART_EFFECTS} effects with kernel code "
+            f"registered outside the package, found {len(names)}"
+        )
+    return 1 << index
+
+
+def uses_outside_parts(structure: ModelStructure) -> bool:
+    """True when the structure's heat law or one of its effects has outside kernel code."""
+    if parts.HEAT_LAWS[structure.heat].kernel is not None:
+        return True
+    return any(
+        value and parts.EFFECTS[name].kernel is not None
+        for name, value in structure.effects.items()
+    )
+
+
+def kernel_for(structure: ModelStructure | None) -> ModuleType:
+    """The compiled kernel module a structure runs on.
+
+    Parameters
+    ----------
+    structure : ModelStructure or None
+        None: the cached kernel (built-in parts).
+
+    Returns
+    -------
+    module
+        :mod:`pneumafit.models.kernel`, or its copy with the hooks bound to
+        the outside parts registered now (built once per set of parts).
+    """
+    if structure is None or not uses_outside_parts(structure):
+        return kernel
+    return _copy()
+
+
+def kernel_for_config(cfg: np.ndarray) -> ModuleType:
+    """The compiled kernel module for a configuration vector (as :func:`kernel_for`).
+
+    Parameters
+    ----------
+    cfg : ndarray of int, shape (NCFG,)
+        ``ModelStructure.config()``.
+    """
+    if int(cfg[C_HEAT]) in parts.KERNEL_HEAT_CODES and int(cfg[C_PART_EFFECTS]) == 0:
+        return kernel
+    return _copy()
+
+
+def rebound(function: Any, module: ModuleType) -> Any:
+    """A compiled function of another module that calls ``kernel.*``, bound to ``module``.
+
+    Parameters
+    ----------
+    function : numba dispatcher
+        A function whose code reaches the kernel as the global ``kernel``
+        (``kernel.rhs(...)``), e.g. discovery's rates along a recording.
+    module : module
+        :func:`kernel_for`'s result.
+
+    Returns
+    -------
+    numba dispatcher
+        ``function`` itself for the cached kernel; else the same code with
+        ``kernel`` bound to ``module``, compiled with the same options and no
+        disk cache (once per function and module).
+    """
+    if module is kernel:
+        return function
+    key = (function, module.__name__)
+    bound = _REBOUND.get(key)
+    if bound is None:
+        from numba import njit
+
+        py = function.py_func
+        env = dict(py.__globals__)
+        env["kernel"] = module
+        copy = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
+        options = {
+            k: v for k, v in function.targetoptions.items() if k not in ("cache", "nopython")
+        }
+        bound = _REBOUND[key] = njit(cache=False, **options)(copy)
+    return bound
+
+
+def _copy() -> ModuleType:
+    """The kernel's copy bound to the outside parts registered now (built once per set)."""
+    heat = hooked_heat_laws()
+    effects = hooked_effects()
+    key = (
+        tuple((h.name, h.code, id(h.kernel)) for h in heat),
+        tuple((e.name, id(e.kernel)) for e in effects),
+    )
+    module = _BUILT.get(key)
+    if module is None:
+        module = _BUILT[key] = _build(heat, effects, len(_BUILT))
+    return module
+
+
+def _hook_source(heat: list[parts.HeatLaw], effects: list[parts.Effect]) -> str:
+    """Source of the two hooks, dispatching on the heat code and the effect bits."""
+    lines = [
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_heat(heat, p, pres, temp, t_wall):",
+    ]
+    for h in heat:
+        lines += [
+            f"    if heat == {int(h.code)}:",
+            f"        return _heat_{int(h.code)}(p, pres, temp, t_wall)",
+        ]
+    lines += [
+        "    return math.nan",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_effects(mask, x, p):",
+        "    q_p = 0.0",
+        "    h_p = 0.0",
+        "    q_n = 0.0",
+        "    h_n = 0.0",
+        "    q_a = 0.0",
+        "    f = 0.0",
+    ]
+    for i in range(len(effects)):
+        lines += [
+            f"    if mask & {1 << i}:",
+            f"        a0, a1, a2, a3, a4, a5 = _effect_{i}(x, p)",
+            "        q_p += a0",
+            "        h_p += a1",
+            "        q_n += a2",
+            "        h_n += a3",
+            "        q_a += a4",
+            "        f += a5",
+        ]
+    lines += ["    return q_p, h_p, q_n, h_n, q_a, f", ""]
+    return "\n".join(lines)
+
+
+def _recompiled(function: object, where: str) -> object:
+    """A part's njit function compiled again with the kernel's flags."""
+    py_func = getattr(function, "py_func", None)
+    if py_func is None:
+        raise PneumafitInputError(
+            f"{where}: kernel: expected a numba @njit function, found {type(function).__name__}"
+        )
+    from numba import njit
+
+    return njit(cache=False, fastmath=FASTMATH, _nrt=False)(py_func)
+
+
+def _build(heat: list[parts.HeatLaw], effects: list[parts.Effect], serial: int) -> ModuleType:
+    """Compile-ready copy of the kernel module with its hooks bound to ``heat`` and ``effects``."""
+    source = Path(kernel.__file__).read_text(encoding="utf-8")
+    # the copy must not read or write numba's disk cache: its hooks are not
+    # in the kernel file the cache is keyed on
+    source = source.replace("cache=True", "cache=False")
+    name = f"pneumafit.models._part_kernel_{serial}"
+    module = ModuleType(name)
+    module.__file__ = kernel.__file__
+    sys.modules[name] = module  # numba resolves a function's globals through its module
+    code = compile(source, f"<pneumafit kernel copy {serial}>", "exec")
+    exec(code, module.__dict__)
+    namespace = module.__dict__
+    for law in heat:
+        namespace[f"_heat_{int(law.code)}"] = _recompiled(law.kernel, f"heat law {law.name!r}")
+    for i, effect in enumerate(effects):
+        namespace[f"_effect_{i}"] = _recompiled(effect.kernel, f"effect {effect.name!r}")
+    namespace.setdefault("math", math)
+    exec(compile(_hook_source(heat, effects), f"<pneumafit part hooks {serial}>", "exec"),
+         namespace)  # fmt: skip
+    assert namespace["NX"] == NX and namespace["C_PART_EFFECTS"] == C_PART_EFFECTS
+    return module

@@ -162,8 +162,18 @@ def _root(
         typer.Option("--version", callback=_version, is_eager=True,
                      help="Print the version and exit."),
     ] = False,
+    parts: Annotated[
+        list[str] | None,
+        typer.Option("--parts", metavar="<file.py|module>",
+                     help="A Python file or module that registers heat laws or effects "
+                     "(pneumafit.models.parts) before the command runs; repeatable. Also "
+                     "PNEUMAFIT_PARTS and the entry points of group pneumafit.parts."),
+    ] = None,
 ) -> None:  # fmt: skip
     """Identify and validate models of electropneumatic actuators."""
+    from pneumafit.cli.plugins import load_parts
+
+    load_parts(parts or ())
 
 
 def _quantity(text: str, unit: str, option: str) -> float:

@@ -150,7 +150,8 @@ def fit_command(
     ]
     if model not in MODELS:
         problems.append(
-            f"option --model: expected one of {', '.join(MODELS)}, friction, found {model!r}"
+            f"option --model: expected one of {', '.join(MODELS)}, friction, found {model!r} "
+            "(a heat law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
         )
     if valve not in VALVE_LAWS:
         problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")

@@ -1,0 +1,128 @@
+"""Physics parts from outside the package, for the command line.
+
+A heat law or an effect written outside the package (``HeatLaw``/``Effect``
+with its ``@njit`` law, docs/effects.md "An effect from outside the
+package") is registered by importing the module that defines it. From
+Python, importing it is enough. The command line imports, before any
+command runs:
+
+- every entry point of the group ``pneumafit.parts`` of the installed
+  distributions (a plug-in package declares
+  ``[project.entry-points."pneumafit.parts"] name = "my_package.parts"``);
+- each file or module named by ``pneumafit --parts PATH_OR_MODULE``
+  (repeatable) or by the environment variable ``PNEUMAFIT_PARTS``
+  (separated by the path separator, ``:`` on POSIX).
+
+``--parts`` is copied into ``PNEUMAFIT_PARTS``, so that processes the
+command starts (``fit-many``'s workers) load the same parts. A name that
+cannot be loaded is an input error naming it and the reason (exit 2).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import os
+import sys
+from collections.abc import Sequence
+from importlib.metadata import entry_points
+from pathlib import Path
+from types import ModuleType
+
+from pneumafit.errors import PneumafitInputError
+
+__all__ = ["ENTRY_POINT_GROUP", "ENVIRONMENT_VARIABLE", "load_parts"]
+
+#: Entry-point group of plug-in packages that register parts on import.
+ENTRY_POINT_GROUP = "pneumafit.parts"
+#: Environment variable naming files or modules of parts (os.pathsep-separated).
+ENVIRONMENT_VARIABLE = "PNEUMAFIT_PARTS"
+
+_LOADED: dict[str, ModuleType] = {}
+
+
+def _load_one(name: str, where: str) -> ModuleType:
+    """Import a file (``*.py`` or an existing path) or a module by name, once per process."""
+    path = Path(name).expanduser()
+    is_file = name.endswith(".py") or path.is_file()
+    key = str(path.resolve()) if is_file else name
+    if key in _LOADED:
+        return _LOADED[key]
+    try:
+        if is_file:
+            if not path.is_file():
+                raise FileNotFoundError(f"no such file: {os.fspath(path)}")
+            digest = hashlib.sha256(key.encode()).hexdigest()[:12]
+            module_name = f"pneumafit_parts_{path.stem}_{digest}"
+            spec = importlib.util.spec_from_file_location(module_name, path)
+            if spec is None or spec.loader is None:
+                raise ImportError(f"not a Python file: {os.fspath(path)}")
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[module_name] = module
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                sys.modules.pop(module_name, None)
+                raise
+        else:
+            module = importlib.import_module(name)
+    except PneumafitInputError as exc:  # a part refused by its registry
+        raise PneumafitInputError(f"{where} {name!r}: {exc}") from None
+    except (ImportError, OSError, SyntaxError) as exc:
+        raise PneumafitInputError(
+            f"{where} {name!r}: expected a Python file or an importable module that registers "
+            f"parts (pneumafit.models.parts), found {type(exc).__name__}: {exc}"
+        ) from None
+    _LOADED[key] = module
+    return module
+
+
+def load_parts(names: Sequence[str] = ()) -> list[str]:
+    """Import the parts' modules: entry points, ``names``, then ``PNEUMAFIT_PARTS``.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Files or module names (``--parts``); added to ``PNEUMAFIT_PARTS`` in
+        this process's environment.
+
+    Returns
+    -------
+    list of str
+        What was loaded, in order (entry points as ``group:name``).
+
+    Raises
+    ------
+    PneumafitInputError
+        A file or module that cannot be imported, or whose parts a registry
+        refuses, naming it.
+    """
+    loaded = []
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        key = f"{ENTRY_POINT_GROUP}:{ep.name}"
+        if key not in _LOADED:
+            try:
+                _LOADED[key] = ep.load()
+            except Exception as exc:  # a third-party package: name it, whatever it raised
+                raise PneumafitInputError(
+                    f"entry point {ep.name!r} of group {ENTRY_POINT_GROUP} ({ep.value}): cannot "
+                    f"be loaded: {type(exc).__name__}: {exc}"
+                ) from None
+        loaded.append(key)
+    env = [n for n in os.environ.get(ENVIRONMENT_VARIABLE, "").split(os.pathsep) if n]
+    given = []
+    for name in names:
+        _load_one(name, "option --parts")
+        loaded.append(name)
+        # a file by its absolute path: a worker may start elsewhere
+        path = Path(name).expanduser()
+        given.append(str(path.resolve()) if name.endswith(".py") or path.is_file() else name)
+    for name in env:
+        if name not in given:
+            _load_one(name, f"environment variable {ENVIRONMENT_VARIABLE}:")
+            loaded.append(name)
+    env += [n for n in given if n not in env]
+    if env:
+        os.environ[ENVIRONMENT_VARIABLE] = os.pathsep.join(env)
+    return loaded

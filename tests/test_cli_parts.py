@@ -18,7 +18,7 @@ import pytest
 
 from pneumafit.cli import plugins
 from pneumafit.errors import PneumafitInputError
-from pneumafit.models import parts
+from pneumafit.models import layout, parts
 
 PARTS_FILE = '''
 """A heat law of my own: lambda growing as the square root of the pressure."""
@@ -26,20 +26,24 @@ import math
 
 from numba import njit
 
-from pneumafit.models import layout, parts
+from pneumafit.models import ParameterSpec, layout, parts
 
-LAM = layout.P["lambda"]
+parts.register_parameter(ParameterSpec(
+    "root_p_coefficient", "W/m^2/K", 10.0, 0.1, 1000.0, "heat",
+    "lambda at 1 bar of the square-root law",
+))
+C = layout.P["root_p_coefficient"]
 
 
 @njit
 def root_pressure(p, pres, temp, t_wall):
-    return p[LAM] * math.sqrt(pres / 1.0e5)
+    return p[C] * math.sqrt(pres / 1.0e5)
 
 
 parts.register_heat_law(parts.HeatLaw(
-    name="root-p", code=8, parameters=("lambda",), description="lambda ~ sqrt(P / 1 bar)",
-    label="root-p", colour="tab:purple", order=5, starts=({"lambda": 7.0}, {"lambda": 20.0}),
-    kernel=root_pressure,
+    name="root-p", code=8, parameters=("root_p_coefficient",),
+    description="lambda ~ sqrt(P / 1 bar)", label="root-p", colour="tab:purple", order=5,
+    starts=({"root_p_coefficient": 7.0}, {"root_p_coefficient": 20.0}), kernel=root_pressure,
 ))
 '''
 
@@ -50,9 +54,12 @@ def clean(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     monkeypatch.delenv(plugins.ENVIRONMENT_VARIABLE, raising=False)
     loaded = dict(plugins._LOADED)
     heat = set(parts.HEAT_LAWS)
+    n = layout.n_parameters()
     yield
     for name in set(parts.HEAT_LAWS) - heat:
         parts.unregister_heat_law(name)
+    while layout.n_parameters() > n:
+        parts.unregister_parameter(layout.PARAMETER_NAMES[-1])
     plugins._LOADED.clear()
     plugins._LOADED.update(loaded)
 
@@ -78,6 +85,7 @@ def test_a_parts_file_is_loaded_once_and_named_for_workers(clean: None, tmp_path
         ("def broken(:\n", "SyntaxError"),
         ("import not_a_module_anywhere\n", "ModuleNotFoundError"),
         (PARTS_FILE.replace("code=8", "code=2"), "code 2: expected a code no other heat law has"),
+        (PARTS_FILE.replace('"W/m^2/K"', '"W/cm^2/K"'), "expected an SI unit"),
     ],
 )
 def test_a_bad_parts_file_is_named(

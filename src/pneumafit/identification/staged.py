@@ -97,7 +97,7 @@ from pneumafit.identification.starts import (
     stribeck_candidates,
     valve_starts,
 )
-from pneumafit.models.layout import FRICTION_LAWS, PARAMETER_SPECS, SPECS
+from pneumafit.models.layout import FRICTION_LAWS, SPECS
 from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
@@ -253,7 +253,12 @@ MAP_LEAK_PARAMETERS: tuple[str, ...] = (
     MAP_CE_NAMES[CENTRE_KNOT],
 )
 _VALVE_GROUPS = ("valve", "valve_map")
-SPECS_GROUP = {s.name: s.group for s in PARAMETER_SPECS}
+
+
+def _group(name: str) -> str | None:
+    """A parameter's group in the (live) table, None for names outside it."""
+    spec = SPECS.get(name)
+    return None if spec is None else spec.group
 
 
 #: Sonic conductance of each path: without a fit flow test, the only valve
@@ -430,14 +435,14 @@ def _iso_valve(
 ) -> dict[str, float]:
     """ISO 6358 fit of the flow tests (the valve map's start)."""
     iso = replace(structure, valve="iso6358")
-    rig = {n: values[n] for n in values if SPECS_GROUP.get(n) == "rig"}
+    rig = {n: values[n] for n in values if _group(n) == "rig"}
     informed = _informed_valve(flows_campaign, {**values, **rig}, VALVE_PARAMETERS)
     ps = ParameterSet.for_model(iso, rig).only_free(informed)
     prob = _problem(flows, iso, {**ps.values(), **rig}, options)
     starts = valve_starts(flows, rig)
     prob.linearize({**ps.values(), **starts[0]})
     est = _least_squares(prob, ps, starts, seed, progress=progress)
-    return {n: est.parameters[n].value for n in ps.names if SPECS_GROUP.get(n) == "valve"}
+    return {n: est.parameters[n].value for n in ps.names if _group(n) == "valve"}
 
 
 def _uninformed_knots(campaign: Campaign, values: Mapping[str, float]) -> list[str]:
@@ -1204,7 +1209,7 @@ def identify(
     # ------------------------------------------------------------ (a) valve
     valve_free = _informed_valve(
         campaign, values,
-        [n for n in params.free_names if SPECS_GROUP.get(n) in _VALVE_GROUPS],
+        [n for n in params.free_names if _group(n) in _VALVE_GROUPS],
     )  # fmt: skip
     leak_names = LEAK_PARAMETERS if structure.valve == "iso6358" else MAP_LEAK_PARAMETERS
     valve_key = _valve_key(campaign, structure, seeds[0], opts)

@@ -7,7 +7,9 @@ here once; everything else refers to the names.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 from pneumafit.physics.seal_effects import SEAL_EFFECTS
 from pneumafit.physics.valve_map import (
@@ -127,6 +129,7 @@ class ParameterSpec:
 
 
 _INF = float("inf")
+_T = TypeVar("_T")
 
 
 def _seal_spec(name: str) -> ParameterSpec:
@@ -268,15 +271,81 @@ def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
     return tuple(specs)
 
 
-#: Every model parameter. The valve-map parameters come last, after the base
-#: block; every index is taken by name (P, P_* below, and the map's contiguous
-#: blocks P_MAP_*), so appending to the base block only shifts the map block.
-PARAMETER_SPECS: tuple[ParameterSpec, ...] = _BASE_SPECS + _map_specs(_BASE_SPECS)
+class _LiveTuple(Sequence[_T]):
+    """A read-only tuple view of a list this module appends to (compares equal to a tuple)."""
 
-PARAMETER_NAMES: tuple[str, ...] = tuple(s.name for s in PARAMETER_SPECS)
-NP = len(PARAMETER_SPECS)
-P = {name: i for i, name in enumerate(PARAMETER_NAMES)}
-SPECS = {s.name: s for s in PARAMETER_SPECS}
+    def __init__(self, items: list[_T]) -> None:
+        self._items = items
+
+    def __getitem__(self, index: Any) -> Any:
+        return tuple(self._items)[index] if isinstance(index, slice) else self._items[index]
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __iter__(self) -> Iterator[_T]:
+        return iter(tuple(self._items))
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (tuple, list, _LiveTuple)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __add__(self, other: Sequence[_T]) -> tuple[_T, ...]:
+        return (*self._items, *other)
+
+    def __repr__(self) -> str:
+        return repr(tuple(self._items))
+
+
+_SPEC_LIST: list[ParameterSpec] = list(_BASE_SPECS + _map_specs(_BASE_SPECS))
+_NAME_LIST: list[str] = [s.name for s in _SPEC_LIST]
+
+#: Every model parameter. The valve-map parameters come after the base block;
+#: every index is taken by name (P, P_* below, and the map's contiguous blocks
+#: P_MAP_*), so appending to the base block only shifts the map block.
+#: Parameters of parts from outside the package
+#: (:func:`pneumafit.models.parts.register_parameter`) come last, in
+#: registration order: this table, :data:`PARAMETER_NAMES`, :data:`P` and
+#: :data:`SPECS` are live (the vector grows; no built-in index moves).
+PARAMETER_SPECS: Sequence[ParameterSpec] = _LiveTuple(_SPEC_LIST)
+#: The parameter names, in vector order (live, as :data:`PARAMETER_SPECS`).
+PARAMETER_NAMES: Sequence[str] = _LiveTuple(_NAME_LIST)
+#: Number of built-in parameters (the package's own vector length); with
+#: parameters registered from outside, :func:`n_parameters` is the length.
+NP = len(_SPEC_LIST)
+P = {name: i for i, name in enumerate(_NAME_LIST)}
+SPECS = {s.name: s for s in _SPEC_LIST}
+
+#: Groups a parameter registered from outside the package may have: its
+#: part's (a heat law's or an effect's).
+PART_PARAMETER_GROUPS = ("heat", "effect")
+
+
+def n_parameters() -> int:
+    """Length of the parameter vector: the built-in parameters and any registered since."""
+    return len(_SPEC_LIST)
+
+
+def _append_parameter(spec: ParameterSpec) -> int:
+    """Append a parameter to the table (``parts.register_parameter`` checks it first)."""
+    _SPEC_LIST.append(spec)
+    _NAME_LIST.append(spec.name)
+    P[spec.name] = len(_SPEC_LIST) - 1
+    SPECS[spec.name] = spec
+    return P[spec.name]
+
+
+def _remove_last_parameter(name: str) -> None:
+    """Remove the last parameter, which must be ``name`` and registered from outside."""
+    if len(_SPEC_LIST) <= NP or _NAME_LIST[-1] != name:
+        raise ValueError(f"parameter {name!r}: only the last one registered can be removed")
+    _SPEC_LIST.pop()
+    _NAME_LIST.pop()
+    del P[name], SPECS[name]
+
 
 # Integer indices for the kernels (numba treats module globals as constants).
 P_BORE = P["bore"]

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pneumafit.errors import PneumafitInputError
-from pneumafit.models.layout import NP, PARAMETER_NAMES, SPECS, P
+from pneumafit.models.layout import PARAMETER_NAMES, SPECS, P, n_parameters
 
 
 def default_parameters() -> dict[str, float]:
@@ -72,6 +72,7 @@ def parameter_vector(
 def parameter_dict(vector: np.ndarray) -> dict[str, float]:
     """Inverse of :func:`parameter_vector`: name -> value (SI)."""
     vector = np.asarray(vector, dtype=float)
-    if vector.shape != (NP,):
-        raise PneumafitInputError(f"parameter vector: expected shape ({NP},), found {vector.shape}")
+    n = n_parameters()
+    if vector.shape != (n,):
+        raise PneumafitInputError(f"parameter vector: expected shape ({n},), found {vector.shape}")
     return {name: float(vector[i]) for i, name in enumerate(PARAMETER_NAMES)}

@@ -25,10 +25,10 @@ from pneumafit.models.layout import (
     CHANNELS,
     FRICTION_LAWS,
     NCTRL,
-    NP,
     NX,
     VALVE_LAWS,
     P,
+    n_parameters,
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.part_kernel import kernel_for
@@ -289,9 +289,10 @@ class Simulator:
         # writable C arrays only: numba compiles a read-only array as another
         # type, so a read-only input would compile the integrator a second time
         params = np.require(np.atleast_2d(parameter_sets), dtype=float, requirements="CW")
-        if params.shape[1] != NP:
+        if params.shape[1] != n_parameters():
             raise PneumafitInputError(
-                f"simulator: parameter sets: expected shape (n, {NP}), found {params.shape}"
+                f"simulator: parameter sets: expected shape (n, {n_parameters()}), "
+                f"found {params.shape}"
             )
         n_sets = params.shape[0]
         n_exp = len(packed.experiments)

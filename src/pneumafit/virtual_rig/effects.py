@@ -15,12 +15,14 @@ ResolvedEffects(structure={'chamber_leakage': 1}, parameters={'chamber_leak_cond
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from pneumafit.campaign.errors import PneumafitInputError
-from pneumafit.models import EFFECT_SLOTS, PARAMETER_SPECS
-from pneumafit.models.parts import EFFECTS
+from pneumafit.models import EFFECT_SLOTS
+from pneumafit.models.layout import SPECS
+from pneumafit.models.parts import EFFECTS, RegistryView
 
 __all__ = [
     "EFFECT_DEFAULTS",
@@ -30,18 +32,39 @@ __all__ = [
     "resolve_effects",
 ]
 
-_SPECS = {s.name: s for s in PARAMETER_SPECS}
 
 #: Parameter set by ``--effect NAME=VALUE`` when NAME is an effect slot
 #: (:attr:`pneumafit.models.parts.Effect.principal`).
-PRINCIPAL_PARAMETERS: dict[str, str] = {e.name: e.principal for e in EFFECTS.values()}
+PRINCIPAL_PARAMETERS: Mapping[str, str] = RegistryView(EFFECTS, lambda e: e.principal)
+
+
+class _Live(Mapping[str, Any]):
+    """A read-only table recomputed from the effects registry at each use."""
+
+    def __init__(self, build: Callable[[], dict[str, Any]]) -> None:
+        self._build = build
+
+    def __getitem__(self, key: str) -> Any:
+        return self._build()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._build())
+
+    def __len__(self) -> int:
+        return len(self._build())
+
+    def __repr__(self) -> str:
+        return repr(self._build())
+
 
 #: Default magnitude of each effect's principal parameter (SI), used when an
 #: effect is named without a value (:attr:`pneumafit.models.parts.Effect.rig_default`;
 #: chosen so that the effect is clearly visible in the demo protocol, see
 #: :mod:`pneumafit.models.parts.effects`). The seal and barrel effects take
 #: their shared typical sizes (:mod:`pneumafit.physics.seal_effects`).
-EFFECT_DEFAULTS: dict[str, float] = {e.principal: e.rig_default for e in EFFECTS.values()}
+EFFECT_DEFAULTS: Mapping[str, float] = _Live(
+    lambda: {e.principal: e.rig_default for e in EFFECTS.values()}
+)
 
 #: Second-order spool parameters: naming one selects valve_dynamics order 2.
 _SECOND_ORDER = ("valve_natural_frequency", "valve_damping_ratio")
@@ -55,7 +78,7 @@ def _effect_of_parameter() -> dict[str, str]:
     return owner
 
 
-_OWNER = _effect_of_parameter()
+_OWNER: Mapping[str, str] = _Live(_effect_of_parameter)
 
 
 @dataclass(frozen=True)
@@ -130,7 +153,7 @@ def parse_effect_options(options: Iterable[str]) -> dict[str, float | None]:
 
 
 def _check_value(name: str, value: float, where: str) -> float:
-    spec = _SPECS[name]
+    spec = SPECS[name]
     # a principal parameter of 0 would switch the effect on with no effect,
     # and a zero valve time constant divides by zero: ask for > 0
     positive = name in EFFECT_DEFAULTS or name in _SECOND_ORDER
@@ -176,7 +199,7 @@ def resolve_effects(effects: Mapping[str, float | None]) -> ResolvedEffects:
         else:
             raise PneumafitInputError(f"{where}: expected {_names_help()}, found {name!r}")
         if value is None:
-            value = EFFECT_DEFAULTS.get(param, _SPECS[param].default)
+            value = EFFECT_DEFAULTS.get(param, SPECS[param].default)
         parameters[param] = _check_value(param, float(value), where)
         order = 2 if param in _SECOND_ORDER else 1
         structure[effect] = max(structure.get(effect, 0), order)

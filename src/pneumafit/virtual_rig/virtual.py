@@ -49,6 +49,7 @@ from pneumafit.models import (
     parameter_dict,
     parameter_vector,
 )
+from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import INPUT_MODE
 from pneumafit.physics.geometry import piston_areas
 from pneumafit.simulation import (
@@ -143,7 +144,6 @@ TRUTH_VERSION = 1
 #: same seed would give a different campaign.
 RIG_VERSION = 1
 
-_UNITS = {s.name: s.unit for s in PARAMETER_SPECS}
 _RIG_FIELDS = tuple(f.name for f in fields(Rig))
 
 
@@ -655,7 +655,7 @@ class VirtualRig:
             "effects_requested": self.effects_requested,
             "simulator": {"method": self.method, "step": self.step},
             "parameters": dict(self.parameters),
-            "units": {name: _UNITS[name] for name in self.parameters},
+            "units": {name: SPECS[name].unit for name in self.parameters},
             "sensors": {**self.sensors.as_dict(), "pressure_offsets": dict(offsets)},
             "recordings": [_test_summary(test, traces[test.file]) for test in protocol.tests],
             "diagnostics": diagnostics,

@@ -72,11 +72,13 @@ from pneumafit.models.parts.registry import (
     register_effect,
     register_friction_law,
     register_heat_law,
+    register_parameter,
     register_valve_law,
     remove_listener,
     unregister_effect,
     unregister_friction_law,
     unregister_heat_law,
+    unregister_parameter,
     unregister_valve_law,
 )
 
@@ -110,11 +112,13 @@ __all__ = [
     "register_effect",
     "register_friction_law",
     "register_heat_law",
+    "register_parameter",
     "register_valve_law",
     "remove_listener",
     "unregister_effect",
     "unregister_friction_law",
     "unregister_heat_law",
+    "unregister_parameter",
     "unregister_valve_law",
 ]
 

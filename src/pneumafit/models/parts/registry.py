@@ -32,7 +32,11 @@ from pneumafit.models.layout import (
     C_STATIC_FLOW,
     C_VALVE_LAW,
     NCFG,
+    PART_PARAMETER_GROUPS,
     SPECS,
+    ParameterSpec,
+    _append_parameter,
+    _remove_last_parameter,
 )
 
 __all__ = [
@@ -58,11 +62,13 @@ __all__ = [
     "register_effect",
     "register_friction_law",
     "register_heat_law",
+    "register_parameter",
     "register_valve_law",
     "remove_listener",
     "unregister_effect",
     "unregister_friction_law",
     "unregister_heat_law",
+    "unregister_parameter",
     "unregister_valve_law",
 ]
 
@@ -506,6 +512,95 @@ def _check_kernel(where: str, function: object) -> None:
             f"{where}: kernel: expected a numba @njit function or None, "
             f"found {type(function).__name__}"
         )
+
+
+def register_parameter(spec: ParameterSpec) -> ParameterSpec:
+    """Add a parameter of a part from outside the package to the parameter table.
+
+    The table (``layout.PARAMETER_SPECS``, ``PARAMETER_NAMES``, ``P``,
+    ``SPECS``) grows by one at its end; no built-in index moves. Register
+    the parameter before the part that names it; the part's kernel code
+    reads it at ``layout.P[name]`` (a constant once compiled).
+
+    Checks: an identifier as name that no parameter has; a group of
+    :data:`~pneumafit.models.layout.PART_PARAMETER_GROUPS` (``"heat"`` or
+    ``"effect"``: its part's); an SI unit in pint's syntax (``""``:
+    dimensionless); finite bounds (a fit's box) with the default inside.
+
+    Returns
+    -------
+    ParameterSpec
+        ``spec``.
+
+    Raises
+    ------
+    PneumafitInputError
+        A failed check; nothing is registered.
+    """
+    where = f"register parameter {getattr(spec, 'name', spec)!r}"
+    if not isinstance(spec, ParameterSpec):
+        raise PneumafitInputError(
+            f"register parameter: expected a ParameterSpec, found {type(spec).__name__}"
+        )
+    if not spec.name.isidentifier():
+        raise PneumafitInputError(f"{where}: name: expected an identifier, found {spec.name!r}")
+    if spec.name in SPECS:
+        raise PneumafitInputError(f"{where}: expected a new name, found one the table has")
+    if spec.group not in PART_PARAMETER_GROUPS:
+        raise PneumafitInputError(
+            f"{where}: group: expected one of {list(PART_PARAMETER_GROUPS)}, found {spec.group!r}"
+        )
+    from pneumafit.campaign.units import UnitError, parse_unit, ureg
+
+    try:
+        unit = parse_unit(spec.unit).unit
+    except UnitError as exc:
+        raise PneumafitInputError(
+            f"{where}: unit: expected {exc.expected}, found {exc.found}"
+        ) from None
+    factor = float(ureg.Quantity(1.0, unit).to_base_units().magnitude)
+    if not math.isclose(factor, 1.0, rel_tol=1e-12):
+        raise PneumafitInputError(
+            f"{where}: unit: expected an SI unit (the kernel computes in SI), found "
+            f"{spec.unit!r} ({factor:g} of its SI unit)"
+        )
+    bounds = (spec.lower, spec.default, spec.upper)
+    if not all(math.isfinite(v) for v in bounds) or not spec.lower <= spec.default <= spec.upper \
+            or not spec.lower < spec.upper:  # fmt: skip
+        raise PneumafitInputError(
+            f"{where}: expected finite bounds lower < upper with the default inside, found "
+            f"[{spec.lower:g}, {spec.upper:g}] and default {spec.default:g}"
+        )
+    _append_parameter(spec)
+    return spec
+
+
+def unregister_parameter(name: str) -> ParameterSpec:
+    """Remove the last parameter registered from outside (for tests and notebooks).
+
+    Raises
+    ------
+    PneumafitInputError
+        ``name`` is not the last one registered, or a registered part uses it.
+    """
+    users = [
+        part.name
+        for registry in (_HEAT, _VALVE, _FRICTION, _EFFECTS)
+        for part in registry.values()
+        if name in part.parameters or name in getattr(part, "extensions", ())
+    ]
+    if users:
+        raise PneumafitInputError(
+            f"unregister parameter {name!r}: expected a parameter no registered part uses, "
+            f"found it used by {users}"
+        )
+    spec = SPECS.get(name)
+    try:
+        _remove_last_parameter(name)
+    except ValueError as exc:
+        raise PneumafitInputError(f"unregister parameter: {exc}") from None
+    assert spec is not None
+    return spec
 
 
 def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:

@@ -40,7 +40,6 @@ from pneumafit.models.layout import (
     MAP_B_UPPER,
     MAP_C_LOWER,
     MAP_C_UPPER,
-    NP,
     NX,
     PARAMETER_NAMES,
     SPECS,
@@ -411,7 +410,7 @@ def config_header(structure: ModelStructure) -> str:
         "#define M_PI 3.14159265358979323846",
         "#endif",
         "",
-        f"#define PF_NP {NP}",
+        f"#define PF_NP {len(PARAMETER_NAMES)}",
         f"#define PF_NX {NX}",
         "",
         "/* structure */",
@@ -596,7 +595,7 @@ def write_fmu(
         )
     except ValueError as exc:
         raise PneumafitInputError(f"{source}: {exc}") from None
-    if vec.shape != (NP,) or not kernel.admissible(vec, structure.config()):
+    if vec.shape != (len(PARAMETER_NAMES),) or not kernel.admissible(vec, structure.config()):
         raise PneumafitInputError(
             f"{source}: the parameters are not physically admissible (e.g. rod >= bore, "
             "Coulomb friction above static friction, overlap >= u_sat, a first-order valve "

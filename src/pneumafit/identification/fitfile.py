@@ -634,13 +634,21 @@ def _entry(entry: Any) -> Any:
     return {k: v for k, v in entry.items() if not k.startswith("laplace_")}
 
 
+#: Said after a heat law or effect the registries do not know.
+_OWN_PART = (
+    " (a part of one's own? register it first: import its module, or "
+    "pneumafit --parts FILE.py COMMAND ...)"
+)
+
+
 def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructure | None:
     """The fitted structure of ``structure`` with the fallbacks (module docstring)."""
     heat = spec.get("heat")
     if heat is None and model not in MODELS:
         return None
     if heat is not None and heat not in MODELS:
-        raise _problem(where, "structure.heat", f"one of {', '.join(MODELS)}", repr(heat))
+        raise _problem(where, "structure.heat", f"one of {', '.join(MODELS)}",
+                       f"{heat!r}{_OWN_PART}")  # fmt: skip
     base = fit_structure(model if heat is None else str(heat))
     checks = (
         ("valve", tuple(VALVE_LAWS), base.valve),
@@ -661,7 +669,8 @@ def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructur
     for effect, option in (spec.get("effects") or {}).items():
         if effect not in EFFECT_SLOTS:
             raise _problem(where, f"structure.effects.{effect}",
-                           f"one of {', '.join(EFFECT_SLOTS)}", repr(effect))  # fmt: skip
+                           f"one of {', '.join(EFFECT_SLOTS)}",
+                           f"{effect!r}{_OWN_PART}")  # fmt: skip
         if isinstance(option, bool) or not isinstance(option, int) or option < 0:
             raise _problem(where, f"structure.effects.{effect}", "a non-negative integer",
                            repr(option))  # fmt: skip

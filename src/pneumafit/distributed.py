@@ -248,7 +248,15 @@ def _fit_one(
     console = LogConsole(file=text, force_terminal=False)  # each fit's log, tables in full
     t0 = time.perf_counter()
     try:
+        # the parts of one's own that the command loaded (PNEUMAFIT_PARTS,
+        # which --parts sets and a local cluster's workers inherit)
+        from pneumafit.cli.plugins import load_parts
+
+        load_parts()
         code = fit_command(Path(campaign), model, Path(out), walkers, steps, seed, mcmc, console)
+    except PneumafitInputError as exc:  # a parts file this worker cannot load
+        console.print(f"error: {exc}")
+        code = EXIT_BAD_INPUT
     except Exception as exc:  # a bug in one fit must not lose the others' results
         console.print(f"internal error: {type(exc).__name__}: {exc}")
         code = EXIT_FAILED

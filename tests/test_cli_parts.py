@@ -144,3 +144,14 @@ def test_a_heat_law_of_one_s_own_is_fitted_from_the_command_line(tmp_path: Path)
         capture_output=True, text=True, env=env, check=False,
     )  # fmt: skip
     assert res.returncode == 2 and "--parts FILE.py" in res.stdout + res.stderr
+
+
+def test_a_fit_many_task_names_a_parts_file_it_cannot_load(
+    clean: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pneumafit.distributed import _fit_one
+
+    monkeypatch.setenv(plugins.ENVIRONMENT_VARIABLE, str(tmp_path / "gone.py"))
+    result = _fit_one(str(tmp_path), "convection", str(tmp_path / "out"), None, None, 0, False)
+    assert result["code"] == 2 and result["fit"] is None
+    assert "PNEUMAFIT_PARTS" in result["error"] and "gone.py" in result["error"]

@@ -49,9 +49,14 @@ parts.register_heat_law(parts.HeatLaw(
 
 
 @pytest.fixture
-def clean(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
-    """No PNEUMAFIT_PARTS, nothing loaded before; the test's parts removed after."""
-    monkeypatch.delenv(plugins.ENVIRONMENT_VARIABLE, raising=False)
+def clean() -> Iterator[None]:
+    """No PNEUMAFIT_PARTS, nothing loaded before; the test's parts removed after.
+
+    ``load_parts`` sets the variable itself (for the command's workers), so
+    it is restored by hand: left set, every later command run in this
+    process would load the test's file again.
+    """
+    saved = os.environ.pop(plugins.ENVIRONMENT_VARIABLE, None)
     loaded = dict(plugins._LOADED)
     heat = set(parts.HEAT_LAWS)
     n = layout.n_parameters()
@@ -62,6 +67,9 @@ def clean(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
         parts.unregister_parameter(layout.PARAMETER_NAMES[-1])
     plugins._LOADED.clear()
     plugins._LOADED.update(loaded)
+    os.environ.pop(plugins.ENVIRONMENT_VARIABLE, None)
+    if saved is not None:
+        os.environ[plugins.ENVIRONMENT_VARIABLE] = saved
 
 
 def test_a_parts_file_is_loaded_once_and_named_for_workers(clean: None, tmp_path: Path) -> None:

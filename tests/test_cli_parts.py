@@ -163,3 +163,19 @@ def test_a_fit_many_task_names_a_parts_file_it_cannot_load(
     result = _fit_one(str(tmp_path), "convection", str(tmp_path / "out"), None, None, 0, False)
     assert result["code"] == 2 and result["fit"] is None
     assert "PNEUMAFIT_PARTS" in result["error"] and "gone.py" in result["error"]
+
+
+def test_pneumafit_parts_lists_what_a_file_registered(tmp_path: Path) -> None:
+    path = tmp_path / "root_p.py"
+    path.write_text(PARTS_FILE, encoding="utf-8")
+    env = {k: v for k, v in os.environ.items() if k != plugins.ENVIRONMENT_VARIABLE}
+    env["COLUMNS"] = "250"
+    res = subprocess.run(
+        [sys.executable, "-m", "pneumafit", "--parts", str(path), "parts"],
+        capture_output=True, text=True, env=env, check=False,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    rows = {line.split("│")[1].strip(): line for line in res.stdout.splitlines() if "│" in line}
+    assert "its own (@njit)" in rows["root-p"] and "built in" in rows["convection"]
+    assert "root_p_coefficient" in rows and "W/m^2/K" in rows["root_p_coefficient"]
+    assert "slot 5" in rows["chamber_leakage"]

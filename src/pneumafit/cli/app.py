@@ -421,6 +421,19 @@ def check(
 
 
 @app.command()
+def parts() -> None:
+    """List the heat, valve and friction laws and the effects this command knows.
+
+    The built-in parts and those of one's own that --parts, PNEUMAFIT_PARTS
+    or an installed plug-in registered (docs/architecture.md, "Adding a part").
+    """
+    from pneumafit.cli.plugins import parts_tables
+
+    for table in parts_tables():
+        console.print(table)
+
+
+@app.command()
 def report(
     run_dir: Annotated[Path, typer.Argument(help="Run folder (pneumafit run/fit outputs).")],
     out: Annotated[

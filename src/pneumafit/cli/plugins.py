@@ -30,9 +30,11 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from types import ModuleType
 
+from rich.table import Table
+
 from pneumafit.errors import PneumafitInputError
 
-__all__ = ["ENTRY_POINT_GROUP", "ENVIRONMENT_VARIABLE", "load_parts"]
+__all__ = ["ENTRY_POINT_GROUP", "ENVIRONMENT_VARIABLE", "load_parts", "parts_tables"]
 
 #: Entry-point group of plug-in packages that register parts on import.
 ENTRY_POINT_GROUP = "pneumafit.parts"
@@ -126,3 +128,58 @@ def load_parts(names: Sequence[str] = ()) -> list[str]:
     if env:
         os.environ[ENVIRONMENT_VARIABLE] = os.pathsep.join(env)
     return loaded
+
+
+def parts_tables() -> list[Table]:
+    """The registered parts as tables (``pneumafit parts``): built-in and loaded.
+
+    Returns
+    -------
+    list of rich.table.Table
+        Heat laws, valve laws, friction laws, effects, and the parameters
+        registered from outside the package (when there are any).
+    """
+    from pneumafit.models import layout, parts
+
+    def kernel_of(part: object, built_in: bool) -> str:
+        if getattr(part, "kernel", None) is not None:
+            return "its own (@njit)"
+        return "built in" if built_in else "none (Python side only)"
+
+    heat = Table(title="heat laws (--model)")
+    for col in ("name", "code", "parameters", "kernel code", "description"):
+        heat.add_column(col)
+    for law in parts.HEAT_LAWS.values():
+        own = kernel_of(law, law.code in parts.KERNEL_HEAT_CODES)
+        heat.add_row(law.name, str(law.code), ", ".join(law.parameters), own, law.description)
+    tables = [heat]
+    for title, registry, codes in (
+        ("valve laws (--valve)", parts.VALVE_LAWS, parts.KERNEL_VALVE_CODES),
+        ("friction laws (--friction)", parts.FRICTION_LAWS, parts.KERNEL_FRICTION_CODES),
+    ):
+        table = Table(title=title)
+        for col in ("name", "code", "kernel code", "description"):
+            table.add_column(col)
+        for law in registry.values():
+            table.add_row(law.name, str(law.code), kernel_of(law, law.code in codes),
+                          law.description)  # fmt: skip
+        tables.append(table)
+    effects = Table(title="effects (discovery's catalog, --effect)")
+    for col in ("name", "kernel code", "principal", "parameters", "description"):
+        effects.add_column(col)
+    for effect in parts.EFFECTS.values():
+        where = f"slot {effect.slot}" if effect.slot is not None else kernel_of(effect, False)
+        effects.add_row(effect.name, where, effect.principal, ", ".join(effect.parameters),
+                        effect.description)  # fmt: skip
+    tables.append(effects)
+    registered = layout.PARAMETER_SPECS[layout.NP :]
+    if registered:
+        table = Table(title="parameters registered from outside the package")
+        for col in ("name", "unit", "default", "bounds", "group", "description"):
+            table.add_column(col)
+        for spec in registered:
+            bounds = f"[{spec.lower:g}, {spec.upper:g}]"
+            table.add_row(spec.name, spec.unit, f"{spec.default:g}", bounds, spec.group,
+                          spec.description)  # fmt: skip
+        tables.append(table)
+    return tables

@@ -154,7 +154,9 @@ def rebound(function: Any, module: ModuleType) -> Any:
     ----------
     function : numba dispatcher
         A function whose code reaches the kernel as the global ``kernel``
-        (``kernel.rhs(...)``), e.g. discovery's rates along a recording.
+        (``kernel.rhs(...)``) or through kernel functions imported by name
+        (``rhs(...)``), e.g. discovery's rates along a recording or the
+        sampled closed loop's steps.
     module : module
         :func:`kernel_for`'s result.
 
@@ -175,6 +177,10 @@ def rebound(function: Any, module: ModuleType) -> Any:
         py = function.py_func
         env = dict(py.__globals__)
         env["kernel"] = module
+        for name, value in py.__globals__.items():
+            inner = getattr(value, "py_func", None)
+            if inner is not None and inner.__module__ == kernel.__name__:
+                env[name] = getattr(module, name)
         copy = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
         options = {
             k: v for k, v in function.targetoptions.items() if k not in ("cache", "nopython")

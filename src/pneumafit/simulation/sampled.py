@@ -25,7 +25,6 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.kernel import (
     A_FD,
@@ -58,7 +57,7 @@ from pneumafit.models.layout import (
     X_Z,
 )
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.models.part_kernel import uses_outside_parts
+from pneumafit.models.part_kernel import kernel_for, rebound
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.numba_stamp import njit
 from pneumafit.simulation import counter
@@ -247,12 +246,10 @@ def simulate_sampled(
     from pneumafit.simulation.experiment import Experiment
 
     structure = get_structure(model)
-    if uses_outside_parts(structure):
-        raise PneumafitInputError(
-            f"sampled closed loop: model {structure.name}: expected parts the cached kernel "
-            "implements, found a heat law or effect registered with kernel code from outside "
-            "the package (pneumafit.models.part_kernel; simulate it with Simulator)"
-        )
+    # the cached kernel's steps, or the same steps on its copy bound to
+    # outside parts (models.part_kernel)
+    kern = kernel_for(structure)
+    start, advance, observe = (rebound(f, kern) for f in (_start, _advance, _observe))
     t = np.asarray(time, dtype=float)
     ref = np.asarray(y_ref, dtype=float)
     exp = Experiment(time=t, kind="step", y_ref=ref, u_P=np.zeros_like(t),
@@ -283,14 +280,14 @@ def simulate_sampled(
         inp[:, 0] = u
         inp[:, 1] = -u
         if k == 0:
-            status = _start(x0, p, d, cfg, ctrl, inp, (t[1] - t[0]) / nsub[0], x, mem_i,
+            status = start(x0, p, d, cfg, ctrl, inp, (t[1] - t[0]) / nsub[0], x, mem_i,
                             mem_f, dx, aux)  # fmt: skip
             if status != kernel.STATUS_OK:
                 break
-        _observe(x, mem_i, inp, p, d, cfg, ctrl, dx, aux, ch_sel, out, k)
+        observe(x, mem_i, inp, p, d, cfg, ctrl, dx, aux, ch_sel, out, k)
         if k == n - 1:
             break
-        status = _advance(x, mem_i, mem_f, inp, t[k + 1] - t[k], int(nsub[k]), p, d, cfg,
+        status = advance(x, mem_i, mem_f, inp, t[k + 1] - t[k], int(nsub[k]), p, d, cfg,
                           ctrl, tab.a, tab.b, tab.c, kk, xs, xn, xe, dx, aux)  # fmt: skip
         if status != kernel.STATUS_OK:
             break

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 from pneumafit.campaign import read_campaign
 from pneumafit.identification.fitfile import SavedFit, fit_document, load_fit
 from pneumafit.identification.staged import FitOptions, FitResult
-from pneumafit.models.parts import NameList, model_names
+from pneumafit.models.parts import LiveTuple, model_names
 
 if TYPE_CHECKING:
     from pneumafit.campaign.model import Campaign
@@ -44,7 +44,7 @@ __all__ = [
 
 #: The models :func:`fit` knows: the chamber models (one per heat law,
 #: :data:`pneumafit.models.parts.MODEL_NAMES`, live) and the friction-test law.
-MODELS = NameList(lambda: (*model_names(), "friction"))
+MODELS = LiveTuple(lambda: (*model_names(), "friction"))
 
 
 def fit(

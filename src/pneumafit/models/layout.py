@@ -7,7 +7,7 @@ here once; everything else refers to the names.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -271,33 +271,39 @@ def _map_specs(base: tuple[ParameterSpec, ...]) -> tuple[ParameterSpec, ...]:
     return tuple(specs)
 
 
-class _LiveTuple(Sequence[_T]):
-    """A read-only tuple view of a list this module appends to (compares equal to a tuple)."""
+class LiveTuple(Sequence[_T]):
+    """A live read-only tuple: the items ``items()`` returns, read on each use.
 
-    def __init__(self, items: list[_T]) -> None:
+    Compares equal to a tuple or list of the same items. The parameter
+    table below is one (a list this module appends to), and so are the
+    parts registries' name lists (:data:`pneumafit.models.parts.MODEL_NAMES`).
+    """
+
+    def __init__(self, items: Callable[[], Sequence[_T]]) -> None:
         self._items = items
 
     def __getitem__(self, index: Any) -> Any:
-        return tuple(self._items)[index] if isinstance(index, slice) else self._items[index]
+        item = self._items()[index]
+        return tuple(item) if isinstance(index, slice) else item
 
     def __len__(self) -> int:
-        return len(self._items)
+        return len(self._items())
 
     def __iter__(self) -> Iterator[_T]:
-        return iter(tuple(self._items))
+        return iter(tuple(self._items()))
+
+    def __contains__(self, item: object) -> bool:
+        return item in self._items()
 
     def __eq__(self, other: object) -> bool:
-        if isinstance(other, (tuple, list, _LiveTuple)):
+        if isinstance(other, (tuple, list, LiveTuple)):
             return tuple(self) == tuple(other)
         return NotImplemented
 
     __hash__ = None  # type: ignore[assignment]
 
-    def __add__(self, other: Sequence[_T]) -> tuple[_T, ...]:
-        return (*self._items, *other)
-
     def __repr__(self) -> str:
-        return repr(tuple(self._items))
+        return repr(tuple(self._items()))
 
 
 _SPEC_LIST: list[ParameterSpec] = list(_BASE_SPECS + _map_specs(_BASE_SPECS))
@@ -310,9 +316,9 @@ _NAME_LIST: list[str] = [s.name for s in _SPEC_LIST]
 #: (:func:`pneumafit.models.parts.register_parameter`) come last, in
 #: registration order: this table, :data:`PARAMETER_NAMES`, :data:`P` and
 #: :data:`SPECS` are live (the vector grows; no built-in index moves).
-PARAMETER_SPECS: Sequence[ParameterSpec] = _LiveTuple(_SPEC_LIST)
+PARAMETER_SPECS: Sequence[ParameterSpec] = LiveTuple(lambda: _SPEC_LIST)
 #: The parameter names, in vector order (live, as :data:`PARAMETER_SPECS`).
-PARAMETER_NAMES: Sequence[str] = _LiveTuple(_NAME_LIST)
+PARAMETER_NAMES: Sequence[str] = LiveTuple(lambda: _NAME_LIST)
 #: Number of built-in parameters (the package's own vector length); with
 #: parameters registered from outside, :func:`n_parameters` is the length.
 NP = len(_SPEC_LIST)

@@ -63,7 +63,7 @@ from pneumafit.models.parts.registry import (
     FitRange,
     FrictionLaw,
     HeatLaw,
-    NameList,
+    LiveTuple,
     RegistryView,
     SignatureTerm,
     ValveLaw,
@@ -101,8 +101,8 @@ __all__ = [
     "Friction",
     "FrictionLaw",
     "HeatLaw",
+    "LiveTuple",
     "Model",
-    "NameList",
     "RegistryView",
     "SignatureTerm",
     "Valve",
@@ -131,7 +131,7 @@ VALVE_LAW_CODES: RegistryView[ValveLaw, int] = RegistryView(VALVE_LAWS, lambda v
 #: Friction law -> its code in ``C_FRICTION_LAW`` (``layout.FRICTION_LAWS``).
 FRICTION_LAW_CODES: RegistryView[FrictionLaw, int] = RegistryView(FRICTION_LAWS, lambda f: f.code)
 #: The model names (one per heat law) in model-list order: comparison, report.
-MODEL_NAMES = NameList(model_names)
+MODEL_NAMES = LiveTuple(model_names)
 #: Model name -> its colour in figures (measured data black), model-list order.
 MODEL_COLOURS: RegistryView[HeatLaw, str] = RegistryView(
     HEAT_LAWS, lambda h: h.colour, order=lambda h: h.order

@@ -6,7 +6,7 @@ module holds the frozen dataclasses (:class:`HeatLaw`, :class:`ValveLaw`,
 :class:`SignatureTerm`), the four registries, the ``register_*`` /
 ``unregister_*`` functions that validate a part against the parameter table
 (:data:`pneumafit.models.layout.SPECS`) and the configuration layout, and
-:class:`RegistryView` / :class:`NameList`, the live read-only tables the
+:class:`RegistryView` / :class:`~pneumafit.models.layout.LiveTuple`, the live read-only tables the
 older modules export (``EFFECT_SLOTS``, ``HEAT_LAWS`` codes, ``MODELS``, the
 model colours, ...).
 """
@@ -34,6 +34,7 @@ from pneumafit.models.layout import (
     NCFG,
     PART_PARAMETER_GROUPS,
     SPECS,
+    LiveTuple,
     ParameterSpec,
     _append_parameter,
     _remove_last_parameter,
@@ -53,7 +54,7 @@ __all__ = [
     "FitRange",
     "FrictionLaw",
     "HeatLaw",
-    "NameList",
+    "LiveTuple",
     "RegistryView",
     "SignatureTerm",
     "ValveLaw",
@@ -831,38 +832,6 @@ class RegistryView(Mapping[str, _V], Generic[_Part, _V]):
 
     def __repr__(self) -> str:
         return repr(dict(self.items()))
-
-
-class NameList(Sequence[str]):
-    """A live read-only tuple of names, computed by ``names()`` on each use.
-
-    Compares equal to a tuple or list of the same names.
-    """
-
-    def __init__(self, names: Callable[[], tuple[str, ...]]) -> None:
-        self._names = names
-
-    def __getitem__(self, index: Any) -> Any:
-        return self._names()[index]
-
-    def __len__(self) -> int:
-        return len(self._names())
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._names())
-
-    def __contains__(self, name: object) -> bool:
-        return name in self._names()
-
-    def __eq__(self, other: object) -> bool:
-        if isinstance(other, (tuple, list, NameList)):
-            return tuple(self) == tuple(other)
-        return NotImplemented
-
-    __hash__ = None  # type: ignore[assignment]
-
-    def __repr__(self) -> str:
-        return repr(self._names())
 
 
 def model_names() -> tuple[str, ...]:

@@ -35,18 +35,16 @@ checks (bit for bit: the tests write built-in laws again as outside parts).
 
 from __future__ import annotations
 
-import math
 import sys
-import types
 from pathlib import Path
-from types import ModuleType
+from types import FunctionType, ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel, parts
-from pneumafit.models.layout import C_HEAT, C_PART_EFFECTS, NX
+from pneumafit.models.layout import C_HEAT, C_PART_EFFECTS
 from pneumafit.physics.friction import FASTMATH
 
 if TYPE_CHECKING:
@@ -60,7 +58,6 @@ __all__ = [
     "kernel_for",
     "kernel_for_config",
     "rebound",
-    "uses_outside_parts",
 ]
 
 #: Outside effects with kernel code that can be registered at once (bits of
@@ -105,16 +102,6 @@ def effect_bit(name: str) -> int:
     return 1 << index
 
 
-def uses_outside_parts(structure: ModelStructure) -> bool:
-    """True when the structure's heat law or one of its effects has outside kernel code."""
-    if parts.HEAT_LAWS[structure.heat].kernel is not None:
-        return True
-    return any(
-        value and parts.EFFECTS[name].kernel is not None
-        for name, value in structure.effects.items()
-    )
-
-
 def kernel_for(structure: ModelStructure | None) -> ModuleType:
     """The compiled kernel module a structure runs on.
 
@@ -128,10 +115,14 @@ def kernel_for(structure: ModelStructure | None) -> ModuleType:
     module
         :mod:`pneumafit.models.kernel`, or its copy with the hooks bound to
         the outside parts registered now (built once per set of parts).
+
+    Raises
+    ------
+    PneumafitInputError
+        A part of the structure that has no kernel code
+        (:meth:`ModelStructure.config`).
     """
-    if structure is None or not uses_outside_parts(structure):
-        return kernel
-    return _copy()
+    return kernel if structure is None else kernel_for_config(structure.config())
 
 
 def kernel_for_config(cfg: np.ndarray) -> ModuleType:
@@ -181,7 +172,7 @@ def rebound(function: Any, module: ModuleType) -> Any:
             inner = getattr(value, "py_func", None)
             if inner is not None and inner.__module__ == kernel.__name__:
                 env[name] = getattr(module, name)
-        copy = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
+        copy = FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
         options = {
             k: v for k, v in function.targetoptions.items() if k not in ("cache", "nopython")
         }
@@ -271,8 +262,6 @@ def _build(heat: list[parts.HeatLaw], effects: list[parts.Effect], serial: int) 
         namespace[f"_heat_{int(law.code)}"] = _recompiled(law.kernel, f"heat law {law.name!r}")
     for i, effect in enumerate(effects):
         namespace[f"_effect_{i}"] = _recompiled(effect.kernel, f"effect {effect.name!r}")
-    namespace.setdefault("math", math)
     exec(compile(_hook_source(heat, effects), f"<pneumafit part hooks {serial}>", "exec"),
          namespace)  # fmt: skip
-    assert namespace["NX"] == NX and namespace["C_PART_EFFECTS"] == C_PART_EFFECTS
     return module

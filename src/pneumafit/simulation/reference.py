@@ -34,7 +34,7 @@ from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.models.part_kernel import kernel_for
+from pneumafit.models.part_kernel import kernel_for, rebound
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.numba_stamp import njit
 from pneumafit.simulation.experiment import Experiment
@@ -155,9 +155,8 @@ def solve_reference(
             "(flow tests are static; nothing to integrate), found 'flow'"
         )
     # a structure with outside parts (models.part_kernel) runs on the kernel's
-    # copy bound to them: its compiled rhs, called from Python
+    # copy bound to them
     kern = kernel_for(structure)
-    outside = kern is not kernel
     rhs = kern.rhs if compiled else pure_python(kern.rhs)
     commands = kern.commands if compiled else pure_python(kern.commands)
     law = experiment.controller.law if experiment.closed_loop else 0
@@ -182,11 +181,12 @@ def solve_reference(
         atol_v = np.full(NX, atol)
 
     span = [0, t.size - 2]  # the sample intervals evaluate() may use
-    if compiled and not outside:
+    if compiled:
         inp_c = np.ascontiguousarray(inp, dtype=float)
+        evaluate_c = rebound(_evaluate, kern)
 
         def evaluate(tt: float, xx: np.ndarray, mode: int) -> np.ndarray:
-            return _evaluate(tt, xx, mode, t, inp_c, cfg, ctrl, p, d, aux, span[0], span[1])
+            return evaluate_c(tt, xx, mode, t, inp_c, cfg, ctrl, p, d, aux, span[0], span[1])
 
     else:
 

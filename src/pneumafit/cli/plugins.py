@@ -44,13 +44,17 @@ ENVIRONMENT_VARIABLE = "PNEUMAFIT_PARTS"
 _LOADED: dict[str, ModuleType] = {}
 
 
-def _load_one(name: str, where: str) -> ModuleType:
-    """Import a file (``*.py`` or an existing path) or a module by name, once per process."""
+def _load_one(name: str, where: str) -> str:
+    """Import a file (``*.py`` or an existing path) or a module by name, once per process.
+
+    Returns the name it is loaded under: a file's absolute path (a worker
+    may start elsewhere), or the module's name.
+    """
     path = Path(name).expanduser()
     is_file = name.endswith(".py") or path.is_file()
     key = str(path.resolve()) if is_file else name
     if key in _LOADED:
-        return _LOADED[key]
+        return key
     try:
         if is_file:
             if not path.is_file():
@@ -77,7 +81,7 @@ def _load_one(name: str, where: str) -> ModuleType:
             f"parts (pneumafit.models.parts), found {type(exc).__name__}: {exc}"
         ) from None
     _LOADED[key] = module
-    return module
+    return key
 
 
 def load_parts(names: Sequence[str] = ()) -> list[str]:
@@ -92,7 +96,8 @@ def load_parts(names: Sequence[str] = ()) -> list[str]:
     Returns
     -------
     list of str
-        What was loaded, in order (entry points as ``group:name``).
+        What is loaded: entry points as ``group:name``, then files by
+        absolute path and modules by name.
 
     Raises
     ------
@@ -112,22 +117,13 @@ def load_parts(names: Sequence[str] = ()) -> list[str]:
                     f"be loaded: {type(exc).__name__}: {exc}"
                 ) from None
         loaded.append(key)
+    given = [_load_one(name, "option --parts") for name in names]
     env = [n for n in os.environ.get(ENVIRONMENT_VARIABLE, "").split(os.pathsep) if n]
-    given = []
-    for name in names:
-        _load_one(name, "option --parts")
-        loaded.append(name)
-        # a file by its absolute path: a worker may start elsewhere
-        path = Path(name).expanduser()
-        given.append(str(path.resolve()) if name.endswith(".py") or path.is_file() else name)
-    for name in env:
-        if name not in given:
-            _load_one(name, f"environment variable {ENVIRONMENT_VARIABLE}:")
-            loaded.append(name)
-    env += [n for n in given if n not in env]
-    if env:
-        os.environ[ENVIRONMENT_VARIABLE] = os.pathsep.join(env)
-    return loaded
+    named = [_load_one(name, f"environment variable {ENVIRONMENT_VARIABLE}:") for name in env]
+    keys = list(dict.fromkeys([*named, *given]))
+    if keys:
+        os.environ[ENVIRONMENT_VARIABLE] = os.pathsep.join(keys)
+    return [*loaded, *keys]
 
 
 def parts_tables() -> list[Table]:

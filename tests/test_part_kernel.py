@@ -236,9 +236,11 @@ def test_an_outside_force_acts_on_the_piston(registered: None, step_experiment: 
     out, status = outside.simulate_batch(once[None], [step_experiment])
     assert (status == 0).all()
     y = builtin.channels.index("y")
-    # rounding only: far below the 1-um encoder step of the campaigns; the
-    # force itself moves the piston by more than 0.1 mm
-    assert np.nanmax(np.abs(out[0, :, y] - ref2[0, :, y])) < 1e-9
+    # rounding only: measured 1.1e-16 m; 1e-12 m leaves room for a stick
+    # event moved by a rounding of the force, and is far below the 1-um
+    # encoder step of the campaigns; the force itself moves the piston by
+    # more than 0.1 mm
+    assert np.nanmax(np.abs(out[0, :, y] - ref2[0, :, y])) < 1e-12
     assert np.nanmax(np.abs(ref1[0, :, y] - ref2[0, :, y])) > 1e-4
 
 
@@ -253,7 +255,9 @@ def test_the_reference_solver_runs_outside_parts(
     outside = ModelStructure("lambda-again", effects={"leak_again": 1})
     a = solve_reference(builtin, values, charge_experiment, rtol=1e-8)
     b = solve_reference(outside, values, charge_experiment, rtol=1e-8)
-    # the same right-hand side, compiled twice: the same steps of Radau
+    # the same right-hand side compiled twice (the cached kernel and its
+    # copy, in another inlining context): measured 5.8e-15 relative at most
+    # (p_P); 1e-12 allows a step of Radau accepted differently after a rounding
     for ch in ("p_P", "T_P", "m_exhaust"):
         assert np.allclose(a[ch], b[ch], rtol=1e-12, atol=0.0), ch
 
@@ -387,13 +391,15 @@ def test_an_outside_heat_law_and_effect_are_fitted_compared_discovered_and_repor
     # the same law reached through the hook and through the kernel's slot:
     # the same optimum. Not to the last digit: the refits start from
     # different points (the built-in's written regressor, the outside
-    # part's kernel derivative) and stop at the least squares' tolerance;
-    # 1e-3 in log-likelihood is far inside the information criteria's
-    # decisions (units), measured 1.4e-5
+    # part's kernel derivative) and stop at the least squares' tolerance.
+    # Measured: 2.4e-7 in log-likelihood and 2e-7 relative in the
+    # conductance (1.4e-5 in log-likelihood with lambda itself as the heat
+    # law's parameter); 1e-4 is seven times the worst seen, and far inside
+    # the information criteria's decisions (units)
     a, b = tried["piston_leak_again"].model, tried["chamber_leakage"].model
-    assert a.log_likelihood == pytest.approx(b.log_likelihood, abs=1e-3)
+    assert a.log_likelihood == pytest.approx(b.log_likelihood, abs=1e-4)
     g = "chamber_leak_conductance"
-    assert a.values[g] == pytest.approx(b.values[g], rel=1e-3)
+    assert a.values[g] == pytest.approx(b.values[g], rel=1e-4)
     html = pf.report(tmp_path / "run", campaign, fits=[fit, other], comparison=comparison,
                      discovery=discovery).read_text(encoding="utf-8")  # fmt: skip
     assert "root-p" in html and "piston_leak_again" in html
@@ -475,5 +481,64 @@ def test_an_outside_effect_the_rig_hides_is_discovered(registered: None, tmp_pat
     assert found.selected == ["orifice_leak"]
     assert not found.unexplained  # measured: 1054 -> 396 Pa against 403 Pa of noise
     k = found.final.values["orifice_leak_coefficient"]
-    # the rig's own law: recovered to the noise's precision (measured within 1 %)
+    # the rig's own law: measured 3.037e-8, 1.2 % off; 5 % is about four
+    # times that, for another platform's rounding of the fits
     assert k == pytest.approx(3e-8, rel=0.05)
+
+
+@functools.cache
+def atm_orifice(index: int) -> object:
+    """An orifice leak of each chamber to atmosphere: q = K dP / sqrt(|dP| + 1 kPa)."""
+    pe, ta = layout.P["exhaust_pressure"], layout.P["ambient_temperature"]
+
+    @njit
+    def law(x, p):
+        d1 = x[_XPP] - p[pe]
+        q1 = p[index] * d1 / math.sqrt(abs(d1) + 1.0e3)
+        t1 = x[_XTP] if q1 > 0.0 else p[ta]
+        d2 = x[_XPN] - p[pe]
+        q2 = p[index] * d2 / math.sqrt(abs(d2) + 1.0e3)
+        t2 = x[_XTN] if q2 > 0.0 else p[ta]
+        return -q1, -q1 * t1, -q2, -q2 * t2, q1 + q2, 0.0
+
+    return law
+
+
+@pytest.mark.slow
+def test_attribution_reaches_an_outside_effect_on_a_mismatched_truth(registered: None) -> None:
+    """The bundled demo: an independent truth whose chambers leak to atmosphere
+    through ISO 6358 restrictions (choked), which neither the built-in laminar
+    external_leakage nor this outside orifice law is. Attribution must weigh
+    the outside effect through the kernel's derivative like a built-in one:
+    both describe the same leak, so each explains a like share of the
+    residual's rates (measured 0.058 and 0.054; the bootstrap then keeps the
+    built-in one, inclusion 0.67 against 0.35, and discovery refits it).
+    """
+    import pneumafit as pf
+
+    parts.register_parameter(
+        ParameterSpec("atm_orifice_coefficient", "kg/s/Pa^0.5", 0.0, 0.0, 1e-5, "effect",
+                      "orifice leak of each chamber to atmosphere")
+    )  # fmt: skip
+    parts.register_effect(
+        _effect(
+            "atm_orifice", "atm_orifice_coefficient", ("atm_orifice_coefficient",),
+            atm_orifice(layout.P["atm_orifice_coefficient"]),
+            (parts.FitRange("atm_orifice_coefficient", 1e-10, 1e-6),),
+            "q = K dP / sqrt(|dP| + 1 kPa) out of each chamber", rig_default=3e-8,
+        )
+    )  # fmt: skip
+    campaign = pf.read_campaign(Path(__file__).resolve().parents[1] / "data" / "demo")
+    fit = pf.fit(campaign, "convection", mcmc=False, seed=0)
+    found = pf.discover(campaign, fit, rounds=1)
+    candidates = {c.effect: c for a in found.attributions for c in a.candidates}
+    mine, builtin = candidates["atm_orifice"], candidates["external_leakage"]
+    # a like share: within a factor 2 of the built-in law's (the other
+    # candidates explain 0.01 or less)
+    assert 0.5 < mine.variance_explained / builtin.variance_explained < 2.0
+    # its coefficient: the demo's leaks (1.1 and 0.6 l/min ANR at 7 bar, about
+    # 2e-5 and 1e-5 kg/s at 6 bar over atmosphere) are K of 1-3e-8 in this law;
+    # measured 1.85e-8 [1.47e-8, 2.47e-8]
+    lo, hi = mine.coefficient_interval
+    assert 5e-9 < lo <= mine.coefficient <= hi < 1e-7
+    assert found.selected == ["external_leakage"]

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -448,6 +448,19 @@ def test_an_outside_friction_law_is_refused_by_the_kernel(registered: None) -> N
         parts.unregister_friction_law("toy-friction")
 
 
+def _register_orifice(name: str, law: Callable[[int], object], text: str) -> None:
+    """Register an orifice-law effect with its coefficient ``NAME_coefficient``
+    (kg/s/Pa^0.5, fitted in [1e-10, 1e-6], rig default 3e-8)."""
+    coefficient = f"{name}_coefficient"
+    parts.register_parameter(
+        ParameterSpec(coefficient, "kg/s/Pa^0.5", 0.0, 0.0, 1e-5, "effect", text)
+    )
+    parts.register_effect(
+        _effect(name, coefficient, (coefficient,), law(layout.P[coefficient]),
+                (parts.FitRange(coefficient, 1e-10, 1e-6),), text, rig_default=3e-8)
+    )  # fmt: skip
+
+
 @pytest.mark.slow
 def test_an_outside_effect_the_rig_hides_is_discovered(registered: None, tmp_path: Path) -> None:
     """The worked example of docs/effects.md: an orifice leak, parameter included.
@@ -461,18 +474,7 @@ def test_an_outside_effect_the_rig_hides_is_discovered(registered: None, tmp_pat
     import pneumafit as pf
     from pneumafit.virtual_rig import VirtualRig
 
-    parts.register_parameter(
-        ParameterSpec("orifice_leak_coefficient", "kg/s/Pa^0.5", 0.0, 0.0, 1e-5, "effect",
-                      "turbulent leak across the piston seal")
-    )  # fmt: skip
-    parts.register_effect(
-        _effect(
-            "orifice_leak", "orifice_leak_coefficient", ("orifice_leak_coefficient",),
-            orifice_leak(layout.P["orifice_leak_coefficient"]),
-            (parts.FitRange("orifice_leak_coefficient", 1e-10, 1e-6),),
-            "q = K dP / sqrt(|dP| + 1 kPa)", rig_default=3e-8,
-        )
-    )  # fmt: skip
+    _register_orifice("orifice_leak", orifice_leak, "q = K dP / sqrt(|dP| + 1 kPa), P to N")
     folder = tmp_path / "campaign"
     VirtualRig(effects={"orifice_leak": 3e-8}, seed=4).write(folder, protocol="quick")
     campaign = pf.read_campaign(folder)
@@ -516,18 +518,8 @@ def test_attribution_reaches_an_outside_effect_on_a_mismatched_truth(registered:
     """
     import pneumafit as pf
 
-    parts.register_parameter(
-        ParameterSpec("atm_orifice_coefficient", "kg/s/Pa^0.5", 0.0, 0.0, 1e-5, "effect",
-                      "orifice leak of each chamber to atmosphere")
-    )  # fmt: skip
-    parts.register_effect(
-        _effect(
-            "atm_orifice", "atm_orifice_coefficient", ("atm_orifice_coefficient",),
-            atm_orifice(layout.P["atm_orifice_coefficient"]),
-            (parts.FitRange("atm_orifice_coefficient", 1e-10, 1e-6),),
-            "q = K dP / sqrt(|dP| + 1 kPa) out of each chamber", rig_default=3e-8,
-        )
-    )  # fmt: skip
+    _register_orifice("atm_orifice", atm_orifice,
+                      "q = K dP / sqrt(|dP| + 1 kPa) out of each chamber")  # fmt: skip
     campaign = pf.read_campaign(Path(__file__).resolve().parents[1] / "data" / "demo")
     fit = pf.fit(campaign, "convection", mcmc=False, seed=0)
     found = pf.discover(campaign, fit, rounds=1)

@@ -137,6 +137,11 @@ def _shown(value: object) -> str:
     return repr(value)
 
 
+def _found(value: object) -> str:
+    """What the user wrote for a key, for messages: the value, or that it is missing."""
+    return _MISSING if value is None else _shown(value)
+
+
 def _unexpected(exc: BaseException) -> str:
     return f"an error while reading it: {type(exc).__name__}: {exc}"
 
@@ -152,6 +157,24 @@ class _Problems:
 
     def warning(self, file: str, key: str, expected: str, found: str) -> None:
         self.items.append(Problem(file, key, expected, found, "warning"))
+
+    def unknown_keys(
+        self, file: str, table: Iterable[str], allowed: Iterable[str], what: str, prefix: str = ""
+    ) -> None:
+        """A warning for each key of ``table`` not in ``allowed`` (such a key is ignored).
+
+        ``what`` names an allowed key (``"a rig key"``); ``prefix`` is the
+        table's key path (none for the top level).
+        """
+        allowed = tuple(allowed)
+        for key in table:
+            if key not in allowed:
+                self.warning(
+                    file,
+                    f"{prefix}.{key}" if prefix else key,
+                    f"{what} ({', '.join(allowed)})",
+                    f'unknown key "{key}" (ignored)',
+                )
 
     @property
     def n_errors(self) -> int:
@@ -300,19 +323,10 @@ def _read_toml(path: Path, probs: _Problems, sha: dict[str, str]) -> dict[str, A
 def _parse_header(
     doc: dict[str, Any], default_name: str, file: str, probs: _Problems
 ) -> tuple[str, str]:
-    for key in doc:
-        if key not in _TOP_KEYS:
-            probs.warning(
-                file,
-                key,
-                f"a top-level key ({', '.join(_TOP_KEYS)})",
-                f'unknown key "{key}" (ignored)',
-            )
+    probs.unknown_keys(file, doc, _TOP_KEYS, "a top-level key")
     fmt = doc.get("format")
     if fmt != CAMPAIGN_FORMAT:
-        probs.error(
-            file, "format", f'"{CAMPAIGN_FORMAT}"', _MISSING if fmt is None else _shown(fmt)
-        )
+        probs.error(file, "format", f'"{CAMPAIGN_FORMAT}"', _found(fmt))
     version = doc.get("version")
     if version is None:
         probs.error(file, "version", str(FORMAT_VERSION), _MISSING)
@@ -360,14 +374,7 @@ def _parse_rig(
         found = "no [rig] table" if table is None else _shown(table)
         probs.error(file, "rig", "a [rig] table (bore, rod, stroke, ...)", found)
         return None, {}
-    for key in table:
-        if key not in _RIG_FIELDS and key != "acting":
-            probs.warning(
-                file,
-                f"rig.{key}",
-                f"a rig key ({', '.join(_RIG_FIELDS)}, acting)",
-                f'unknown key "{key}" (ignored)',
-            )
+    probs.unknown_keys(file, table, (*_RIG_FIELDS, "acting"), "a rig key", "rig")
     n_errors = probs.n_errors
     acting = table.get("acting", "double")
     if acting not in _ACTING:
@@ -441,15 +448,7 @@ def _parse_controller(table: object, key: str, file: str, probs: _Problems) -> P
     if not isinstance(table, dict):
         probs.error(file, key, "a [recording.controller] table", _shown(table))
         return None
-    allowed = ("law", *_CONTROLLER_FIELDS)
-    for name in table:
-        if name not in allowed:
-            probs.warning(
-                file,
-                f"{key}.{name}",
-                f"a controller key ({', '.join(allowed)})",
-                f'unknown key "{name}" (ignored)',
-            )
+    probs.unknown_keys(file, table, ("law", *_CONTROLLER_FIELDS), "a controller key", key)
     n_errors = probs.n_errors
     law = table.get("law", "pd")
     if law != "pd":
@@ -488,14 +487,7 @@ def _parse_entry(
     if not isinstance(entry, dict):
         probs.error(file, prefix, "a [[recording]] table", _shown(entry))
         return None
-    for key in entry:
-        if key not in _RECORDING_KEYS:
-            probs.warning(
-                file,
-                f"{prefix}.{key}",
-                f"a recording key ({', '.join(_RECORDING_KEYS)})",
-                f'unknown key "{key}" (ignored)',
-            )
+    probs.unknown_keys(file, entry, _RECORDING_KEYS, "a recording key", prefix)
 
     name = entry.get("file")
     if not isinstance(name, str) or not name.strip():
@@ -503,7 +495,7 @@ def _parse_entry(
             file,
             f"{prefix}.file",
             'a file name (e.g. "step_1.csv")',
-            _MISSING if name is None else _shown(name),
+            _found(name),
         )
         name = None
     elif name in seen:
@@ -523,7 +515,7 @@ def _parse_entry(
             file,
             f"{prefix}.kind",
             f"one of {', '.join(KINDS)}",
-            _MISSING if kind is None else _shown(kind),
+            _found(kind),
         )
         kind = None
 
@@ -648,16 +640,8 @@ def _parse_read(table: object, prefix: str, file: str, probs: _Problems) -> dict
         out["ok"] = False
         return out
     n_errors = probs.n_errors
-    for key in table:
-        if key not in _READ_KEYS:
-            probs.warning(
-                file,
-                f"{prefix}.{key}",
-                f"a read key ({', '.join(_READ_KEYS)})",
-                f'unknown key "{key}" (ignored)',
-            )
-        else:
-            out["keys"][key] = f"{prefix}.{key}"
+    probs.unknown_keys(file, table, _READ_KEYS, "a read key", prefix)
+    out["keys"] = {key: f"{prefix}.{key}" for key in table if key in _READ_KEYS}
     if "header" in table:
         if isinstance(table["header"], bool):
             out["header"] = table["header"]
@@ -707,14 +691,7 @@ def _parse_read_channels(
                 file, key, '{column = N, unit = "..."} (column counted from 1)', _shown(entry)
             )
             continue
-        for extra in entry:
-            if extra not in _CHANNEL_COLUMN_KEYS:
-                probs.warning(
-                    file,
-                    f"{key}.{extra}",
-                    f"a channel column key ({', '.join(_CHANNEL_COLUMN_KEYS)})",
-                    f'unknown key "{extra}" (ignored)',
-                )
+        probs.unknown_keys(file, entry, _CHANNEL_COLUMN_KEYS, "a channel column key", key)
         kind = "time" if name == "time" else CHANNELS[name]
         ok = True
         column = entry.get("column")
@@ -723,7 +700,7 @@ def _parse_read_channels(
                 file,
                 f"{key}.column",
                 "a column number counted from 1 (an integer)",
-                _MISSING if column is None else _shown(column),
+                _found(column),
             )
             ok = False
         elif column in used:
@@ -737,9 +714,7 @@ def _parse_read_channels(
         unit = entry.get("unit")
         expected_unit = f'a unit of {QUANTITY_KINDS[kind].name} (e.g. "{_example_unit(kind)}")'
         if not isinstance(unit, str):
-            probs.error(
-                file, f"{key}.unit", expected_unit, _MISSING if unit is None else _shown(unit)
-            )
+            probs.error(file, f"{key}.unit", expected_unit, _found(unit))
             ok = False
         else:
             try:

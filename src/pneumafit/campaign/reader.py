@@ -921,6 +921,23 @@ def _csv_numbers(
     return values, ~np.isnan(values)
 
 
+def _csv_time(
+    series: pd.Series, file: str, locate: Callable[[int], str], probs: _Problems
+) -> NDArray[np.float64] | None:
+    """The time column of a CSV file, in its own unit: a number in every row.
+
+    None when a cell is not a number or is empty (the problem is reported).
+    """
+    time = _csv_numbers(series, file, "time", locate, probs)
+    if time is None:
+        return None
+    if not time[1].all():
+        i = int(np.flatnonzero(~time[1])[0])
+        probs.error(file, "time", "a time in every row", f"an empty cell at {locate(i)}")
+        return None
+    return time[0]
+
+
 def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
     file = meta.file
     try:
@@ -995,12 +1012,8 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
             f'"{cells[0]}"',
         )
         return None
-    time = _csv_numbers(frame[0], file, "time", locate, probs)
+    time = _csv_time(frame[0], file, locate, probs)
     if time is None:
-        return None
-    if not time[1].all():
-        i = int(np.flatnonzero(~time[1])[0])
-        probs.error(file, "time", "a time in every row", f"an empty cell at {locate(i)}")
         return None
 
     headers: dict[int, tuple[str, str]] = {}
@@ -1028,7 +1041,7 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
         else:
             columns.append(_Column(name, headers[j][1], numbers[0], numbers[1]))
     description = "\n".join(comments).strip("\n") or None
-    return _Raw(time[0], time_header[1], columns, present, locate, description)
+    return _Raw(time, time_header[1], columns, present, locate, description)
 
 
 def _separator_name(separator: str) -> str:
@@ -1090,12 +1103,8 @@ def _read_positional(
         return pd.Series([row[column - 1] for row in rows], dtype=object)
 
     time_spec = spec.channels["time"]
-    time = _csv_numbers(cells(time_spec.column), file, "time", locate, probs)
+    time = _csv_time(cells(time_spec.column), file, locate, probs)
     if time is None:
-        return None
-    if not time[1].all():
-        i = int(np.flatnonzero(~time[1])[0])
-        probs.error(file, "time", "a time in every row", f"an empty cell at {locate(i)}")
         return None
     columns = []
     for channel, col in spec.channels.items():
@@ -1109,7 +1118,7 @@ def _read_positional(
             columns.append(_Column(channel, col.unit, values, numbers[1], col.gauge))
     present = {c for c in spec.channels if c != "time"}
     description = "\n".join(comments).strip("\n") or None
-    return _Raw(time[0], time_spec.unit, columns, present, locate, description)
+    return _Raw(time, time_spec.unit, columns, present, locate, description)
 
 
 def _attr_text(value: object) -> str | None:

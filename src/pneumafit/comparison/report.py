@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -55,6 +54,7 @@ from pneumafit.campaign.model import Campaign
 from pneumafit.campaign.units import display_unit
 from pneumafit.comparison.evaluate import ModelEvaluation
 from pneumafit.identification.fitfile import _version, json_safe
+from pneumafit.identification.staged import campaign_identity
 
 __all__ = ["COMPARISON_FORMAT", "COMPARISON_VERSION", "comparison_document", "print_table"]
 
@@ -134,11 +134,7 @@ def comparison_document(
     doc: dict[str, Any] = {
         "format": COMPARISON_FORMAT,
         "version": COMPARISON_VERSION,
-        "campaign": {
-            "name": campaign.name,
-            "path": os.fspath(campaign.path) if campaign.path is not None else None,
-            "sha256": dict(campaign.sha256),
-        },
+        "campaign": campaign_identity(campaign),
         "models": models,
     }
     table: list[dict[str, Any]] = []

@@ -51,7 +51,7 @@ from pneumafit.discovery.refit import PRESSURES, BaseFit, Discovery, Model, disc
 from pneumafit.fileio import atomic_path, write_text_atomic
 from pneumafit.frictiontest.discover import FrictionDiscovery
 from pneumafit.identification.fitfile import SavedFit, _version, json_safe
-from pneumafit.identification.staged import FitResult
+from pneumafit.identification.staged import FitResult, campaign_identity
 from pneumafit.models.layout import SPECS
 from pneumafit.models.structure import MODELS
 from pneumafit.progress import Reporter
@@ -205,11 +205,7 @@ def discovery_document(
         "version": DISCOVERY_VERSION,
         "base_model": fit_doc.get("model"),
         "base_structure": fit_doc.get("structure"),
-        "campaign": {
-            "name": campaign.name,
-            "path": os.fspath(campaign.path) if campaign.path is not None else None,
-            "sha256": dict(campaign.sha256),
-        },
+        "campaign": campaign_identity(campaign),
         "fit": os.fspath(fit_path),
         "seed": result.seed,
         "candidates": rounds[0]["candidates"] if rounds else [],

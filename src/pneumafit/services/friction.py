@@ -38,7 +38,7 @@ from pneumafit.frictiontest.discover import (
 )
 from pneumafit.frictiontest.fit import identify_friction
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, SavedFit, json_safe
-from pneumafit.identification.staged import FitResult
+from pneumafit.identification.staged import FitResult, campaign_identity
 from pneumafit.outputs.friction_report import before_after_rows
 from pneumafit.services.discover import (
     DiscoveryFolder,
@@ -158,11 +158,7 @@ def friction_discovery_document(
         "version": 1,
         "base_model": fit_doc.get("model"),
         "base_structure": fit_doc.get("structure"),
-        "campaign": {
-            "name": campaign.name,
-            "path": os.fspath(campaign.path) if campaign.path is not None else None,
-            "sha256": dict(campaign.sha256),
-        },
+        "campaign": campaign_identity(campaign),
         "fit": os.fspath(fit_path),
         "roles": {t.file: t.role for t in result.tests},
         "seed": result.seed,

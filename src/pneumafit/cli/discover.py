@@ -38,6 +38,8 @@ from pneumafit.progress import Reporter
 from pneumafit.services.discover import (
     DISCOVERY_FORMAT,
     DISCOVERY_VERSION,
+    base_fit_seed,
+    discover_command_line,
     discover_folder,
     discovery_document,
     format_number,
@@ -114,8 +116,7 @@ def discover_command(
     except (PneumafitInputError, ValueError) as exc:
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
-    if seed is None:  # the base fit's own
-        seed = saved.seed if saved.seed is not None else 0
+    seed = base_fit_seed(seed, saved)
     console.print(
         f"discovery on {camp.name}: base model {saved.model} from {fit_path} "
         f"({len(camp.by_role('fit'))} fit, {len(camp.by_role('validate'))} validate recordings)"
@@ -123,10 +124,7 @@ def discover_command(
 
     say = console_log(console)
 
-    command = (
-        f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"
-        f" --seed {seed} --rounds {rounds} --per-round {per_round}"
-    )
+    command = discover_command_line(campaign, fit, out, seed, rounds, per_round)
     try:
         done = discover_folder(
             camp, fit_path, out, seed=seed, rounds=rounds, per_round=per_round,
@@ -160,6 +158,12 @@ def report_discovery(doc: Mapping[str, Any], console: Console) -> None:
             role, *(f"{format_number(b.get(c))} -> {format_number(a.get(c))}" for c in PRESSURES)
         )
     console.print(table)
+    report_selection(doc, console)
+
+
+def report_selection(doc: Mapping[str, Any], console: Console) -> None:
+    """The end of a discovery's console summary, actuator or friction tests alike:
+    the effects selected, their parameters (90 % interval) and the statement."""
     sel = doc["selected"]
     console.print(
         Text("selected: " + (", ".join(sel) if sel else "none"), style="bold green" if sel else "")

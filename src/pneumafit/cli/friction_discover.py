@@ -36,9 +36,10 @@ from pneumafit.cli.console import (
     report_problems,
     run_guarded,
 )
+from pneumafit.cli.discover import report_selection
 from pneumafit.identification.staged import FitResult
 from pneumafit.outputs.friction_report import before_after_rows
-from pneumafit.services.discover import format_number
+from pneumafit.services.discover import base_fit_seed, discover_command_line
 from pneumafit.services.friction import (
     friction_discover_folder,
     friction_discovery_document,
@@ -102,8 +103,7 @@ def friction_discover_command(
     except (PneumafitInputError, ValueError) as exc:
         console.print(Text(str(exc), style="bold red"))
         return EXIT_BAD_INPUT
-    if seed is None:  # the base fit's own
-        seed = saved.seed if saved.seed is not None else 0
+    seed = base_fit_seed(seed, saved)
     recs = camp.by_kind("friction")
     console.print(
         f"discovery on {camp.name}: base model friction "
@@ -111,10 +111,7 @@ def friction_discover_command(
         f"({sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role == 'validate' for r in recs)} validate friction tests)"
     )
-    command = (
-        f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"
-        f" --seed {seed} --rounds {rounds} --per-round {per_round}"
-    )
+    command = discover_command_line(campaign, fit, out, seed, rounds, per_round)
     done, status = run_guarded(
         console,
         lambda: friction_discover_folder(
@@ -133,14 +130,4 @@ def friction_discover_command(
 def report_friction_discovery(doc: Mapping[str, Any], console: Console) -> None:
     """The console summary of a friction discovery (discovery.json's content)."""
     console.print(summary_table(doc))
-    sel = doc["selected"]
-    console.print(
-        Text("selected: " + (", ".join(sel) if sel else "none"), style="bold green" if sel else "")
-    )
-    for name, e in doc["effect_parameters"].items():
-        iv = e.get("interval_90")
-        console.print(
-            f"  {name} = {format_number(e['value'])} {e['unit']}"
-            + (f", 90 % [{format_number(iv[0])}, {format_number(iv[1])}]" if iv else "")
-        )
-    console.print(doc["statement"])
+    report_selection(doc, console)

@@ -60,6 +60,8 @@ __all__ = [
     "DISCOVERY_FORMAT",
     "DISCOVERY_VERSION",
     "DiscoveryFolder",
+    "base_fit_seed",
+    "discover_command_line",
     "discover_folder",
     "discovery_document",
     "effect_parameter_lines",
@@ -75,6 +77,43 @@ FIT_FILE = "fit.json"
 
 
 # ----------------------------------------------------------------- input
+def base_fit_seed(seed: int | None, saved: SavedFit) -> int:
+    """The seed of a discovery: ``seed`` as given, or the base fit's own.
+
+    Parameters
+    ----------
+    seed : int or None
+        The seed asked for; None: the seed the base fit was made with
+        (fit.json ``provenance.seed``).
+    saved : SavedFit
+        The base fit as read.
+
+    Returns
+    -------
+    int
+        ``seed``, else the base fit's seed, else 0 (a fit that records none).
+    """
+    if seed is not None:
+        return seed
+    return saved.seed if saved.seed is not None else 0
+
+
+def discover_command_line(
+    campaign: str | os.PathLike[str],
+    fit: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    seed: int,
+    rounds: int,
+    per_round: int,
+) -> str:
+    """The ``pneumafit discover`` command line of these options (discovery.json's
+    ``provenance.command``), for the actuator and the friction-test discovery alike."""
+    return (
+        f"pneumafit discover {os.fspath(campaign)} --fit {os.fspath(fit)} --out {os.fspath(out)}"
+        f" --seed {seed} --rounds {rounds} --per-round {per_round}"
+    )
+
+
 def load_base_fit(fit: Path, campaign: Campaign) -> tuple[BaseFit, SavedFit, Path]:
     """Read and check ``fit`` (a fit.json or the folder holding one).
 
@@ -535,8 +574,7 @@ def discover_folder(
     from pneumafit.errors import PneumafitComputationError
 
     base, saved, fit_path = load_base_fit(Path(fit), campaign)
-    if seed is None:  # the base fit's own
-        seed = saved.seed if saved.seed is not None else 0
+    seed = base_fit_seed(seed, saved)
     result = discover(campaign, base, seed=seed, rounds=rounds, per_round=per_round, log=log,
                       progress=progress)  # fmt: skip
     doc = discovery_document(

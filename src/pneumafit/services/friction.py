@@ -42,6 +42,7 @@ from pneumafit.identification.staged import FitResult, campaign_identity
 from pneumafit.outputs.friction_report import before_after_rows
 from pneumafit.services.discover import (
     DiscoveryFolder,
+    base_fit_seed,
     effect_parameter_lines,
     format_number,
     provenance,
@@ -336,8 +337,7 @@ def friction_discover_folder(
         The discovery failed, or its files cannot be written.
     """
     saved, fit_path = load_friction_fit(Path(fit), campaign)
-    if seed is None:  # the base fit's own
-        seed = saved.seed if saved.seed is not None else 0
+    seed = base_fit_seed(seed, saved)
     result = discover_friction(campaign, saved, seed=seed, rounds=rounds, per_round=per_round,
                                log=log)  # fmt: skip
     doc = friction_discovery_document(

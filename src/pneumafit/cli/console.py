@@ -19,12 +19,15 @@ import logging
 import os
 import sys
 from collections.abc import Callable, Iterable
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from rich.console import Console
 from rich.text import Text
 
 from pneumafit.fileio import check_output, output_problem
+
+if TYPE_CHECKING:
+    from pneumafit.campaign.model import Campaign
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -41,6 +44,7 @@ __all__ = [
     "int_problem",
     "make_console",
     "output_problem",
+    "read_campaign_or_report",
     "release_output",
     "report_problems",
     "run_guarded",
@@ -79,6 +83,31 @@ def report_problems(console: Console, problems: Iterable[str | None]) -> bool:
     for p in found:
         console.print(Text(p, style="bold red"))
     return bool(found)
+
+
+def read_campaign_or_report(campaign: str | os.PathLike[str], console: Console) -> Campaign | None:
+    """The campaign of a command's ``CAMPAIGN`` argument, or None once the console says why not.
+
+    Parameters
+    ----------
+    campaign : path
+        Campaign folder, or its campaign.toml.
+    console : rich.console.Console
+        Where a campaign that cannot be read is reported (one message, bold red).
+
+    Returns
+    -------
+    Campaign or None
+        None: the campaign is bad input (the command returns :data:`EXIT_BAD_INPUT`).
+    """
+    from pneumafit.campaign import read_campaign
+    from pneumafit.campaign.errors import PneumafitInputError
+
+    try:
+        return read_campaign(campaign)
+    except PneumafitInputError as exc:
+        console.print(Text(str(exc), style="bold red"))
+        return None
 
 
 # --------------------------------------------------------------- logs, --quiet, --verbose

@@ -35,7 +35,6 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import display_unit
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
@@ -46,6 +45,7 @@ from pneumafit.cli.console import (
     console_log,
     folder_problem,
     int_problem,
+    read_campaign_or_report,
     report_problems,
     run_guarded,
 )
@@ -135,8 +135,6 @@ def fit_command(
         0 ok, 1 the fit failed, 2 bad input, 3 untrustworthy under ``strict``,
         130 interrupted (MCMC chains resumable).
     """
-    from pneumafit.campaign import read_campaign
-
     if model == "friction":  # friction tests: the friction law on the rod-force balance
         from pneumafit.cli.friction import friction_fit_command
 
@@ -175,10 +173,8 @@ def fit_command(
     problems.append(folder_problem(out))
     if report_problems(console, problems):
         return EXIT_BAD_INPUT
-    try:
-        camp = read_campaign(campaign)
-    except PneumafitInputError as exc:
-        console.print(Text(str(exc), style="bold red"))
+    camp = read_campaign_or_report(campaign, console)
+    if camp is None:
         return EXIT_BAD_INPUT
     command = fit_command_line(campaign, model, out, walkers, steps, seed, mcmc, strict=strict,
                                valve=valve, friction=friction, seal=seal,

@@ -23,13 +23,13 @@ from pathlib import Path
 from rich.console import Console
 from rich.text import Text
 
-from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     console_log,
     folder_problem,
     int_problem,
+    read_campaign_or_report,
     report_problems,
     run_guarded,
 )
@@ -61,8 +61,6 @@ def friction_fit_command(
     seal: str = "off",
 ) -> int:
     """Fit the friction law to a campaign's friction tests; see the module docstring."""
-    from pneumafit.campaign import read_campaign
-
     problems = [
         int_problem("--walkers", walkers, MIN_FRICTION_WALKERS),
         int_problem("--steps", steps, 1),
@@ -77,10 +75,8 @@ def friction_fit_command(
         problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
     if report_problems(console, problems):
         return EXIT_BAD_INPUT
-    try:
-        camp = read_campaign(campaign)
-    except PneumafitInputError as exc:
-        console.print(Text(str(exc), style="bold red"))
+    camp = read_campaign_or_report(campaign, console)
+    if camp is None:
         return EXIT_BAD_INPUT
     out = Path(out)
     command = fit_command_line(campaign, "friction", out, walkers, steps, seed, mcmc,

@@ -236,6 +236,24 @@ def equilibrium(
     return Equilibrium(True, y, p_p, p_n, t0, u_e, leak_p, leak_n, force(u_e), "ok")
 
 
+def _existing_equilibrium(
+    parameters: Mapping[str, float] | np.ndarray, y: float, valve: str
+) -> tuple[np.ndarray, int, Equilibrium]:
+    """The parameter vector, the valve law's kernel code and the equilibrium at y (m).
+
+    Raises
+    ------
+    PneumafitInputError
+        When no equilibrium exists at y (its message), or the valve law is unknown.
+    """
+    p = _vec(parameters)
+    law = valve_law(valve)
+    eq = equilibrium(p, y, valve=valve)
+    if not eq.exists:
+        raise PneumafitInputError(eq.message)
+    return p, law, eq
+
+
 def _gains(p: np.ndarray, u: float, pres: float, law: int = 0) -> tuple[float, float]:
     """Valve gains (dq/dP (kg/s/Pa), dq/du (kg/s/V)) by central differences."""
     dp = 1e-6 * pres
@@ -380,11 +398,7 @@ def deadband_compensation(
     """
     from pneumafit.physics.valve import OPENING_SMOOTHING
 
-    p = _vec(parameters)
-    law = valve_law(valve)
-    eq = equilibrium(p, y, valve=valve)
-    if not eq.exists:
-        raise PneumafitInputError(eq.message)
+    p, law, eq = _existing_equilibrium(parameters, y, valve)
     a = overlap(p, valve)
     if a <= 0.0:
         return None
@@ -511,11 +525,7 @@ def linearize(
     PneumafitInputError
         When no equilibrium exists at y (a ValueError).
     """
-    p = _vec(parameters)
-    law = valve_law(valve)
-    eq = equilibrium(p, y, valve=valve)
-    if not eq.exists:
-        raise PneumafitInputError(eq.message)
+    p, law, eq = _existing_equilibrium(parameters, y, valve)
     bore, rod, stroke = p[P["bore"]], p[P["rod"]], p[P["stroke"]]
     s_p, s_n = piston_areas(bore, rod)
     v_p, v_n = chamber_volumes(y, stroke, s_p, s_n, p[P["dead_volume_P"]], p[P["dead_volume_N"]])

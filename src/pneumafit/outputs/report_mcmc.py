@@ -29,20 +29,22 @@ MAX_CORNER_SAMPLES = 4000
 MAX_TRACE_STEPS = 1500
 
 
-def _scale_of(fit: dict[str, Any], name: str) -> str:
+def _entry_text(fit: dict[str, Any], name: str, key: str, default: str) -> str:
+    """``key`` of parameter ``name``'s entry in a fit document (its parameters,
+    then its nuisance), as text; ``default`` where it has none."""
     for group in ("parameters", "nuisance"):
         entry = (fit.get(group) or {}).get(name)
         if isinstance(entry, dict):
-            return str(entry.get("scale") or "linear")
-    return "linear"
+            return str(entry.get(key) or default)
+    return default
+
+
+def _scale_of(fit: dict[str, Any], name: str) -> str:
+    return _entry_text(fit, name, "scale", "linear")
 
 
 def _unit_of(fit: dict[str, Any], name: str) -> str:
-    for group in ("parameters", "nuisance"):
-        entry = (fit.get(group) or {}).get(name)
-        if isinstance(entry, dict):
-            return str(entry.get("unit") or "")
-    return ""
+    return _entry_text(fit, name, "unit", "")
 
 
 def read_stage_chain(

@@ -319,6 +319,13 @@ def format_number(x: Any, digits: int = 4) -> str:
 _fmt = format_number
 
 
+def _save_png(fig: Any, path: Path) -> None:
+    """Lay a figure out and write it to ``path`` as PNG (100 dpi), atomically."""
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+
+
 def _plot_pressure_residuals(
     campaign: Campaign, model: Model, path: Path, title: str
 ) -> Path | None:
@@ -351,9 +358,7 @@ def _plot_pressure_residuals(
         for ax in axes[-1]:
             ax.set_xlabel("time (s)")
         fig.suptitle(title)
-        fig.tight_layout()
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=100)
+        _save_png(fig, path)
     finally:
         plt.close(fig)
     return path
@@ -386,9 +391,7 @@ def _plot_candidates(result: Discovery, path: Path) -> Path | None:
         axes[0].set_yticks(y, names)
         axes[0].invert_yaxis()
         fig.suptitle("Candidates of round 1, best score first (green: selected)")
-        fig.tight_layout()
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=100)
+        _save_png(fig, path)
     finally:
         plt.close(fig)
     return path

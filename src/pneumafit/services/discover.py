@@ -64,6 +64,7 @@ __all__ = [
     "discover_command_line",
     "discover_folder",
     "discovery_document",
+    "discovery_head",
     "effect_parameter_lines",
     "format_number",
     "load_base_fit",
@@ -206,6 +207,35 @@ def _effect_parameters(model: Model) -> dict[str, Any]:
     return out
 
 
+def discovery_head(
+    fit_doc: Mapping[str, Any], campaign: Campaign, fit_path: Path
+) -> dict[str, Any]:
+    """The first keys of discovery.json, actuator and friction-test discovery alike.
+
+    Parameters
+    ----------
+    fit_doc : mapping
+        The base fit's document (fit.json).
+    campaign : Campaign
+    fit_path : Path
+        The base fit's file.
+
+    Returns
+    -------
+    dict
+        ``format``, ``version``, ``base_model``, ``base_structure``,
+        ``campaign`` (name, path, SHA-256 of its files) and ``fit``, in that order.
+    """
+    return {
+        "format": DISCOVERY_FORMAT,
+        "version": DISCOVERY_VERSION,
+        "base_model": fit_doc.get("model"),
+        "base_structure": fit_doc.get("structure"),
+        "campaign": campaign_identity(campaign),
+        "fit": os.fspath(fit_path),
+    }
+
+
 def discovery_document(
     result: Discovery,
     campaign: Campaign,
@@ -240,12 +270,7 @@ def discovery_document(
         refits.append(step.as_dict(current))
     model_names = [k for k in final.values if k in SPECS]
     doc = {
-        "format": DISCOVERY_FORMAT,
-        "version": DISCOVERY_VERSION,
-        "base_model": fit_doc.get("model"),
-        "base_structure": fit_doc.get("structure"),
-        "campaign": campaign_identity(campaign),
-        "fit": os.fspath(fit_path),
+        **discovery_head(fit_doc, campaign, fit_path),
         "seed": result.seed,
         "candidates": rounds[0]["candidates"] if rounds else [],
         "rounds": rounds,

@@ -38,11 +38,12 @@ from pneumafit.frictiontest.discover import (
 )
 from pneumafit.frictiontest.fit import identify_friction
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, SavedFit, json_safe
-from pneumafit.identification.staged import FitResult, campaign_identity
+from pneumafit.identification.staged import FitResult
 from pneumafit.outputs.friction_report import before_after_rows
 from pneumafit.services.discover import (
     DiscoveryFolder,
     base_fit_seed,
+    discovery_head,
     effect_parameter_lines,
     format_number,
     provenance,
@@ -155,12 +156,7 @@ def friction_discovery_document(
         return {role: {"F": v} for role, v in rm["role"].items()}
 
     doc = {
-        "format": "pneumafit-discovery",
-        "version": 1,
-        "base_model": fit_doc.get("model"),
-        "base_structure": fit_doc.get("structure"),
-        "campaign": campaign_identity(campaign),
-        "fit": os.fspath(fit_path),
+        **discovery_head(fit_doc, campaign, fit_path),
         "roles": {t.file: t.role for t in result.tests},
         "seed": result.seed,
         "candidates": result.rounds[0] if result.rounds else [],

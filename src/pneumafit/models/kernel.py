@@ -1068,6 +1068,201 @@ def _fail(out: np.ndarray, row: int, code: int) -> int:
     return code
 
 
+@njit(cache=True, _nrt=False)
+def initial_mode(
+    x: np.ndarray,
+    inp: np.ndarray,
+    h0: float,
+    p: np.ndarray,
+    d: np.ndarray,
+    cfg: np.ndarray,
+    ctrl: np.ndarray,
+    dx: np.ndarray,
+    aux: np.ndarray,
+) -> tuple[int, float, float]:
+    """The first sample of a simulation: spool, LuGre deflection and friction mode.
+
+    Shared by :func:`integrate` and the sampled closed loop
+    (:mod:`pneumafit.simulation.sampled`). ``x`` is the initial state (set
+    in place: the spool at the first command for a valve with dynamics, the
+    bristle deflection in static equilibrium where it is NaN), ``inp`` the
+    input table whose row 0 is the first sample, ``h0`` the first interval's
+    step (s; LuGre's rate limit). On return ``aux`` holds the auxiliary
+    values at the start in the mode returned.
+
+    Returns
+    -------
+    mode : int
+        Friction mode of the switch model (0 stuck, +-1 sliding; 0 for LuGre
+        and blocked tests).
+    fd_prev, fs_prev : float
+        Driving force and static friction at the start (N), for the
+        breakaway test of the first step.
+    """
+    blocked = cfg[C_BLOCKED] == 1
+    # LuGre: no friction modes (the stuck mode and event location are bypassed)
+    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
+    u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
+    if cfg[C_VALVE_ORDER] > 0:
+        x[X_UP] = u_p
+        x[X_UN] = u_n
+    # initial friction mode
+    mode = 0
+    if lugre:
+        d[D_ZRATE] = LUGRE_RATE_LIMIT / h0
+        if not math.isfinite(x[X_Z]):
+            x[X_Z] = 0.0
+            rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
+            x[X_Z] = initial_deflection(x, p, cfg, aux[A_FD])
+    rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
+    if not blocked and not lugre:
+        if x[X_V] > 0.0:
+            mode = 1
+        elif x[X_V] < 0.0:
+            mode = -1
+        else:
+            mode = next_mode(aux[A_FD], aux[A_FS])
+    fd_prev = aux[A_FD]
+    fs_prev = aux[A_FS]
+    if mode != 0:
+        rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+    return mode, fd_prev, fs_prev
+
+
+@njit(cache=True)
+def integrate_from(
+    t: np.ndarray,
+    inp: np.ndarray,
+    nsub: np.ndarray,
+    x: np.ndarray,
+    mode: int,
+    fd_prev: float,
+    fs_prev: float,
+    p: np.ndarray,
+    d: np.ndarray,
+    cfg: np.ndarray,
+    ctrl: np.ndarray,
+    tab_a: np.ndarray,
+    tab_b: np.ndarray,
+    tab_c: np.ndarray,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+    need_aux: bool,
+    kk: np.ndarray,
+    xs: np.ndarray,
+    xn: np.ndarray,
+    xe: np.ndarray,
+    dx: np.ndarray,
+    aux: np.ndarray,
+) -> tuple[int, int, float, float]:
+    """Integrate from sample 0 of ``t`` to its last, recording samples 1 on.
+
+    The loop of :func:`integrate` after its start, and the sampled closed
+    loop's step (:mod:`pneumafit.simulation.sampled`: a two-sample table,
+    no channels), one code for both. Each sample interval is cut into
+    ``nsub`` equal Runge-Kutta steps (:func:`rk_step`); in the switch model
+    a sliding piston that stops and a stuck one that breaks away are located
+    within their step (:func:`locate_event`) and the step is split there.
+
+    Parameters
+    ----------
+    t, inp, nsub, p, cfg, ctrl, tab_a, tab_b, tab_c, ch_sel, out
+        As :func:`integrate`.
+    x : ndarray (NX,)
+        State at ``t[0]``, replaced by the state at the last sample reached.
+    mode : int
+        Friction mode at ``t[0]`` (0 stuck, +-1 sliding).
+    fd_prev, fs_prev : float
+        Driving force and static friction (N) at ``t[0]``.
+    d : ndarray (ND,)
+        Derived constants (:func:`derive`).
+    need_aux : bool
+        Whether a recorded channel needs the auxiliary values (flows, forces).
+    kk, xs, xn, xe, dx, aux : ndarray
+        Work arrays (:func:`integrate`'s).
+
+    Returns
+    -------
+    status : int
+        STATUS_OK or why it stopped (``out`` NaN from there).
+    mode, fd_prev, fs_prev
+        The same at the last sample reached.
+    """
+    n = t.shape[0]
+    blocked = cfg[C_BLOCKED] == 1
+    # LuGre: no friction modes (the stuck mode and event location are bypassed)
+    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
+    for k in range(n - 1):
+        dt = t[k + 1] - t[k]
+        n_sub = nsub[k] if nsub[k] > 0 else 1
+        h = dt / n_sub
+        dw = 1.0 / n_sub
+        if lugre:
+            d[D_ZRATE] = LUGRE_RATE_LIMIT / h
+        for j in range(n_sub):
+            w0 = j * dw
+            rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
+                    kk, xs, dx, aux, xn)  # fmt: skip
+            if blocked or lugre:
+                pass
+            elif mode != 0:
+                if xn[X_V] * mode <= 0.0:
+                    # the sliding piston came to rest within the step
+                    theta = 0.0
+                    if x[X_V] != 0.0:
+                        theta = locate_event(0, x[X_V], xn[X_V], x, mode, inp, k, w0, dw, h, p,
+                                             d, cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx,
+                                             aux, xe)  # fmt: skip
+                    else:
+                        for i in range(NX):
+                            xe[i] = x[i]
+                        u_p, u_n = commands(xe, inp, k, w0, cfg, ctrl)
+                        rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
+                    xe[X_V] = 0.0
+                    mode = next_mode(aux[A_FD], aux[A_FS])
+                    we = w0 + theta * dw
+                    rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
+                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
+                    if mode != 0 and xn[X_V] * mode < 0.0:
+                        xn[X_V] = 0.0  # reversal overshoot; the next step re-decides
+            elif abs(aux[A_FD]) > aux[A_FS]:
+                # the last stage says the stuck piston breaks away: confirm at the
+                # step's end, then locate |F_d| = F_s within the step
+                u_p, u_n = commands(xn, inp, k, w0 + dw, cfg, ctrl)
+                rhs(xn, 0, u_p, u_n, p, d, cfg, dx, aux)
+                e1 = abs(aux[A_FD]) - aux[A_FS]
+                if e1 > 0.0:
+                    direction = 1 if aux[A_FD] > 0.0 else -1
+                    e0 = abs(fd_prev) - fs_prev
+                    theta = 0.0
+                    if e0 < 0.0:
+                        theta = locate_event(1, e0, e1, x, 0, inp, k, w0, dw, h, p, d, cfg,
+                                             ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux,
+                                             xe)  # fmt: skip
+                    else:
+                        for i in range(NX):
+                            xe[i] = x[i]
+                    mode = direction
+                    we = w0 + theta * dw
+                    rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
+                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
+            fd_prev = aux[A_FD]
+            fs_prev = aux[A_FS]
+            for i in range(NX):
+                x[i] = xn[i]
+        # health check once per sample
+        for i in range(NX):
+            if not math.isfinite(x[i]):
+                return _fail(out, k + 1, STATUS_NONFINITE), mode, fd_prev, fs_prev
+        if x[X_PP] <= 0.0 or x[X_PN] <= 0.0 or x[X_TP] <= 0.0 or x[X_TN] <= 0.0:
+            return _fail(out, k + 1, STATUS_NONPHYSICAL), mode, fd_prev, fs_prev
+        if need_aux:
+            u_p, u_n = commands(x, inp, k + 1, 0.0, cfg, ctrl)
+            rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+        _record(out, k + 1, x, aux, ch_sel)
+    return STATUS_OK, mode, fd_prev, fs_prev
+
+
 @njit(cache=True)
 def integrate(
     t: np.ndarray,
@@ -1162,105 +1357,15 @@ def integrate(
             _record(out, k, x, aux, ch_sel)
         return STATUS_OK
 
-    blocked = cfg[C_BLOCKED] == 1
-    # LuGre: no friction modes (the stuck mode and event location are bypassed)
-    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
-    u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
-    if cfg[C_VALVE_ORDER] > 0:
-        x[X_UP] = u_p
-        x[X_UN] = u_n
-    # initial friction mode
-    mode = 0
-    if lugre:
-        h0 = (t[1] - t[0]) / (nsub[0] if nsub[0] > 0 else 1)
-        d[D_ZRATE] = LUGRE_RATE_LIMIT / h0
-        if not math.isfinite(x[X_Z]):
-            x[X_Z] = 0.0
-            rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
-            x[X_Z] = initial_deflection(x, p, cfg, aux[A_FD])
-    rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
-    if not blocked and not lugre:
-        if x[X_V] > 0.0:
-            mode = 1
-        elif x[X_V] < 0.0:
-            mode = -1
-        else:
-            mode = next_mode(aux[A_FD], aux[A_FS])
-    fd_prev = aux[A_FD]
-    fs_prev = aux[A_FS]
-    if mode != 0:
-        rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+    # LuGre's rate limit needs the first interval's step
+    h0 = (t[1] - t[0]) / (nsub[0] if nsub[0] > 0 else 1) if n > 1 else 1.0
+    mode, fd_prev, fs_prev = initial_mode(x, inp, h0, p, d, cfg, ctrl, dx, aux)
     _record(out, 0, x, aux, ch_sel)
-
-    for k in range(n - 1):
-        dt = t[k + 1] - t[k]
-        n_sub = nsub[k] if nsub[k] > 0 else 1
-        h = dt / n_sub
-        dw = 1.0 / n_sub
-        if lugre:
-            d[D_ZRATE] = LUGRE_RATE_LIMIT / h
-        for j in range(n_sub):
-            w0 = j * dw
-            rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
-                    kk, xs, dx, aux, xn)  # fmt: skip
-            if blocked or lugre:
-                pass
-            elif mode != 0:
-                if xn[X_V] * mode <= 0.0:
-                    # the sliding piston came to rest within the step
-                    theta = 0.0
-                    if x[X_V] != 0.0:
-                        theta = locate_event(0, x[X_V], xn[X_V], x, mode, inp, k, w0, dw, h, p,
-                                             d, cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx,
-                                             aux, xe)  # fmt: skip
-                    else:
-                        for i in range(NX):
-                            xe[i] = x[i]
-                        u_p, u_n = commands(xe, inp, k, w0, cfg, ctrl)
-                        rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
-                    xe[X_V] = 0.0
-                    mode = next_mode(aux[A_FD], aux[A_FS])
-                    we = w0 + theta * dw
-                    rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
-                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
-                    if mode != 0 and xn[X_V] * mode < 0.0:
-                        xn[X_V] = 0.0  # reversal overshoot; the next step re-decides
-            elif abs(aux[A_FD]) > aux[A_FS]:
-                # the last stage says the stuck piston breaks away: confirm at the
-                # step's end, then locate |F_d| = F_s within the step
-                u_p, u_n = commands(xn, inp, k, w0 + dw, cfg, ctrl)
-                rhs(xn, 0, u_p, u_n, p, d, cfg, dx, aux)
-                e1 = abs(aux[A_FD]) - aux[A_FS]
-                if e1 > 0.0:
-                    direction = 1 if aux[A_FD] > 0.0 else -1
-                    e0 = abs(fd_prev) - fs_prev
-                    theta = 0.0
-                    if e0 < 0.0:
-                        theta = locate_event(1, e0, e1, x, 0, inp, k, w0, dw, h, p, d, cfg,
-                                             ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux,
-                                             xe)  # fmt: skip
-                    else:
-                        for i in range(NX):
-                            xe[i] = x[i]
-                    mode = direction
-                    we = w0 + theta * dw
-                    rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
-                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
-            fd_prev = aux[A_FD]
-            fs_prev = aux[A_FS]
-            for i in range(NX):
-                x[i] = xn[i]
-        # health check once per sample
-        for i in range(NX):
-            if not math.isfinite(x[i]):
-                return _fail(out, k + 1, STATUS_NONFINITE)
-        if x[X_PP] <= 0.0 or x[X_PN] <= 0.0 or x[X_TP] <= 0.0 or x[X_TN] <= 0.0:
-            return _fail(out, k + 1, STATUS_NONPHYSICAL)
-        if need_aux:
-            u_p, u_n = commands(x, inp, k + 1, 0.0, cfg, ctrl)
-            rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
-        _record(out, k + 1, x, aux, ch_sel)
-    return STATUS_OK
+    status, _, _, _ = integrate_from(
+        t, inp, nsub, x, mode, fd_prev, fs_prev, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
+        ch_sel, out, need_aux, kk, xs, xn, xe, dx, aux,
+    )  # fmt: skip
+    return status
 
 
 @njit(cache=True)

@@ -20,41 +20,22 @@ intervals.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from pneumafit.models import kernel
 from pneumafit.models.kernel import (
-    A_FD,
-    A_FS,
-    C_BLOCKED,
-    C_FRICTION_LAW,
-    C_VALVE_ORDER,
-    D_ZRATE,
-    FRICTION_LUGRE,
-    LUGRE_RATE_LIMIT,
     commands,
-    initial_deflection,
-    locate_event,
-    next_mode,
+    initial_mode,
+    integrate_from,
     rhs,
-    rk_step,
 )
 from pneumafit.models.layout import (
     CHANNEL_UNITS,
     CHANNELS,
     NCTRL,
     NX,
-    X_PN,
-    X_PP,
-    X_TN,
-    X_TP,
-    X_UN,
-    X_UP,
-    X_V,
-    X_Z,
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.part_kernel import kernel_for, rebound
@@ -80,124 +61,40 @@ _FD, _FS = 0, 1
 
 @njit(cache=True)
 def _start(x0, p, d, cfg, ctrl, inp, h0, x, mem_i, mem_f, dx, aux) -> int:
-    """Initial state, LuGre deflection and friction mode (as ``kernel.integrate``).
+    """Initial state, LuGre deflection and friction mode (``kernel.initial_mode``,
+    as ``kernel.integrate`` starts).
 
     ``inp`` holds the first held command; returns a status code."""
     if not kernel.admissible(p, cfg):
         return kernel.STATUS_BAD_PARAMETERS
     kernel.derive(p, d)
     kernel._initial_state(x0, p, cfg, x)
-    blocked = cfg[C_BLOCKED] == 1
-    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
-    u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
-    if cfg[C_VALVE_ORDER] > 0:
-        x[X_UP] = u_p
-        x[X_UN] = u_n
-    mode = 0
-    if lugre:
-        d[D_ZRATE] = LUGRE_RATE_LIMIT / h0
-        if not math.isfinite(x[X_Z]):
-            x[X_Z] = 0.0
-            rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
-            x[X_Z] = initial_deflection(x, p, cfg, aux[A_FD])
-    rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
-    if not blocked and not lugre:
-        if x[X_V] > 0.0:
-            mode = 1
-        elif x[X_V] < 0.0:
-            mode = -1
-        else:
-            mode = next_mode(aux[A_FD], aux[A_FS])
-    mem_f[_FD] = aux[A_FD]
-    mem_f[_FS] = aux[A_FS]
-    if mode != 0:
-        rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+    mode, fd, fs = initial_mode(x, inp, h0, p, d, cfg, ctrl, dx, aux)
     mem_i[_MODE] = mode
+    mem_f[_FD] = fd
+    mem_f[_FS] = fs
     return kernel.STATUS_OK
 
 
 @njit(cache=True)
 def _advance(x, mem_i, mem_f, inp, dt, n_sub, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
              kk, xs, xn, xe, dx, aux) -> int:  # fmt: skip
-    """One sample interval of ``kernel.integrate`` (its loop body, k = 0 of a
-    two-row input table holding the command), updating x and the memory.
-
-    A copy of that loop body, kept on purpose: moved into one function that
-    both call, the call per sample cost the kernel 7 % of a simulation
-    (1.69-1.72 against 1.59-1.61 ms per simulation, ``bench_simulate.py``
-    run alternately on the two versions, 2026-11-30; numba passes each of
-    its 21 array arguments as its struct's fields), and inlined at numba's
-    IR level (``inline="always"``) 15-20 %. The outputs were the same bit for
-    bit. ``tests/test_sil.py`` checks that the two give the same numbers
-    (``test_sampled_stepper_integrates_as_the_kernel``), so they cannot
-    drift apart unseen."""
-    blocked = cfg[C_BLOCKED] == 1
-    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
-    mode = mem_i[_MODE]
-    fd_prev = mem_f[_FD]
-    fs_prev = mem_f[_FS]
-    k = 0
-    h = dt / n_sub
-    dw = 1.0 / n_sub
-    if lugre:
-        d[D_ZRATE] = LUGRE_RATE_LIMIT / h
-    for j in range(n_sub):
-        w0 = j * dw
-        rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
-                kk, xs, dx, aux, xn)  # fmt: skip
-        if blocked or lugre:
-            pass
-        elif mode != 0:
-            if xn[X_V] * mode <= 0.0:
-                theta = 0.0
-                if x[X_V] != 0.0:
-                    theta = locate_event(0, x[X_V], xn[X_V], x, mode, inp, k, w0, dw, h, p,
-                                         d, cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx,
-                                         aux, xe)  # fmt: skip
-                else:
-                    for i in range(NX):
-                        xe[i] = x[i]
-                    u_p, u_n = commands(xe, inp, k, w0, cfg, ctrl)
-                    rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
-                xe[X_V] = 0.0
-                mode = next_mode(aux[A_FD], aux[A_FS])
-                we = w0 + theta * dw
-                rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
-                        cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
-                if mode != 0 and xn[X_V] * mode < 0.0:
-                    xn[X_V] = 0.0
-        elif abs(aux[A_FD]) > aux[A_FS]:
-            u_p, u_n = commands(xn, inp, k, w0 + dw, cfg, ctrl)
-            rhs(xn, 0, u_p, u_n, p, d, cfg, dx, aux)
-            e1 = abs(aux[A_FD]) - aux[A_FS]
-            if e1 > 0.0:
-                direction = 1 if aux[A_FD] > 0.0 else -1
-                e0 = abs(fd_prev) - fs_prev
-                theta = 0.0
-                if e0 < 0.0:
-                    theta = locate_event(1, e0, e1, x, 0, inp, k, w0, dw, h, p, d, cfg,
-                                         ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux,
-                                         xe)  # fmt: skip
-                else:
-                    for i in range(NX):
-                        xe[i] = x[i]
-                mode = direction
-                we = w0 + theta * dw
-                rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
-                        cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
-        fd_prev = aux[A_FD]
-        fs_prev = aux[A_FS]
-        for i in range(NX):
-            x[i] = xn[i]
+    """One sample interval of ``kernel.integrate`` (``kernel.integrate_from``
+    over a two-row input table holding the command, no channels recorded),
+    updating x and the memory; returns a status code."""
+    t2 = np.empty(2)
+    t2[0] = 0.0
+    t2[1] = dt
+    nsub2 = np.full(2, n_sub, dtype=np.int64)
+    status, mode, fd, fs = integrate_from(
+        t2, inp, nsub2, x, mem_i[_MODE], mem_f[_FD], mem_f[_FS], p, d, cfg, ctrl,
+        tab_a, tab_b, tab_c, np.empty(0, dtype=np.int64), np.empty((2, 0)), False,
+        kk, xs, xn, xe, dx, aux,
+    )  # fmt: skip
     mem_i[_MODE] = mode
-    mem_f[_FD] = fd_prev
-    mem_f[_FS] = fs_prev
-    for i in range(NX):
-        if not math.isfinite(x[i]):
-            return kernel.STATUS_NONFINITE
-    if x[X_PP] <= 0.0 or x[X_PN] <= 0.0 or x[X_TP] <= 0.0 or x[X_TN] <= 0.0:
-        return kernel.STATUS_NONPHYSICAL
-    return kernel.STATUS_OK
+    mem_f[_FD] = fd
+    mem_f[_FS] = fs
+    return status
 
 
 @njit(cache=True)

@@ -156,7 +156,8 @@ def fit_command(
     if friction not in ("auto", *FRICTION_LAWS):
         problems.append(
             f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "
-            f"found {friction!r}"
+            f"found {friction!r} (a friction law of your own: load its file first, "
+            "pneumafit --parts FILE.py fit ...)"
         )
     if seal not in ("auto", "on", "off"):
         problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")

@@ -18,7 +18,7 @@ from scipy.signal import savgol_filter
 
 from pneumafit.campaign.model import Recording
 from pneumafit.errors import PneumafitInputError
-from pneumafit.models.parts import HEAT_LAWS
+from pneumafit.models.parts import FRICTION_LAWS, HEAT_LAWS
 from pneumafit.physics.air import G0, RHO0, T_REF
 from pneumafit.physics.geometry import piston_areas
 
@@ -114,11 +114,11 @@ def friction_starts(
     if law == "lugre":
         generic |= _bristle_start(1.0e6, m)
     if not rows_v:
-        return [generic]
+        return _for_law([generic], law)
     v = np.concatenate(rows_v)
     f = np.concatenate(rows_f) * np.sign(v)
     if v.size < 10:
-        return [generic]
+        return _for_law([generic], law)
     design = np.stack([np.ones(v.size), np.abs(v)], axis=1)
     (f_c, b), *_ = np.linalg.lstsq(design, f, rcond=None)
     f_c = float(np.clip(f_c, 0.5, 5e3))
@@ -130,7 +130,24 @@ def friction_starts(
             "stribeck_velocity": 0.01}  # fmt: skip
     if law == "lugre":
         data |= _bristle_start(2.0e5, m)
-    return [data, generic]
+    return _for_law([data, generic], law)
+
+
+def _for_law(starts: list[dict[str, float]], law: str) -> list[dict[str, float]]:
+    """The starts as a law registered from outside takes them: the levels it
+    shares with the switch model, each start once with every one of the
+    law's own starts (``FrictionLaw.starts``) laid over it. The built-in laws
+    take them as they are."""
+    if law in ("switch", "lugre"):
+        return starts
+    part = FRICTION_LAWS.get(law)
+    if part is None:
+        raise PneumafitInputError(
+            f"friction law: expected one of {sorted(FRICTION_LAWS)}, found {law!r}"
+        )
+    shared = [{n: v for n, v in start.items() if n in part.parameters} for start in starts]
+    own = [dict(s) for s in part.starts] or [{}]
+    return [base | extra for base in shared for extra in own]
 
 
 #: Static-over-Coulomb ratios and Stribeck velocities (m/s) of the screened

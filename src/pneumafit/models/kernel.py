@@ -385,6 +385,15 @@ def part_effects(
 
 
 @njit(cache=True, fastmath=_FM, _nrt=False)
+def part_friction(
+    law: int, v: float, f_s: float, f_c: float, x: np.ndarray, p: np.ndarray
+) -> float:
+    """Friction force (N, against the motion) of a friction law registered
+    outside the package: none here (NaN)."""
+    return math.nan
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def heat_coefficient(
     heat: int,
     p: np.ndarray,
@@ -737,7 +746,7 @@ def rhs(
         # break-away level)
         asym = cfg[C_FRICTION_ASYM] == 1
         if asym:
-            if cfg[C_FRICTION_LAW] == FRICTION_LUGRE:
+            if cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
                 s_dir = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
             elif mode == 0:
                 s_dir = 1.0 if f_drive > 0.0 else (-1.0 if f_drive < 0.0 else 0.0)
@@ -753,6 +762,12 @@ def rhs(
             dx[X_Y] = v
             dx[X_V] = (f_drive - f_f) * d[D_IM]
             dx[X_Z] = dz
+        elif cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
+            # a smooth law registered outside the package: no stuck mode
+            f_f = part_friction(cfg[C_FRICTION_LAW], v, f_s, f_c, x, p)
+            dx[X_Y] = v
+            dx[X_V] = (f_drive - f_f) * d[D_IM]
+            dx[X_Z] = 0.0
         elif mode == 0:
             f_f = f_drive  # stuck: friction balances the drive, v stays 0
             dx[X_Y] = 0.0
@@ -1100,8 +1115,10 @@ def initial_mode(
         breakaway test of the first step.
     """
     blocked = cfg[C_BLOCKED] == 1
-    # LuGre: no friction modes (the stuck mode and event location are bypassed)
+    # LuGre and the laws from outside: no friction modes (the stuck mode and
+    # event location are the switch model's)
     lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
+    smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
     u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
     if cfg[C_VALVE_ORDER] > 0:
         x[X_UP] = u_p
@@ -1115,7 +1132,7 @@ def initial_mode(
             rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
             x[X_Z] = initial_deflection(x, p, cfg, aux[A_FD])
     rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
-    if not blocked and not lugre:
+    if not blocked and not smooth:
         if x[X_V] > 0.0:
             mode = 1
         elif x[X_V] < 0.0:
@@ -1190,8 +1207,10 @@ def integrate_from(
     """
     n = t.shape[0]
     blocked = cfg[C_BLOCKED] == 1
-    # LuGre: no friction modes (the stuck mode and event location are bypassed)
+    # LuGre and the laws from outside: no friction modes (the stuck mode and
+    # event location are the switch model's)
     lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
+    smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
     for k in range(n - 1):
         dt = t[k + 1] - t[k]
         n_sub = nsub[k] if nsub[k] > 0 else 1
@@ -1203,7 +1222,7 @@ def integrate_from(
             w0 = j * dw
             rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
                     kk, xs, dx, aux, xn)  # fmt: skip
-            if blocked or lugre:
+            if blocked or smooth:
                 pass
             elif mode != 0:
                 if xn[X_V] * mode <= 0.0:

@@ -10,6 +10,11 @@ its own compiled code instead:
   parameter vector p (SI, ``layout.P``), its pressure (Pa), gas temperature
   and wall temperature (K). The chamber balance is the kernel's (paper eqs.
   2-5 with Q = lambda A (T_w - T)): a heat law is a lambda law;
+- a friction law (``FrictionLaw.kernel``): ``force(v, f_s, f_c, x, p) ->
+  float``, the friction force (N) against the motion from the piston speed
+  (m/s), the static and Coulomb levels (N, the seal and asymmetry effects
+  applied), the state and p; a smooth law, without the switch model's
+  stuck mode and events (as LuGre);
 - an effect (``Effect.kernel``): ``eff(x, p) -> (q_P, H_P, q_N, H_N, q_atm,
   F)``, from the state x (``layout.X_*``) and p: mass flows into chambers P
   and N (kg/s), the enthalpy they carry as sum q_i T_i (kg K/s: inflows at
@@ -24,8 +29,9 @@ may not allocate arrays.
 
 :func:`kernel_for` returns the module a structure runs on: the cached
 kernel when it uses built-in parts only, else a copy of the kernel's source
-compiled, without numba's disk cache, with its two hooks
-(``kernel.part_heat``, ``kernel.part_effects``) bound to every outside part
+compiled, without numba's disk cache, with its three hooks
+(``kernel.part_heat``, ``kernel.part_friction``, ``kernel.part_effects``)
+bound to every outside part
 registered at the time. The copy is made once per set of registered parts
 (the first simulation compiles it: 20 s on the 2-core machine, measured as
 the first test of ``tests/test_part_kernel.py``, once per process) and is
@@ -44,7 +50,7 @@ import numpy as np
 
 from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel, parts
-from pneumafit.models.layout import C_HEAT, C_PART_EFFECTS
+from pneumafit.models.layout import C_FRICTION_LAW, C_HEAT, C_PART_EFFECTS
 from pneumafit.physics.friction import FASTMATH
 
 if TYPE_CHECKING:
@@ -54,6 +60,7 @@ __all__ = [
     "MAX_PART_EFFECTS",
     "effect_bit",
     "hooked_effects",
+    "hooked_friction_laws",
     "hooked_heat_laws",
     "kernel_for",
     "kernel_for_config",
@@ -72,6 +79,12 @@ def hooked_heat_laws() -> list[parts.HeatLaw]:
     """The registered heat laws with kernel code of their own, by code."""
     laws = [h for h in parts.HEAT_LAWS.values() if h.kernel is not None]
     return sorted(laws, key=lambda h: h.code)
+
+
+def hooked_friction_laws() -> list[parts.FrictionLaw]:
+    """The registered friction laws with kernel code of their own, by code."""
+    laws = [f for f in parts.FRICTION_LAWS.values() if f.kernel is not None]
+    return sorted(laws, key=lambda f: f.code)
 
 
 def hooked_effects() -> list[parts.Effect]:
@@ -133,7 +146,11 @@ def kernel_for_config(cfg: np.ndarray) -> ModuleType:
     cfg : ndarray of int, shape (NCFG,)
         ``ModelStructure.config()``.
     """
-    if int(cfg[C_HEAT]) in parts.KERNEL_HEAT_CODES and int(cfg[C_PART_EFFECTS]) == 0:
+    if (
+        int(cfg[C_HEAT]) in parts.KERNEL_HEAT_CODES
+        and int(cfg[C_FRICTION_LAW]) in parts.KERNEL_FRICTION_CODES
+        and int(cfg[C_PART_EFFECTS]) == 0
+    ):
         return kernel
     return _copy()
 
@@ -183,19 +200,24 @@ def rebound(function: Any, module: ModuleType) -> Any:
 def _copy() -> ModuleType:
     """The kernel's copy bound to the outside parts registered now (built once per set)."""
     heat = hooked_heat_laws()
+    friction = hooked_friction_laws()
     effects = hooked_effects()
     key = (
         tuple((h.name, h.code, id(h.kernel)) for h in heat),
+        tuple((f.name, f.code, id(f.kernel)) for f in friction),
         tuple((e.name, id(e.kernel)) for e in effects),
     )
     module = _BUILT.get(key)
     if module is None:
-        module = _BUILT[key] = _build(heat, effects, len(_BUILT))
+        module = _BUILT[key] = _build(heat, friction, effects, len(_BUILT))
     return module
 
 
-def _hook_source(heat: list[parts.HeatLaw], effects: list[parts.Effect]) -> str:
-    """Source of the two hooks, dispatching on the heat code and the effect bits."""
+def _hook_source(
+    heat: list[parts.HeatLaw], friction: list[parts.FrictionLaw], effects: list[parts.Effect]
+) -> str:
+    """Source of the three hooks, dispatching on the heat and friction codes and
+    the effect bits."""
     lines = [
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
         "def part_heat(heat, p, pres, temp, t_wall):",
@@ -204,6 +226,18 @@ def _hook_source(heat: list[parts.HeatLaw], effects: list[parts.Effect]) -> str:
         lines += [
             f"    if heat == {int(h.code)}:",
             f"        return _heat_{int(h.code)}(p, pres, temp, t_wall)",
+        ]
+    lines += [
+        "    return math.nan",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_friction(law, v, f_s, f_c, x, p):",
+    ]
+    for f in friction:
+        lines += [
+            f"    if law == {int(f.code)}:",
+            f"        return _friction_{int(f.code)}(v, f_s, f_c, x, p)",
         ]
     lines += [
         "    return math.nan",
@@ -245,8 +279,14 @@ def _recompiled(function: object, where: str) -> object:
     return njit(cache=False, fastmath=FASTMATH, _nrt=False)(py_func)
 
 
-def _build(heat: list[parts.HeatLaw], effects: list[parts.Effect], serial: int) -> ModuleType:
-    """Compile-ready copy of the kernel module with its hooks bound to ``heat`` and ``effects``."""
+def _build(
+    heat: list[parts.HeatLaw],
+    friction: list[parts.FrictionLaw],
+    effects: list[parts.Effect],
+    serial: int,
+) -> ModuleType:
+    """Compile-ready copy of the kernel module with its hooks bound to ``heat``,
+    ``friction`` and ``effects``."""
     source = Path(kernel.__file__).read_text(encoding="utf-8")
     # the copy must not read or write numba's disk cache: its hooks are not
     # in the kernel file the cache is keyed on
@@ -260,8 +300,12 @@ def _build(heat: list[parts.HeatLaw], effects: list[parts.Effect], serial: int) 
     namespace = module.__dict__
     for law in heat:
         namespace[f"_heat_{int(law.code)}"] = _recompiled(law.kernel, f"heat law {law.name!r}")
+    for law in friction:
+        namespace[f"_friction_{int(law.code)}"] = _recompiled(
+            law.kernel, f"friction law {law.name!r}"
+        )
     for i, effect in enumerate(effects):
         namespace[f"_effect_{i}"] = _recompiled(effect.kernel, f"effect {effect.name!r}")
-    exec(compile(_hook_source(heat, effects), f"<pneumafit part hooks {serial}>", "exec"),
-         namespace)  # fmt: skip
+    exec(compile(_hook_source(heat, friction, effects), f"<pneumafit part hooks {serial}>",
+                 "exec"), namespace)  # fmt: skip
     return module

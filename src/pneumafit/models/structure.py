@@ -234,17 +234,22 @@ class ModelStructure:
                 "kernel implements (codes 0-2) or one registered with its kernel code "
                 "(HeatLaw.kernel), found neither (a part known to the Python side only)"
             )
-        for kind, registry, codes in (
-            ("valve law", parts.VALVE_LAWS[self.valve], parts.KERNEL_VALVE_CODES),
-            ("friction law", parts.FRICTION_LAWS[self.friction], parts.KERNEL_FRICTION_CODES),
-        ):
-            if registry.code not in codes:
-                raise PneumafitInputError(
-                    f"model structure {self.name}: {kind} {registry.name}: expected a law the "
-                    f"compiled kernel implements (codes {sorted(codes)}), found code "
-                    f"{registry.code} (a part known to the Python side only: valve and friction "
-                    "laws have no hook for outside code)"
-                )
+        valve = parts.VALVE_LAWS[self.valve]
+        if valve.code not in parts.KERNEL_VALVE_CODES:
+            raise PneumafitInputError(
+                f"model structure {self.name}: valve law {valve.name}: expected a law the "
+                f"compiled kernel implements (codes {sorted(parts.KERNEL_VALVE_CODES)}), found "
+                f"code {valve.code} (a part known to the Python side only: valve laws have no "
+                "hook for outside code)"
+            )
+        friction = parts.FRICTION_LAWS[self.friction]
+        if friction.code not in parts.KERNEL_FRICTION_CODES and friction.kernel is None:
+            raise PneumafitInputError(
+                f"model structure {self.name}: friction law {friction.name}: expected a law the "
+                f"compiled kernel implements (codes {sorted(parts.KERNEL_FRICTION_CODES)}) or "
+                "one registered with its kernel code (FrictionLaw.kernel), found neither (a "
+                "part known to the Python side only)"
+            )
         for name, value in self.effects.items():
             slot = EFFECT_SLOTS[name][0]
             if slot is not None:

@@ -199,13 +199,16 @@ def solve_reference(
 
     blocked = experiment.blocked
     lugre = structure.friction == "lugre" and not blocked
+    # no stuck mode and no events but in the switch model (LuGre and the
+    # laws registered from outside are smooth)
+    smooth = structure.friction != "switch" and not blocked
     if lugre and not np.isfinite(x[X_Z]):
         x[X_Z] = 0.0
         evaluate(t[0], x, 0)
         x[X_Z] = kernel.initial_deflection(x, p, cfg, aux[kernel.A_FD])
     evaluate(t[0], x, 0)
     mode = 0
-    if not blocked and not lugre:
+    if not blocked and not smooth:
         if x[X_V] != 0.0:
             mode = 1 if x[X_V] > 0 else -1
         else:
@@ -227,7 +230,7 @@ def solve_reference(
                 return evaluate(tt, xx, current)
 
             events = []
-            if not blocked and not lugre:
+            if not blocked and not smooth:
                 if current != 0:
 
                     def stop(tt, xx):

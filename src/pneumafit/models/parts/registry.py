@@ -83,10 +83,12 @@ PRIOR_KINDS: tuple[str, ...] = ("log-uniform", "half-normal", "uniform")
 #: Heat-law codes the compiled kernel has a branch for (polytropic, constant
 #: lambda, convection); a law with another code brings its ``kernel``.
 KERNEL_HEAT_CODES: frozenset[int] = frozenset({0, 1, 2})
-#: Valve- and friction-law codes the compiled kernel has a branch for (ISO
-#: 6358 and the measured map; the switch model and LuGre): these laws have no
-#: hook for outside code.
+#: Valve-law codes the compiled kernel has a branch for (ISO 6358 and the
+#: measured map): valve laws have no hook for outside code.
 KERNEL_VALVE_CODES: frozenset[int] = frozenset({0, 1})
+#: Friction-law codes the compiled kernel has a branch for (the switch model
+#: and LuGre); another code is a law with its own kernel code
+#: (``FrictionLaw.kernel``), called through ``kernel.part_friction``.
 KERNEL_FRICTION_CODES: frozenset[int] = frozenset({0, 1})
 
 #: Configuration slots that are not an effect's: the laws and the experiment.
@@ -244,9 +246,28 @@ class FrictionLaw(_Law):
         the log prior is -sum(r^2) / 2), and added by parameter sets when one
         of the law's parameters is free, e.g. the breakaway prior on
         F_s / F_c (:mod:`pneumafit.physics.friction_prior`).
+    kernel : numba njit function or None
+        The compiled friction force of a law registered from outside the
+        package (codes outside :data:`KERNEL_FRICTION_CODES`): an ``@njit``
+        function ``force(v, f_s, f_c, x, p) -> float``, the friction force
+        (N) against the motion, along +y, from the piston speed v (m/s), the
+        static and Coulomb levels f_s and f_c (N, with the seal-friction and
+        direction-asymmetry effects applied when they are on), the state x
+        (``layout.X_*``) and the parameter vector p (SI, ``layout.P``). It
+        must be a smooth function of v (no stuck mode, no events: the piston
+        then obeys M dv/dt = F_d - F), and may not allocate arrays
+        (:mod:`pneumafit.models.part_kernel`). None: the kernel's branch
+        (built-in laws), or a law known to the Python side only, whose
+        structure cannot be simulated.
+    starts : tuple of mapping
+        Starting values of the law's own parameters for the friction stage
+        (each a mapping name -> SI value; the switch model's levels seed the
+        rest).
     """
 
     joint_prior: Callable[[Mapping[str, Any]], Any] | None = None
+    kernel: Callable[..., float] | None = field(default=None, compare=False)
+    starts: tuple[Mapping[str, float], ...] = ()
 
 
 # ----------------------------------------------------------------- effects
@@ -642,8 +663,20 @@ def register_valve_law(law: ValveLaw, *, replace: bool = False) -> ValveLaw:
 
 
 def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> FrictionLaw:
-    """Add a friction law to :data:`FRICTION_LAWS` (checks as :func:`register_heat_law`)."""
-    _check_law(_FRICTION, law, "friction law", replace)
+    """Add a friction law to :data:`FRICTION_LAWS` (checks as :func:`register_heat_law`).
+
+    A law with ``kernel`` code takes a code outside
+    :data:`KERNEL_FRICTION_CODES`, and its ``starts`` name only its parameters.
+    """
+    where = _check_law(_FRICTION, law, "friction law", replace)
+    _check_kernel(where, law.kernel)
+    if law.kernel is not None and law.code in KERNEL_FRICTION_CODES:
+        raise PneumafitInputError(
+            f"{where}: kernel: expected a code outside {sorted(KERNEL_FRICTION_CODES)} (the "
+            f"kernel's own branches), found {law.code}"
+        )
+    for start in law.starts:
+        _check_values(where, start, law.parameters)
     return _commit(_FRICTION, law, replace)
 
 

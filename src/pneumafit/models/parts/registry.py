@@ -525,6 +525,17 @@ def _check_law(registry: Mapping[str, Any], part: Any, kind: str, replace: bool)
     return where
 
 
+def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
+    """A law's kernel code is an njit function, and a law with one takes a
+    code outside ``codes`` (the kernel's own branches)."""
+    _check_kernel(where, law.kernel)
+    if law.kernel is not None and law.code in codes:
+        raise PneumafitInputError(
+            f"{where}: kernel: expected a code outside {sorted(codes)} (the "
+            f"kernel's own branches), found {law.code}"
+        )
+
+
 def _check_kernel(where: str, function: object) -> None:
     """A part's kernel code is a numba njit function (or None)."""
     if function is not None and not (
@@ -643,12 +654,7 @@ def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
         A failed check; nothing is registered.
     """
     where = _check_law(_HEAT, law, "heat law", replace)
-    _check_kernel(where, law.kernel)
-    if law.kernel is not None and law.code in KERNEL_HEAT_CODES:
-        raise PneumafitInputError(
-            f"{where}: kernel: expected a code outside {sorted(KERNEL_HEAT_CODES)} (the "
-            f"kernel's own branches), found {law.code}"
-        )
+    _check_own_code(where, law, KERNEL_HEAT_CODES)
     if law.extensions:
         _check_parameters(f"{where}: extensions", (*law.parameters, *law.extensions))
     for start in law.starts:
@@ -669,12 +675,7 @@ def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> Frictio
     :data:`KERNEL_FRICTION_CODES`, and its ``starts`` name only its parameters.
     """
     where = _check_law(_FRICTION, law, "friction law", replace)
-    _check_kernel(where, law.kernel)
-    if law.kernel is not None and law.code in KERNEL_FRICTION_CODES:
-        raise PneumafitInputError(
-            f"{where}: kernel: expected a code outside {sorted(KERNEL_FRICTION_CODES)} (the "
-            f"kernel's own branches), found {law.code}"
-        )
+    _check_own_code(where, law, KERNEL_FRICTION_CODES)
     for start in law.starts:
         _check_values(where, start, law.parameters)
     return _commit(_FRICTION, law, replace)

@@ -559,18 +559,23 @@ def test_an_outside_friction_law_is_fitted_and_saved(registered: None, tmp_path:
     in every stage, reports its levels, and its fit.json reads back with the
     law registered. The smooth law is not the rig's, so no level is asked to
     match the truth; only that the fit is finite and lands on levels of the
-    truth's size (the Coulomb level within a factor of two of 30 N)."""
+    truth's size (the Coulomb level within a factor of two of 30 N). With
+    ``--friction auto`` the law is compared with the built-in law chosen, by
+    BIC in effective samples, and the fit says which it kept."""
     import pneumafit as pf
     from pneumafit.identification.staged import FitOptions, FitResult
     from pneumafit.virtual_rig import VirtualRig
 
     _register_smooth(v_eps=5e-3)
     folder = tmp_path / "campaign"
-    VirtualRig(seed=3).write(folder, protocol="quick")
+    VirtualRig(seed=3).write(folder, protocol="sparse")  # one fit step test
     campaign = pf.read_campaign(folder)
     fit = pf.fit(campaign, "convection", mcmc=False, seed=0,
                  options=FitOptions(friction="smooth-coulomb"))  # fmt: skip
     assert fit.structure.friction == "smooth-coulomb"
+    friction = next(s for s in fit.stages if s.name == "friction")
+    assert friction.estimate is not None  # solved on the step test, not held
+    assert set(friction.free) == set(parts.FRICTION_LAWS["smooth-coulomb"].parameters)
     values = fit.parameters.values()
     assert all(math.isfinite(values[n]) for n in parts.FRICTION_LAWS["smooth-coulomb"].parameters)
     assert 15.0 < values["friction_coulomb"] < 60.0
@@ -578,6 +583,17 @@ def test_an_outside_friction_law_is_fitted_and_saved(registered: None, tmp_path:
     again = FitResult.load(tmp_path / "fit.json")
     assert again.structure.friction == "smooth-coulomb"
     assert again.parameters.values()["friction_coulomb"] == values["friction_coulomb"]
+    # --friction auto compares the registered law with the built-in one it
+    # chooses, by BIC in effective samples, and says which it kept
+    lines: list[str] = []
+    auto = pf.fit(campaign, "convection", mcmc=False, seed=0, log=lines.append)
+    said = [line for line in lines if line.startswith("friction (smooth-coulomb): BIC")]
+    assert len(said) == 1 and ("kept" in said[0])
+    note = next(s for s in auto.stages if s.name == "friction").note
+    if auto.structure.friction == "smooth-coulomb":
+        assert note.startswith("friction law smooth-coulomb: BIC in effective samples")
+    else:
+        assert "not kept" in said[0] and note.startswith(f"friction law {auto.structure.friction}")
 
 
 def _register_orifice(name: str, law: Callable[[int], object], text: str) -> None:

@@ -98,6 +98,7 @@ from pneumafit.identification.starts import (
     valve_starts,
 )
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
+from pneumafit.models.parts import FRICTION_LAWS as FRICTION_PARTS
 from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
@@ -590,14 +591,17 @@ class FitOptions:
         Valve law: the parametric ISO 6358 characteristic, or the measured
         map (:mod:`pneumafit.physics.valve_map`), started from the ISO fit of
         the flow tests.
-    friction : {"auto", "switch", "lugre"}
+    friction : {"auto", "switch", "lugre"} or a registered law's name
         Friction law of the fitted model (:mod:`pneumafit.physics.friction`):
         the switch model of stick-slip, or LuGre with pre-sliding, whose
         bristle stiffness sigma0 and damping sigma1 are then fitted with the
-        other friction parameters in stages (c) and (d). ``auto`` (default)
-        fits both in stage (c) and keeps LuGre when its log-likelihood gain
-        on the step tests exceeds ln n (BIC for its two extra parameters);
-        a structure passed as ``model`` keeps its own law.
+        other friction parameters in stages (c) and (d), or a law registered
+        from outside the package with kernel code (``FrictionLaw.kernel``).
+        ``auto`` (default) fits both built-in laws in stage (c) and keeps
+        LuGre when its log-likelihood gain on the step tests exceeds ln n
+        (BIC for its two extra parameters), then compares each outside law
+        with the one kept (BIC in effective samples); a structure passed as
+        ``model`` keeps its own law.
     walkers : int or None
         Walkers of every sampled stage (default :func:`default_walkers`).
     steps : int or None
@@ -1516,8 +1520,8 @@ def identify(
             seconds += trial.seconds
             return trial, solved, prob
 
-        # the kernel's own laws: one registered from outside is fitted when
-        # asked for by name (--friction NAME), not compared here
+        # the kernel's own laws first; the laws registered from outside with
+        # kernel code are compared with the better of the two after
         for cand in ("lugre", "switch"):
             structure = replace(structure, friction=cand)
             params = _with_law(params, structure, rig, nuisance)
@@ -1574,6 +1578,19 @@ def identify(
             f"ln n_eff = {penalty:.1f})"
         )
         say(f"friction: {stage.note}")
+        # the laws registered from outside with kernel code, each against the
+        # law kept so far
+        outside = [f.name for f in FRICTION_PARTS.values() if f.kernel is not None]
+        for cand in outside if math.isfinite(over) and math.isfinite(penalty) else ():
+            structure = replace(structure, friction=cand)
+            params = _with_law(params, structure, rig, nuisance)
+            names = tuple(structure.friction_parameter_names)
+            trial, solved, _ = solve(names, friction_starts(steps, rig, cand),
+                                     f"friction ({cand})", opts.random_starts)  # fmt: skip
+            law, stage, chosen = _lower_bic(
+                (law, stage, chosen), (cand, trial, solved), over, penalty, say
+            )
+        stage.seconds = seconds
         values.update(chosen)
         structure = replace(structure, friction=law)
         params = _with_law(params, structure, rig, nuisance)
@@ -1995,6 +2012,41 @@ def _tempering_line(problem: Problem, taus: NDArray[np.float64]) -> str:
         f"{taus.size} blocks; longest {taus[worst]:.3g} in {o.recording} {o.channel}): "
         f"the intervals count {np.sum(n / taus):.0f} effective samples of {np.sum(n):.0f}"
     )
+
+
+def _lower_bic(
+    kept: tuple[str, StageResult, dict[str, float]],
+    other: tuple[str, StageResult, dict[str, float]],
+    over: float,
+    penalty: float,
+    say: Callable[[str], None],
+) -> tuple[str, StageResult, dict[str, float]]:
+    """``--friction auto``: a friction law registered from outside the package
+    against the law kept so far, each given as (name, stage, estimates).
+
+    The one with the lower BIC in effective samples, -2 ll / over + k ln
+    n_eff (``over`` the residuals' overcount at the LuGre optimum, ``penalty``
+    = ln n_eff), is kept; between LuGre and the switch model the rule above
+    is this one for their pair (two more parameters against a gain).
+    """
+
+    def bic(name: str, trial: StageResult) -> float:
+        ll = trial.estimate.log_likelihood if trial.estimate is not None else -math.inf
+        return -2.0 * ll / over + len(FRICTION_PARTS[name].parameters) * penalty
+
+    best, score = bic(kept[0], kept[1]), bic(other[0], other[1])
+    better = math.isfinite(score) and score < best
+    say(
+        f"friction ({other[0]}): BIC in effective samples {score:.1f} against {best:.1f} "
+        f"({kept[0]}): " + ("kept" if better else "not kept")
+    )
+    if not better:
+        return kept
+    other[1].note = (
+        f"friction law {other[0]}: BIC in effective samples {score:.1f} against {best:.1f} "
+        f"for {kept[0]} ({kept[1].note})"
+    )
+    return other
 
 
 def _brief(est: PointEstimate, names: Sequence[str]) -> str:

@@ -491,8 +491,9 @@ def test_an_outside_friction_law_gives_the_force_it_computes(
     """Identity of the hook (not recovery): the recorded friction force F_f is
     the law's formula at the recorded speed, for every sample, written again
     here in numpy (1e-12 relative: the same formula in numba and numpy,
-    exp and tanh of one libm). A hook that lost the sign, a level or the
-    viscous term would differ by newtons. The piston moves and stops by the
+    exp and tanh of one libm; 1e-9 N absolute where the force crosses
+    zero). A hook that lost the sign, a level or the viscous term would
+    differ by newtons. The piston moves and stops by the
     law (no stuck mode: it creeps at |v| << v_eps instead)."""
     _register_smooth()
     values = default_parameters()

@@ -98,6 +98,7 @@ from pneumafit.identification.starts import (
     valve_starts,
 )
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
+from pneumafit.models.part_kernel import hooked_friction_laws
 from pneumafit.models.parts import FRICTION_LAWS as FRICTION_PARTS
 from pneumafit.models.parts import HEAT_LAWS
 from pneumafit.models.structure import (
@@ -1580,7 +1581,7 @@ def identify(
         say(f"friction: {stage.note}")
         # the laws registered from outside with kernel code, each against the
         # law kept so far
-        outside = [f.name for f in FRICTION_PARTS.values() if f.kernel is not None]
+        outside = [f.name for f in hooked_friction_laws()]
         for cand in outside if math.isfinite(over) and math.isfinite(penalty) else ():
             structure = replace(structure, friction=cand)
             params = _with_law(params, structure, rig, nuisance)

@@ -742,8 +742,8 @@ def rhs(
                 f_s += extra
                 f_c += extra
         # direction asymmetry: levels times (1 + a s), s the sliding direction
-        # (LuGre: sign v; stuck: the direction the drive pushes, for the
-        # break-away level)
+        # (LuGre and the laws from outside: sign v; stuck: the direction the
+        # drive pushes, for the break-away level)
         asym = cfg[C_FRICTION_ASYM] == 1
         if asym:
             if cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
@@ -1310,7 +1310,8 @@ def integrate(
     no modes: its steps are plain Runge-Kutta steps, with the bristle
     relaxation rate limited to LUGRE_RATE_LIMIT / h (h the step of the
     sample interval), and a NaN initial z_f is replaced by
-    :func:`initial_deflection`.
+    :func:`initial_deflection`. Nor has a friction law registered from
+    outside the package (:func:`part_friction`): plain steps too.
 
     Parameters
     ----------

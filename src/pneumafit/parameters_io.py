@@ -36,7 +36,7 @@ from typing import Any
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.units import UnitError, parse_quantity
 from pneumafit.identification.fitfile import SavedFit, is_fit_document
-from pneumafit.models.layout import FRICTION_LAWS, SPECS
+from pneumafit.models.layout import FRICTION_LAWS, SPECS, VALVE_LAWS
 from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
 
 #: Top-level keys of a hand-written parameter file (a document without
@@ -176,7 +176,8 @@ def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, fl
 def read_valve_law(path: str | os.PathLike[str]) -> str:
     """Valve law of a fit.json (``structure.valve``) or parameter file.
 
-    ``"map"`` for a fit of the measured valve map, else ``"iso6358"`` (a
+    The structure's law (``"map"`` for a fit of the measured valve map, or a
+    registered law from outside the package), else ``"iso6358"`` (a
     parameter file, or a fit written before the map existed).
     """
     try:
@@ -187,7 +188,7 @@ def read_valve_law(path: str | os.PathLike[str]) -> str:
         return _fitted(document, os.fspath(path)).valve
     structure = document.get("structure") if isinstance(document, dict) else None
     valve = structure.get("valve") if isinstance(structure, dict) else None
-    return str(valve) if valve in ("iso6358", "map") else "iso6358"
+    return str(valve) if isinstance(valve, str) and valve in VALVE_LAWS else "iso6358"
 
 
 def parse_friction_law(document: dict[str, Any], where: str = "parameters") -> str:

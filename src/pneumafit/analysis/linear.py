@@ -70,6 +70,7 @@ from pneumafit.models.layout import (
     P,
 )
 from pneumafit.models.parameters import parameter_vector
+from pneumafit.models.part_kernel import kernel_for, kernel_for_valve
 from pneumafit.models.structure import ModelStructure
 from pneumafit.physics.air import GAMMA, R_AIR
 from pneumafit.physics.geometry import chamber_volumes, exchange_areas, piston_areas
@@ -104,7 +105,8 @@ def _vec(parameters: Mapping[str, float] | np.ndarray) -> np.ndarray:
 
 
 def valve_law(valve: str) -> int:
-    """Kernel code of a valve law name (``"iso6358"`` or ``"map"``).
+    """Kernel code of a valve law name (``"iso6358"``, ``"map"`` or a law
+    registered from outside the package).
 
     Raises
     ------
@@ -120,9 +122,10 @@ def valve_law(valve: str) -> int:
 
 def _flows(p: np.ndarray, u: float, pres: float, law: int) -> tuple[float, float, float]:
     """Valve flows (net, enthalpy, from supply) into a chamber at pressure pres
-    (Pa), gas at T_0, under the valve law ``law`` (the fitted one: ISO 6358 or
-    the measured map)."""
-    return kernel.static_valve_flows(p, law, u, pres, p[P["wall_temperature"]])
+    (Pa), gas at T_0, under the valve law ``law`` (the fitted one: ISO 6358,
+    the measured map or a law from outside the package)."""
+    module = kernel_for_valve(law)
+    return module.static_valve_flows(p, law, u, pres, p[P["wall_temperature"]])
 
 
 def _net_flow(p: np.ndarray, u: float, pres: float, law: int = 0) -> float:
@@ -279,17 +282,31 @@ def overlap(p: np.ndarray, valve: str = "iso6358") -> float:
     sampled from a linear ramp, up to the knot interpolation; knots at
     0.25 and 0.5 V cannot place the edge more finely by themselves); the mean
     over the supply (u > 0) and exhaust (u < 0) paths, on a 1-mV grid,
-    clipped to [0, u_sat / 2].
+    clipped to [0, u_sat / 2]. A law from outside the package: the same
+    rule on its flows, the supply path's drawn into a chamber at the exhaust
+    pressure and the exhaust path's out of one at the supply pressure
+    (each path's conductance times a constant, for an orifice law).
     """
-    if valve_law(valve) == VALVE_LAWS["iso6358"]:
+    law = valve_law(valve)
+    if law == VALVE_LAWS["iso6358"]:
         return float(p[P["valve_overlap"]])
-    vc, vm = np.empty(NVC), np.empty(NVM)
-    kernel.valve_arrays(p, vc, vm)
     u_sat = float(p[P["valve_u_sat"]])
     grid = np.arange(0.0, u_sat + 5e-4, 1e-3)
+    if law == VALVE_LAWS["map"]:
+        vc, vm = np.empty(NVC), np.empty(NVM)
+        kernel.valve_arrays(p, vc, vm)
+        paths = [
+            np.array([map_conductances(u, vm)[0] for u in grid]),
+            np.array([map_conductances(-u, vm)[1] for u in grid]),
+        ]
+    else:
+        p_e, p_s = float(p[P["exhaust_pressure"]]), float(p[P["supply_pressure"]])
+        paths = [
+            np.array([_flows(p, u, p_e * (1.0 + 1e-9), law)[2] for u in grid]),
+            np.array([-_flows(p, -u, p_s * (1.0 - 1e-9), law)[0] for u in grid]),
+        ]
     edges = []
-    for side in (0, 1):  # supply path at +u, exhaust at -u
-        c = np.array([map_conductances(u if side == 0 else -u, vm)[side] for u in grid])
+    for c in paths:  # supply path at +u, exhaust at -u
         rise = c - c[0]
         if not rise[-1] > 0.0:
             edges.append(0.0)
@@ -598,8 +615,9 @@ def numerical_jacobian(
     p[P["lambda"]] = lambda_e
     structure = ModelStructure("constant-lambda" if order == 6 else "polytropic", valve=valve)
     cfg = structure.config()
+    module = kernel_for(structure)  # a valve law from outside the package runs on its copy
     d = np.empty(kernel.ND)
-    kernel.derive(p, d)
+    module.derive(p, d)
     slots = SLOTS_6[:order]
     x0 = np.zeros(NX)
     x0[list(SLOTS_6)] = eq.state()
@@ -622,8 +640,8 @@ def numerical_jacobian(
 
     def f(x: np.ndarray, u: float) -> np.ndarray:
         ctrl[2] = u  # zero gains: the law returns c(u) (or u)
-        u_valve = kernel.commands(x, inp, 0, 0.0, law_cfg, ctrl)[0]
-        kernel.rhs(x, 1, u_valve, -u_valve, p, d, cfg, dx, aux)
+        u_valve = module.commands(x, inp, 0, 0.0, law_cfg, ctrl)[0]
+        module.rhs(x, 1, u_valve, -u_valve, p, d, cfg, dx, aux)
         return dx[list(slots)].copy()
 
     A = np.zeros((order, order))

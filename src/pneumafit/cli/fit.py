@@ -152,7 +152,10 @@ def fit_command(
             "(a heat law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
         )
     if valve not in VALVE_LAWS:
-        problems.append(f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}")
+        problems.append(
+            f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r} "
+            "(a valve law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
+        )
     if friction not in ("auto", *FRICTION_LAWS):
         problems.append(
             f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "

@@ -634,7 +634,7 @@ def _entry(entry: Any) -> Any:
     return {k: v for k, v in entry.items() if not k.startswith("laplace_")}
 
 
-#: Said after a heat law or effect the registries do not know.
+#: Said after a heat, valve or friction law or an effect the registries do not know.
 _OWN_PART = (
     " (a part of one's own? register it first: import its module, or "
     "pneumafit --parts FILE.py COMMAND ...)"
@@ -663,7 +663,10 @@ def _structure(model: str, spec: Mapping[str, Any], where: str) -> ModelStructur
         if value is None:
             value = default
         if value not in allowed:
-            raise _problem(where, f"structure.{key}", f"one of {', '.join(allowed)}", repr(value))
+            # a valve or friction law may be one's own, registered by --parts
+            own = _OWN_PART if key in ("valve", "friction") else ""
+            raise _problem(where, f"structure.{key}", f"one of {', '.join(allowed)}",
+                           f"{value!r}{own}")  # fmt: skip
         chosen[key] = value
     effects: dict[str, int] = {}
     for effect, option in (spec.get("effects") or {}).items():

@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import write_text_atomic
-from pneumafit.models.layout import PARAMETER_NAMES, SPECS
+from pneumafit.models.layout import NP, PARAMETER_NAMES, SPECS, P
 from pneumafit.models.parts import FRICTION_LAWS, VALVE_LAWS
 from pneumafit.models.structure import (
     FRICTION_PARAMETERS,
@@ -912,6 +912,10 @@ class ParameterSet:
         friction_used = set(structure.friction_parameter_names)
         if structure.valve == "map" and free is None:
             free_set = (free_set - set(DEFAULT_FREE_VALVE)) | set(_map_free())
+        elif VALVE_LAWS[structure.valve].kernel is not None and free is None:
+            # a law from outside the package: its own parameters (group
+            # "valve", registered with it) and the shared ones the ISO law fits
+            free_set = (free_set - set(DEFAULT_FREE_VALVE)) | _outside_valve_free(structure.valve)
         for name in PARAMETER_NAMES:
             spec = SPECS[name]
             if spec.group == "heat" and name not in heat_used:
@@ -923,6 +927,8 @@ class ParameterSet:
             if spec.group == "friction" and name not in friction_used:
                 continue
             scale = "log" if name in _LOG_SCALE or name.startswith(_MAP_C_PREFIX) else "linear"
+            if P[name] >= NP and 0.0 < spec.lower and spec.upper >= _LOG_SPAN * spec.lower:
+                scale = "log"  # a part's own parameter spanning decades (a conductance)
             lower, upper = _FIT_BOUNDS.get(name, (spec.lower, spec.upper))
             if name in _FORCE_BOUNDED:
                 upper = min(upper, max(force_ceiling(values), 2.0 * lower))
@@ -955,6 +961,18 @@ DEFAULT_FREE_VALVE: tuple[str, ...] = tuple(
     n for n in VALVE_PARAMETERS["iso6358"] if n not in _HELD_VALVE
 )
 _FRICTION = FRICTION_PARAMETERS["switch"]
+
+
+def _outside_valve_free(valve: str) -> set[str]:
+    """Parameters of a valve law from outside the package fitted by default:
+    those of the group ``"valve"`` it names, less the held ones
+    (:data:`_HELD_VALVE`, as for the ISO 6358 law)."""
+    return {
+        n for n in VALVE_LAWS[valve].parameters
+        if SPECS[n].group == "valve" and n not in _HELD_VALVE
+    }  # fmt: skip
+
+
 #: Prefix of the valve map's knot conductances (log scale).
 _MAP_C_PREFIX = ("valve_map_CS_", "valve_map_CE_")
 
@@ -1000,6 +1018,10 @@ def force_ceiling(values: Mapping[str, float]) -> float:
     )
 
 
+#: A parameter of a part from outside the package is sampled in log scale
+#: when its bounds are positive and span this factor or more (two decades:
+#: conductances, coefficients), as the table's own such parameters are.
+_LOG_SPAN = 100.0
 _LOG_SCALE = {
     "valve_C_supply", "valve_C_exhaust", "valve_C_leak", "valve_leak_width", "xi", "lambda",
     "friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity",

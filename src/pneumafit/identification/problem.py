@@ -70,10 +70,11 @@ from pneumafit.identification.noise import (
 from pneumafit.models import kernel
 from pneumafit.models.layout import X_PN, X_PP, X_TN, X_TP, X_Y, P
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.models.parts import EFFECTS
+from pneumafit.models.parts import EFFECTS, KERNEL_VALVE_CODES, VALVE_LAW_CODES
 from pneumafit.models.structure import (
     FRICTION_PARAMETERS,
     HEAT_PARAMETERS,
+    VALVE_PARAMETERS,
     ModelStructure,
     get_structure,
 )
@@ -215,6 +216,14 @@ def _force_balance_only() -> frozenset[str]:
     other = {n for law in HEAT_PARAMETERS.values() for n in law}
     other |= {n for e in EFFECTS.values() if e.moves != {"motion"} for n in e.parameters}
     return frozenset((friction | only) - other)
+
+
+def _static_flow_parameters() -> frozenset[str]:
+    """Parameters a flow test's simulation reads: the kernel's own list
+    (:data:`pneumafit.models.kernel.STATIC_FLOW_PARAMETERS`) and those every
+    registered valve law names (a law from outside the package brings its own)."""
+    named = {n for law in VALVE_PARAMETERS.values() for n in law}
+    return kernel.STATIC_FLOW_PARAMETERS | named
 
 
 @dataclass(frozen=True)
@@ -718,6 +727,10 @@ class Problem:
             # steps per grid interval: the stability step while the valve is
             # open, the rest step (centre leakage only) elsewhere
             h_rest = rest_step(nominal, self.rest_spacing or step, self._tableau.stability)
+            if VALVE_LAW_CODES[self.structure.valve] not in KERNEL_VALVE_CODES:
+                # a valve law from outside the package: its leakage at rest is
+                # not known to the bound, so the rest phases keep the full step
+                h_rest = step
             if mode is not None:
                 radius = self._tableau.stability_radius(mode[1])
                 h_rest = min(h_rest, REST_STABILITY_MARGIN * radius / mode[0])
@@ -824,7 +837,8 @@ class Problem:
         no simulation; an initial state (``initial:<file>:<state>``) only its
         own recording's; a flow test's only the parameters its static
         characteristic reads (:data:`pneumafit.models.kernel.STATIC_FLOW_PARAMETERS`:
-        the valve laws', supply, exhaust and ambient); a blocked test's none
+        the valve laws', supply, exhaust and ambient; and those a valve law
+        from outside the package names); a blocked test's none
         that enters only the piston's force balance (the friction laws' and
         those of effects that declare ``moves={"motion"}``,
         :attr:`pneumafit.models.parts.Effect.moves`: with the piston clamped
@@ -845,6 +859,7 @@ class Problem:
         flow = np.array([e.kind == "flow" for e in self.experiments])
         blocked = np.array([e.blocked and e.kind != "flow" for e in self.experiments])
         force_only = _force_balance_only()
+        static = _static_flow_parameters()
         out = np.zeros((len(names), len(self.experiments)), dtype=bool)
         for k, name in enumerate(names):
             if name in self.initial_parameters:
@@ -853,7 +868,7 @@ class Problem:
             elif name not in P:
                 out[k] = True
             else:
-                out[k] = flow & (name not in kernel.STATIC_FLOW_PARAMETERS)
+                out[k] = flow & (name not in static)
                 if name in force_only:
                     out[k] |= blocked
         return out

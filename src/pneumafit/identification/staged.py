@@ -100,7 +100,7 @@ from pneumafit.identification.starts import (
 from pneumafit.models.layout import FRICTION_LAWS, SPECS
 from pneumafit.models.part_kernel import hooked_friction_laws
 from pneumafit.models.parts import FRICTION_LAWS as FRICTION_PARTS
-from pneumafit.models.parts import HEAT_LAWS
+from pneumafit.models.parts import HEAT_LAWS, VALVE_LAWS
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     HEAT_PARAMETERS,
@@ -1216,7 +1216,12 @@ def identify(
         campaign, values,
         [n for n in params.free_names if _group(n) in _VALVE_GROUPS],
     )  # fmt: skip
-    leak_names = LEAK_PARAMETERS if structure.valve == "iso6358" else MAP_LEAK_PARAMETERS
+    # the centre leakage's parameters: a valve law from outside the package
+    # has none the heat stage knows (its own are fitted with the rest of it)
+    leak_names = (
+        LEAK_PARAMETERS if structure.valve == "iso6358"
+        else MAP_LEAK_PARAMETERS if structure.valve == "map" else ()
+    )  # fmt: skip
     valve_key = _valve_key(campaign, structure, seeds[0], opts)
     cached = _VALVE_STAGES.get(valve_key) if valve_key is not None and flows else None
     valve_before, warns_before = dict(values), len(warns)
@@ -1257,7 +1262,10 @@ def identify(
             f"valve law, seed and options; it took {stage.seconds:.1f} s)"
         )
     elif flows:
-        starts = valve_starts(flows, rig) if structure.valve == "iso6358" else [{}]
+        starts = (
+            valve_starts(flows, rig) if structure.valve == "iso6358"
+            else [dict(s) for s in VALVE_LAWS[structure.valve].starts] or [{}]
+        )  # fmt: skip
         values.update(starts[0])
         shapes = tuple(n for n in valve_free if n in SHAPE_PARAMETERS.values())
         knees = tuple(n for n in valve_free if n in KNEE_PARAMETERS.values())
@@ -1411,7 +1419,7 @@ def identify(
     heat_alternatives: list[dict[str, float]] = []
     if blocked:
         starts = heat_starts(structure.heat)
-        if leak_here:
+        if leak_here and leak_names:
             full = (
                 float(values["valve_C_supply"]) if structure.valve == "iso6358"
                 else max(float(values[n]) for n in MAP_CS_NAMES)
@@ -1771,7 +1779,7 @@ def identify(
             "check the campaign's rig parameters"
         )
     say(f"joint: {stage.seconds:.1f} s, log-likelihood {est.log_likelihood:.1f}")
-    if structure.valve != "map":  # the map's knots are its measured levels
+    if structure.valve == "iso6358":  # the map's knots are its measured levels
         for line in unbracketed_edges(campaign, est.parameters.values()):
             warns.append(line)
             say(f"warning: {line}")

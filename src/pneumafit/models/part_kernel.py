@@ -10,6 +10,17 @@ its own compiled code instead:
   parameter vector p (SI, ``layout.P``), its pressure (Pa), gas temperature
   and wall temperature (K). The chamber balance is the kernel's (paper eqs.
   2-5 with Q = lambda A (T_w - T)): a heat law is a lambda law;
+- a valve law (``ValveLaw.kernel``): ``flows(u, pres, temp, p_s, p) ->
+  (q_net, h_in, q_supply)``, the flows of one servo-valve from its command
+  (V), its chamber's pressure (Pa) and gas temperature (K), the supply
+  pressure (Pa, after the supply line's drop when that effect is on) and p
+  (the exhaust pressure and ambient temperature are ``p[P["exhaust_pressure"]]``
+  and ``p[P["ambient_temperature"]]``): the net mass flow into the chamber
+  (kg/s), the enthalpy it carries as sum q_i T_i (kg K/s: inflows at their
+  upstream temperature, outflows at the chamber's) and the flow drawn from
+  supply (kg/s), as :func:`pneumafit.physics.valve.valve_flows`. The
+  chamber's valve gets its own command (the kernel applies the spool
+  dynamics, saturation and input hold before);
 - a friction law (``FrictionLaw.kernel``): ``force(v, f_s, f_c, x, p) ->
   float``, the friction force (N) against the motion from the piston speed
   (m/s), the static and Coulomb levels (N, the seal and asymmetry effects
@@ -23,14 +34,15 @@ its own compiled code instead:
   +y (N). The structure switches it on by its bit in the configuration slot
   ``C_PART_EFFECTS``.
 
-Both are numba ``@njit`` functions. They are compiled again here with the
+All are numba ``@njit`` functions. They are compiled again here with the
 kernel's own flags (``fastmath`` as the kernel, no reference counting): they
 may not allocate arrays.
 
 :func:`kernel_for` returns the module a structure runs on: the cached
 kernel when it uses built-in parts only, else a copy of the kernel's source
-compiled, without numba's disk cache, with its three hooks
-(``kernel.part_heat``, ``kernel.part_friction``, ``kernel.part_effects``)
+compiled, without numba's disk cache, with its four hooks
+(``kernel.part_heat``, ``kernel.part_valve``, ``kernel.part_friction``,
+``kernel.part_effects``)
 bound to every outside part
 registered at the time. The copy is made once per set of registered parts
 (the first simulation compiles it: 20 s on the 2-core machine, measured as
@@ -50,7 +62,7 @@ import numpy as np
 
 from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel, parts
-from pneumafit.models.layout import C_FRICTION_LAW, C_HEAT, C_PART_EFFECTS
+from pneumafit.models.layout import C_FRICTION_LAW, C_HEAT, C_PART_EFFECTS, C_VALVE_LAW
 from pneumafit.physics.friction import FASTMATH
 
 if TYPE_CHECKING:
@@ -62,8 +74,10 @@ __all__ = [
     "hooked_effects",
     "hooked_friction_laws",
     "hooked_heat_laws",
+    "hooked_valve_laws",
     "kernel_for",
     "kernel_for_config",
+    "kernel_for_valve",
     "rebound",
 ]
 
@@ -79,6 +93,12 @@ def hooked_heat_laws() -> list[parts.HeatLaw]:
     """The registered heat laws with kernel code of their own, by code."""
     laws = [h for h in parts.HEAT_LAWS.values() if h.kernel is not None]
     return sorted(laws, key=lambda h: h.code)
+
+
+def hooked_valve_laws() -> list[parts.ValveLaw]:
+    """The registered valve laws with kernel code of their own, by code."""
+    laws = [v for v in parts.VALVE_LAWS.values() if v.kernel is not None]
+    return sorted(laws, key=lambda v: v.code)
 
 
 def hooked_friction_laws() -> list[parts.FrictionLaw]:
@@ -148,11 +168,30 @@ def kernel_for_config(cfg: np.ndarray) -> ModuleType:
     """
     if (
         int(cfg[C_HEAT]) in parts.KERNEL_HEAT_CODES
+        and int(cfg[C_VALVE_LAW]) in parts.KERNEL_VALVE_CODES
         and int(cfg[C_FRICTION_LAW]) in parts.KERNEL_FRICTION_CODES
         and int(cfg[C_PART_EFFECTS]) == 0
     ):
         return kernel
     return _copy()
+
+
+def kernel_for_valve(code: int) -> ModuleType:
+    """The compiled kernel module whose valve flows, static flows and rate bound
+    (``static_valve_flows``, ``stiffness_bound``) know the valve law ``code``.
+
+    Parameters
+    ----------
+    code : int
+        A valve law's code (``ValveLaw.code``).
+
+    Returns
+    -------
+    module
+        :mod:`pneumafit.models.kernel` for the kernel's own laws, else the
+        copy bound to the outside parts registered now.
+    """
+    return kernel if int(code) in parts.KERNEL_VALVE_CODES else _copy()
 
 
 def rebound(function: Any, module: ModuleType) -> Any:
@@ -200,24 +239,29 @@ def rebound(function: Any, module: ModuleType) -> Any:
 def _copy() -> ModuleType:
     """The kernel's copy bound to the outside parts registered now (built once per set)."""
     heat = hooked_heat_laws()
+    valve = hooked_valve_laws()
     friction = hooked_friction_laws()
     effects = hooked_effects()
     key = (
         tuple((h.name, h.code, id(h.kernel)) for h in heat),
+        tuple((v.name, v.code, id(v.kernel)) for v in valve),
         tuple((f.name, f.code, id(f.kernel)) for f in friction),
         tuple((e.name, id(e.kernel)) for e in effects),
     )
     module = _BUILT.get(key)
     if module is None:
-        module = _BUILT[key] = _build(heat, friction, effects, len(_BUILT))
+        module = _BUILT[key] = _build(heat, valve, friction, effects, len(_BUILT))
     return module
 
 
 def _hook_source(
-    heat: list[parts.HeatLaw], friction: list[parts.FrictionLaw], effects: list[parts.Effect]
+    heat: list[parts.HeatLaw],
+    valve: list[parts.ValveLaw],
+    friction: list[parts.FrictionLaw],
+    effects: list[parts.Effect],
 ) -> str:
-    """Source of the three hooks, dispatching on the heat and friction codes and
-    the effect bits."""
+    """Source of the four hooks, dispatching on the heat, valve and friction
+    codes and the effect bits."""
     lines = [
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
         "def part_heat(heat, p, pres, temp, t_wall):",
@@ -229,6 +273,18 @@ def _hook_source(
         ]
     lines += [
         "    return math.nan",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_valve(law, u, pres, temp, p_s, p):",
+    ]
+    for v in valve:
+        lines += [
+            f"    if law == {int(v.code)}:",
+            f"        return _valve_{int(v.code)}(u, pres, temp, p_s, p)",
+        ]
+    lines += [
+        "    return math.nan, math.nan, math.nan",
         "",
         "",
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
@@ -281,12 +337,13 @@ def _recompiled(function: object, where: str) -> object:
 
 def _build(
     heat: list[parts.HeatLaw],
+    valve: list[parts.ValveLaw],
     friction: list[parts.FrictionLaw],
     effects: list[parts.Effect],
     serial: int,
 ) -> ModuleType:
     """Compile-ready copy of the kernel module with its hooks bound to ``heat``,
-    ``friction`` and ``effects``."""
+    ``valve``, ``friction`` and ``effects``."""
     source = Path(kernel.__file__).read_text(encoding="utf-8")
     # the copy must not read or write numba's disk cache: its hooks are not
     # in the kernel file the cache is keyed on
@@ -300,12 +357,14 @@ def _build(
     namespace = module.__dict__
     for law in heat:
         namespace[f"_heat_{int(law.code)}"] = _recompiled(law.kernel, f"heat law {law.name!r}")
+    for law in valve:
+        namespace[f"_valve_{int(law.code)}"] = _recompiled(law.kernel, f"valve law {law.name!r}")
     for law in friction:
         namespace[f"_friction_{int(law.code)}"] = _recompiled(
             law.kernel, f"friction law {law.name!r}"
         )
     for i, effect in enumerate(effects):
         namespace[f"_effect_{i}"] = _recompiled(effect.kernel, f"effect {effect.name!r}")
-    exec(compile(_hook_source(heat, friction, effects), f"<pneumafit part hooks {serial}>",
+    exec(compile(_hook_source(heat, valve, friction, effects), f"<pneumafit part hooks {serial}>",
                  "exec"), namespace)  # fmt: skip
     return module

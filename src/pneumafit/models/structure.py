@@ -235,12 +235,12 @@ class ModelStructure:
                 "(HeatLaw.kernel), found neither (a part known to the Python side only)"
             )
         valve = parts.VALVE_LAWS[self.valve]
-        if valve.code not in parts.KERNEL_VALVE_CODES:
+        if valve.code not in parts.KERNEL_VALVE_CODES and valve.kernel is None:
             raise PneumafitInputError(
                 f"model structure {self.name}: valve law {valve.name}: expected a law the "
-                f"compiled kernel implements (codes {sorted(parts.KERNEL_VALVE_CODES)}), found "
-                f"code {valve.code} (a part known to the Python side only: valve laws have no "
-                "hook for outside code)"
+                f"compiled kernel implements (codes {sorted(parts.KERNEL_VALVE_CODES)}) or "
+                "one registered with its kernel code (ValveLaw.kernel), found neither (a "
+                "part known to the Python side only)"
             )
         friction = parts.FRICTION_LAWS[self.friction]
         if friction.code not in parts.KERNEL_FRICTION_CODES and friction.kernel is None:

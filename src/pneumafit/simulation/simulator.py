@@ -31,7 +31,7 @@ from pneumafit.models.layout import (
     n_parameters,
 )
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.models.part_kernel import kernel_for
+from pneumafit.models.part_kernel import kernel_for, kernel_for_valve
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation import counter
 from pneumafit.simulation.experiment import Experiment
@@ -462,7 +462,7 @@ def choose_step(
     )
     stroke = vec[P["stroke"]]
     lo, hi = y_range if y_range is not None else (0.0, stroke)
-    rate = kernel.stiffness_bound(
+    rate = kernel_for_valve(VALVE_LAWS[valve]).stiffness_bound(
         vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve], FRICTION_LAWS[friction]
     )
     step = min(default, STABILITY_MARGIN * tableau.stability / rate)

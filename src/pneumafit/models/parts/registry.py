@@ -227,9 +227,28 @@ class ValveLaw(_Law):
         prior is -sum(r^2) / 2. Parameter sets add it to their priors when
         one of the law's parameters is free
         (:meth:`pneumafit.identification.ParameterSet.log_prior`).
+    kernel : numba njit function or None
+        The compiled flows of a law registered from outside the package
+        (codes outside :data:`KERNEL_VALVE_CODES`): an ``@njit`` function
+        ``flows(u, pres, temp, p_s, p) -> (q_net, h_in, q_supply)``, from the
+        command u (V), the chamber's pressure (Pa) and gas temperature (K),
+        the supply pressure (Pa) and the parameter vector p (SI,
+        ``layout.P``): the net mass flow into the chamber (kg/s), the
+        enthalpy it carries as sum q_i T_i (kg K/s) and the flow drawn from
+        supply (kg/s), as :func:`pneumafit.physics.valve.valve_flows`. It may
+        not allocate arrays (:mod:`pneumafit.models.part_kernel`). None: the
+        kernel's branch (built-in laws), or a law known to the Python side
+        only, whose structure cannot be simulated.
+    starts : tuple of mapping
+        Starting values of the law's parameters for the valve stage (each a
+        mapping name -> SI value; the table's defaults for the rest). The
+        valve stage fits every parameter of the group ``"valve"`` the law
+        names from its starts (an outside law's own parameters).
     """
 
     roughness: Callable[[Mapping[str, Any]], Any] | None = None
+    kernel: Callable[..., tuple[float, float, float]] | None = field(default=None, compare=False)
+    starts: tuple[Mapping[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -556,8 +575,8 @@ def register_parameter(spec: ParameterSpec) -> ParameterSpec:
     reads it at ``layout.P[name]`` (a constant once compiled).
 
     Checks: an identifier as name that no parameter has; a group of
-    :data:`~pneumafit.models.layout.PART_PARAMETER_GROUPS` (``"heat"`` or
-    ``"effect"``: its part's); an SI unit in pint's syntax (``""``:
+    :data:`~pneumafit.models.layout.PART_PARAMETER_GROUPS` (``"heat"``,
+    ``"valve"`` or ``"effect"``: its part's); an SI unit in pint's syntax (``""``:
     dimensionless); finite bounds (a fit's box) with the default inside.
 
     Returns
@@ -663,9 +682,12 @@ def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
 
 
 def register_valve_law(law: ValveLaw, *, replace: bool = False) -> ValveLaw:
-    """Add a valve law to :data:`VALVE_LAWS` (checks as :func:`register_heat_law`)."""
-    _check_law(_VALVE, law, "valve law", replace)
-    return _commit(_VALVE, law, replace)
+    """Add a valve law to :data:`VALVE_LAWS` (checks as :func:`register_heat_law`).
+
+    A law with ``kernel`` code takes a code outside
+    :data:`KERNEL_VALVE_CODES`, and its ``starts`` name only its parameters.
+    """
+    return _register_slot_law(_VALVE, law, "valve law", KERNEL_VALVE_CODES, replace)
 
 
 def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> FrictionLaw:
@@ -674,11 +696,19 @@ def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> Frictio
     A law with ``kernel`` code takes a code outside
     :data:`KERNEL_FRICTION_CODES`, and its ``starts`` name only its parameters.
     """
-    where = _check_law(_FRICTION, law, "friction law", replace)
-    _check_own_code(where, law, KERNEL_FRICTION_CODES)
+    return _register_slot_law(_FRICTION, law, "friction law", KERNEL_FRICTION_CODES, replace)
+
+
+def _register_slot_law(
+    registry: dict[str, Any], law: Any, kind: str, codes: frozenset[int], replace: bool
+) -> Any:
+    """Check a valve or friction law (name, code, parameters, kernel code
+    outside ``codes``, starts) and commit it to ``registry``."""
+    where = _check_law(registry, law, kind, replace)
+    _check_own_code(where, law, codes)
     for start in law.starts:
         _check_values(where, start, law.parameters)
-    return _commit(_FRICTION, law, replace)
+    return _commit(registry, law, replace)
 
 
 def register_effect(effect: Effect, *, replace: bool = False) -> Effect:

@@ -306,7 +306,7 @@ def test_a_parameter_of_one_s_own_extends_the_table_at_its_end(registered: None)
     [
         (ParameterSpec("bore", "m", 0.03, 0.01, 0.1, "heat", ""), "new name"),
         (ParameterSpec("my c", "m", 0.03, 0.01, 0.1, "heat", ""), "identifier"),
-        (ParameterSpec("my_c", "m", 0.03, 0.01, 0.1, "friction", ""), "group"),
+        (ParameterSpec("my_c", "m", 0.03, 0.01, 0.1, "rig", ""), "group"),
         (ParameterSpec("my_c", "wombats", 1.0, 0.1, 2.0, "heat", ""), "not a known unit"),
         (ParameterSpec("my_c", "mm", 1.0, 0.1, 2.0, "heat", ""), "SI unit"),
         (ParameterSpec("my_c", "m", 1.0, 0.1, math.inf, "heat", ""), "finite bounds"),
@@ -537,6 +537,56 @@ def test_an_outside_friction_law_matches_the_reference_solver(
     assert fixed.ok
     assert np.max(np.abs(fixed["p_P"] - ref["p_P"])) < 40.0
     assert np.max(np.abs(fixed["y"] - ref["y"])) < 10e-6
+
+
+def test_an_outside_friction_law_has_parameters_of_its_own(
+    registered: None, step_experiment: Experiment, charge_experiment: Experiment
+) -> None:
+    """Plumbing: a friction law's own parameter (group "friction", here the
+    smoothing speed) reaches the kernel (the simulation is bit for bit the
+    law with the value written in), is sampled in log scale (its bounds
+    span three decades), starts the friction stage at the law's start, and
+    excuses the blocked tests in the sparse Jacobian (friction acts on a
+    moving piston only)."""
+    from pneumafit.identification import ParameterSet
+    from pneumafit.identification.problem import Problem
+    from pneumafit.identification.starts import friction_starts
+
+    parts.register_parameter(
+        ParameterSpec("my_v_eps", "m/s", 1e-3, 1e-4, 1e-1, "friction", "smoothing speed")
+    )
+    i_eps, i_vst, i_fv = layout.P["my_v_eps"], _VST_I, _FV_I
+
+    @njit
+    def law(v, f_s, f_c, x, p):
+        g = f_c + (f_s - f_c) * math.exp(-((v / p[i_vst]) ** 2))
+        return g * math.tanh(v / p[i_eps]) + p[i_fv] * v
+
+    shared = ("friction_static", "friction_coulomb", "friction_viscous", "stribeck_velocity")
+    parts.register_friction_law(
+        parts.FrictionLaw(name="own-eps", code=8, parameters=(*shared, "my_v_eps"),
+                          description="smooth Stribeck law, its smoothing a parameter",
+                          kernel=law, starts=({"my_v_eps": 5e-3},))
+    )  # fmt: skip
+    _register_smooth(v_eps=5e-3)
+    values = {**default_parameters(), "my_v_eps": 5e-3}
+    vec = parameter_vector(values)
+    own = Simulator(ModelStructure("convection", friction="own-eps"))
+    fixed = Simulator(ModelStructure("convection", friction="smooth-coulomb"))
+    a, st_a = own.simulate_batch(vec[None], [step_experiment])
+    b, st_b = fixed.simulate_batch(vec[None], [step_experiment])
+    assert (st_a == 0).all() and (st_b == 0).all()
+    assert np.array_equal(a, b, equal_nan=True)
+    structure = ModelStructure("convection", friction="own-eps")
+    ps = ParameterSet.for_model(structure)
+    assert ps["my_v_eps"].scale == "log"
+    assert friction_starts([], default_parameters(), "own-eps")[0]["my_v_eps"] == 5e-3
+    import pneumafit as pf
+
+    demo = pf.read_campaign(Path(__file__).resolve().parents[1] / "data" / "demo")
+    recs = [next(r for r in demo.by_role("fit") if r.kind == k) for k in ("charge", "step")]
+    problem = Problem(recs, structure, {**ps.values(), **demo.rig.as_parameters()})
+    assert problem.unaffected(["my_v_eps"])[0].tolist() == [True, False]
 
 
 def test_an_outside_friction_law_takes_the_switch_model_s_levels_as_starts(

@@ -326,8 +326,8 @@ P = {name: i for i, name in enumerate(_NAME_LIST)}
 SPECS = {s.name: s for s in _SPEC_LIST}
 
 #: Groups a parameter registered from outside the package may have: its
-#: part's (a heat law's, a valve law's or an effect's).
-PART_PARAMETER_GROUPS = ("heat", "valve", "effect")
+#: part's (a heat, valve or friction law's, or an effect's).
+PART_PARAMETER_GROUPS = ("heat", "valve", "friction", "effect")
 
 
 def n_parameters() -> int:

@@ -576,7 +576,7 @@ def register_parameter(spec: ParameterSpec) -> ParameterSpec:
 
     Checks: an identifier as name that no parameter has; a group of
     :data:`~pneumafit.models.layout.PART_PARAMETER_GROUPS` (``"heat"``,
-    ``"valve"`` or ``"effect"``: its part's); an SI unit in pint's syntax (``""``:
+    ``"valve"``, ``"friction"`` or ``"effect"``: its part's); an SI unit in pint's syntax (``""``:
     dimensionless); finite bounds (a fit's box) with the default inside.
 
     Returns

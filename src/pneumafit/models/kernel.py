@@ -632,28 +632,26 @@ def rhs(
     rt_n = math.sqrt(T_REF / t_n)
     p_s = p[P_PS]
     inv_ps = d[D_IPS]
-    if law > VALVE_MAP:
-        q_p, h_p, qs_p = part_valve(law, u_p, p_p, t_p, p_s, p)
-        q_n, h_n, qs_n = part_valve(law, u_n, p_n, t_n, p_s, p)
-    else:
-        q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d, law)
-        q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d, law)
-    if cfg[C_SUPPLY_DROP] == 1:
-        # supply pressure behind a line resistance: one fixed-point iteration of
-        # P_S' = P_S - R (q_sP + q_sN), flows first evaluated at P_S
-        q_draw = qs_p + qs_n
-        if q_draw < 0.0:
-            q_draw = 0.0
-        p_s = p_s - p[P_RSUP] * q_draw
-        if p_s < p_e:
-            p_s = p_e
-        inv_ps = 1.0 / p_s
-        if law > VALVE_MAP:
+    q_p = h_p = qs_p = q_n = h_n = qs_n = 0.0
+    for stage in range(2):
+        # the flows at P_S; with the supply line's resistance once more at the
+        # dropped pressure: one fixed-point iteration of P_S' = P_S - R (q_sP + q_sN)
+        if stage == 1:
+            q_draw = qs_p + qs_n
+            if q_draw < 0.0:
+                q_draw = 0.0
+            p_s = p_s - p[P_RSUP] * q_draw
+            if p_s < p_e:
+                p_s = p_e
+            inv_ps = 1.0 / p_s
+        if law > VALVE_MAP:  # a law from outside the package
             q_p, h_p, qs_p = part_valve(law, u_p, p_p, t_p, p_s, p)
             q_n, h_n, qs_n = part_valve(law, u_n, p_n, t_n, p_s, p)
         else:
             q_p, h_p, qs_p = _valve(u_p, p_p, inv_pp, t_p, rt_p, p_s, inv_ps, d, law)
             q_n, h_n, qs_n = _valve(u_n, p_n, inv_pn, t_n, rt_n, p_s, inv_ps, d, law)
+        if cfg[C_SUPPLY_DROP] != 1:
+            break
     if blocked:
         if cfg[C_CHAMBER] == 1:
             qs_n = 0.0

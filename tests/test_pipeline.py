@@ -169,3 +169,26 @@ def test_a_campaign_of_flow_tests_alone_runs_without_discovery(tmp_path: Path) -
     assert "discovery skipped: the campaign has no charge/discharge or step recording" in text
     assert (out / "report.html").is_file() and not (out / "discovery").exists()
     assert run_pipeline(campaign, out, console, mcmc=False) == 0  # the re-run reuses the stages
+
+
+def test_a_truth_naming_unknown_parameters_is_not_the_closed_loop_s_plant(
+    finished_run: tuple, tmp_path: Path
+) -> None:
+    """The closed loop's plant is the campaign's truth.json only when this
+    process can run it: a rig recorded with parts from outside the package
+    names their parameters, which a run without them cannot read (it then
+    simulates the convection fit and says why, instead of failing)."""
+    import json
+
+    from pneumafit.pipeline import _unrunnable_truth
+
+    campaign = finished_run[0]
+    truth = campaign / "truth.json"
+    assert _unrunnable_truth(truth) is None  # the virtual rig's own laws
+    doc = json.loads(truth.read_text(encoding="utf-8"))
+    doc["parameters"]["my_C_supply"] = 1e-8
+    other = tmp_path / "truth.json"
+    other.write_text(json.dumps(doc), encoding="utf-8")
+    why = _unrunnable_truth(other)
+    assert why is not None and "my_C_supply" in why
+    assert _unrunnable_truth(tmp_path / "missing.json") == "cannot be read"

@@ -497,14 +497,14 @@ def _analyses(
     stage("linear", [conv, lambda_file], [out / "linear" / "linear.json"], linear)
 
     truth = path / "truth.json"
-    plant = truth if _runnable_truth(truth) else None
+    why_not = _unrunnable_truth(truth)
+    plant = truth if why_not is None else None
 
     def closed_loop() -> int:
         from pneumafit.outputs.closed_loop_report import run_closed_loop
 
         if plant is None and truth.exists():
-            console.print(f"closed loop: {truth} is an independent truth the compiled model "
-                          "cannot run; the plant is the convection fit")  # fmt: skip
+            console.print(f"closed loop: {truth} {why_not}; the plant is the convection fit")
 
         results = run_closed_loop(conv, out / "closed_loop", plant=plant,
                                   lambda_e=_lambda_e(lambda_file), console=console)  # fmt: skip
@@ -523,17 +523,26 @@ def _analyses(
           export)  # fmt: skip
 
 
-def _runnable_truth(truth: Path) -> bool:
-    """True for a virtual rig's truth.json that the compiled model can run as
-    a plant: one recorded with the fitted models' laws, not an independent
-    truth (key ``truth_model``, :mod:`pneumafit.virtual_rig.truth`)."""
-    from pneumafit.analysis.closed_loop import independent_truth
+def _unrunnable_truth(truth: Path) -> str | None:
+    """Why a campaign's truth.json cannot be the closed loop's plant, or None
+    for a virtual rig's truth the compiled model can run: one recorded with
+    the fitted models' laws (not an independent truth: key ``truth_model``,
+    :mod:`pneumafit.virtual_rig.truth`) whose parameters and structure this
+    process knows (a rig recorded with parts from outside the package names
+    theirs)."""
+    from pneumafit.analysis.closed_loop import independent_truth, read_plant_file
 
     try:
         doc = json.loads(truth.read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return False
-    return isinstance(doc, dict) and independent_truth(doc) is None
+        return "cannot be read"
+    if not isinstance(doc, dict) or independent_truth(doc) is not None:
+        return "is an independent truth the compiled model cannot run"
+    try:
+        read_plant_file(truth)  # the closed loop's own reader
+    except PneumafitInputError as exc:
+        return f"names what this process does not know ({exc})"
+    return None
 
 
 def _report(out: Path, path: Path, fits: dict[str, Path], console: Console,

@@ -25,14 +25,15 @@ live view of them: ``layout.HEAT_LAWS`` (name -> code), ``structure``'s
 the comparison and report colours and model lists.
 
 Limit: the compiled kernel (:mod:`pneumafit.models.kernel`) has fixed codes
-and slots for the built-in parts. A heat law or an effect registered from
-outside the package brings its compiled law (``HeatLaw.kernel``,
+and slots for the built-in parts. A heat, valve or friction law or an
+effect registered from outside the package brings its compiled law
+(``HeatLaw.kernel``, ``ValveLaw.kernel``, ``FrictionLaw.kernel``,
 ``Effect.kernel``): its structures run on a copy of the kernel whose hooks
 call it (:mod:`pneumafit.models.part_kernel`). Without one it is known to
 the Python side only (structures, parameter lists, the catalog, model lists
-and colours) and ``ModelStructure.config`` refuses it; a valve or friction
-law with a new code has no hook at all. Every part names parameters of
-``models/layout.py``'s table. docs/architecture.md, "Adding a part", and
+and colours) and ``ModelStructure.config`` refuses it. Every part names
+parameters of ``models/layout.py``'s table (parameters of its own are
+appended to it by :func:`register_parameter`). docs/architecture.md, "Adding a part", and
 docs/effects.md, "Adding an effect" and "An effect from outside the
 package".
 

@@ -84,7 +84,8 @@ PRIOR_KINDS: tuple[str, ...] = ("log-uniform", "half-normal", "uniform")
 #: lambda, convection); a law with another code brings its ``kernel``.
 KERNEL_HEAT_CODES: frozenset[int] = frozenset({0, 1, 2})
 #: Valve-law codes the compiled kernel has a branch for (ISO 6358 and the
-#: measured map): valve laws have no hook for outside code.
+#: measured map); another code is a law with its own kernel code
+#: (``ValveLaw.kernel``), called through ``kernel.part_valve``.
 KERNEL_VALVE_CODES: frozenset[int] = frozenset({0, 1})
 #: Friction-law codes the compiled kernel has a branch for (the switch model
 #: and LuGre); another code is a law with its own kernel code

@@ -1017,7 +1017,8 @@ def _valve_key(
     campaign: Campaign, structure: ModelStructure, seed: int, opts: FitOptions
 ) -> tuple[Any, ...] | None:
     """What the valve stage depends on: the campaign's files (hashes), its
-    recordings' kinds and roles and rig parameters, the valve law, the stage's
+    recordings' kinds and roles and rig parameters, the valve law (its fields
+    and kernel code), the stage's
     seed and the options the flow problem uses. None for a campaign without
     file hashes (built in memory): such a stage is not cached."""
     if not campaign.sha256:
@@ -1026,7 +1027,9 @@ def _valve_key(
         tuple(sorted(campaign.sha256.items())),
         tuple((r.file, r.kind, r.role) for r in campaign.recordings),
         tuple(sorted(campaign.rig.as_parameters().items())),
-        structure.valve,
+        # the law itself: one registered again under its name (replace=True,
+        # a notebook's edit) is another law
+        structure.valve, repr(VALVE_LAWS[structure.valve]), id(VALVE_LAWS[structure.valve].kernel),
         int(seed),
         repr((opts.valve, opts.max_step, opts.noise, opts.channels, opts.offsets,
               opts.initial_nuisance, opts.random_starts)),

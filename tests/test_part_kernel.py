@@ -930,3 +930,23 @@ def test_an_outside_valve_law_is_fitted_saved_and_linearised(
     model = {n: v for n, v in values.items() if n in layout.P}  # less the initial states
     eq = equilibrium(parameter_vector(model), 0.2, valve="mine")
     assert eq.exists and 1e5 < eq.p_N < values["supply_pressure"]
+
+
+def test_the_parts_digest_follows_the_law_s_code(registered: None) -> None:
+    """A saved fit is reused by a run only with the same outside parts
+    (``provenance.parts``): the digest changes with a law's kernel code (its
+    closure's constants here, the paths' conductances swapped) and comes
+    back with the same code compiled again."""
+    from dataclasses import replace
+
+    from pneumafit.models.part_kernel import parts_digest
+
+    before = parts_digest()
+    law = _register_iso_again("mine", own=True)
+    one = parts_digest()
+    assert one != before
+    c_s, c_e = layout.P["my_C_supply"], layout.P["my_C_exhaust"]
+    parts.register_valve_law(replace(law, kernel=iso_again(c_e, c_s)), replace=True)
+    assert parts_digest() != one
+    parts.register_valve_law(replace(law, kernel=iso_again(c_s, c_e)), replace=True)
+    assert parts_digest() == one

@@ -192,3 +192,27 @@ def test_a_truth_naming_unknown_parameters_is_not_the_closed_loop_s_plant(
     why = _unrunnable_truth(other)
     assert why is not None and "my_C_supply" in why
     assert _unrunnable_truth(tmp_path / "missing.json") == "cannot be read"
+
+
+def test_a_fit_made_with_other_outside_parts_is_not_reused(
+    finished_run: tuple, tmp_path: Path
+) -> None:
+    """``fit_is_reusable`` compares the fit's ``provenance.parts`` with the
+    parts registered now: a fit of an edited law of one's own is made again."""
+    import json
+    import shutil
+
+    from pneumafit.campaign import read_campaign
+    from pneumafit.models.part_kernel import parts_digest
+    from pneumafit.pipeline import fit_is_reusable
+
+    campaign_path, out = finished_run[0], finished_run[1]
+    campaign = read_campaign(campaign_path)
+    folder = tmp_path / "fit"
+    shutil.copytree(out / "fits" / "convection", folder)
+    doc = json.loads((folder / "fit.json").read_text())
+    assert doc["provenance"]["parts"] == parts_digest()
+    assert fit_is_reusable(folder, campaign, "convection")
+    doc["provenance"]["parts"] = "0" * 64  # made with another law of one's own
+    (folder / "fit.json").write_text(json.dumps(doc))
+    assert not fit_is_reusable(folder, campaign, "convection")

@@ -130,8 +130,12 @@ def fit_is_reusable(
     """True when ``folder/fit.json`` is a finished fit of ``model`` on this
     campaign (and with the valve law ``valve``, the input reading ``inputs``
     and the friction law ``friction``, when given: a fit.json without
-    ``structure.inputs`` interpolated them)."""
+    ``structure.inputs`` interpolated them), made with the same parts from
+    outside the package as are registered now (``provenance.parts``,
+    :func:`pneumafit.models.part_kernel.parts_digest`; a fit.json without it
+    had none): an edited law of one's own is fitted again."""
     from pneumafit.identification.staged import FitResult
+    from pneumafit.models.part_kernel import parts_digest
 
     try:
         fit = FitResult.load(folder / "fit.json")
@@ -144,6 +148,7 @@ def fit_is_reusable(
         and (valve is None or fit.structure.valve == valve)
         and (inputs is None or fit.structure.inputs == inputs)
         and (friction is None or fit.structure.friction == friction)
+        and (fit.document.get("provenance") or {}).get("parts", "") == parts_digest()
     )
 
 

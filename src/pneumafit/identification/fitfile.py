@@ -32,7 +32,9 @@ Keys (version 1; keys are only ever added):
 - ``stages``: what each stage of the staged fit did;
 - ``warnings``;
 - ``provenance``: ``pneumafit_version``, ``seed``, ``created``, ``command``,
-  ``options``, ``seconds``, ``evaluations``.
+  ``options``, ``seconds``, ``evaluations``, ``parts`` (the fingerprint of
+  the parts registered from outside the package, "" for none:
+  :func:`pneumafit.models.part_kernel.parts_digest`).
 
 Friction-test fits (model ``friction``, :mod:`pneumafit.frictiontest`) use
 the same format: ``structure`` holds ``friction`` (the bench's law) and
@@ -72,7 +74,9 @@ except ``friction``, which came with the LuGre law):
   empty; ``mcmc``, ``quality``: null; ``warnings``: none;
 - ``provenance.options.noise_pooling`` absent: ``"recording"`` (every fit
   written before the option profiled a noise level per recording and
-  channel; :func:`noise_pooling_of`).
+  channel; :func:`noise_pooling_of`);
+- ``provenance.parts`` absent: "" (written before 2026-11-30, seventeenth
+  session; a run reuses such a fit only without outside parts).
 """
 
 from __future__ import annotations
@@ -101,6 +105,7 @@ from pneumafit.identification.staged import (
     fit_structure,
 )
 from pneumafit.models.layout import FRICTION_LAWS, SPECS, VALVE_LAWS
+from pneumafit.models.part_kernel import parts_digest
 from pneumafit.models.structure import EFFECT_SLOTS, INPUT_MODES, MODELS, ModelStructure
 
 __all__ = [
@@ -317,6 +322,9 @@ def fit_document(
             "options": _options(options),
             "seconds": result.seconds,
             "evaluations": result.evaluations,
+            # the parts from outside the package registered when the fit was
+            # saved ("" for none): a run reuses the fit only with the same
+            "parts": parts_digest(),
         },
     }
     return json_safe(doc)

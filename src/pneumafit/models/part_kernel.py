@@ -78,6 +78,7 @@ __all__ = [
     "kernel_for",
     "kernel_for_config",
     "kernel_for_valve",
+    "parts_digest",
     "rebound",
 ]
 
@@ -110,6 +111,64 @@ def hooked_friction_laws() -> list[parts.FrictionLaw]:
 def hooked_effects() -> list[parts.Effect]:
     """The registered effects with kernel code of their own, in registration order."""
     return [e for e in parts.EFFECTS.values() if e.kernel is not None]
+
+
+def parts_digest() -> str:
+    """A fingerprint of the parts registered from outside the package ("" for none).
+
+    sha256 over every registered part that is not built in (a heat, valve or
+    friction law with a code outside the kernel's, every effect without a
+    configuration slot) and every parameter appended to the table: names,
+    codes, parameters, starts, and the kernel code's bytecode, constants,
+    names, closure cells and the numbers it reads from its module's globals
+    (a parameter index). Stable across processes for the same source; an
+    edited law gives another digest, so that a saved fit of the old law is
+    not taken for one of the new (``pipeline.fit_is_reusable``).
+    """
+    import hashlib
+
+    from pneumafit.models import layout
+
+    items: list[str] = []
+    outside = (
+        [("heat", h) for h in parts.HEAT_LAWS.values() if h.code not in parts.KERNEL_HEAT_CODES]
+        + [("valve", v) for v in parts.VALVE_LAWS.values()
+           if v.code not in parts.KERNEL_VALVE_CODES]
+        + [("friction", f) for f in parts.FRICTION_LAWS.values()
+           if f.code not in parts.KERNEL_FRICTION_CODES]
+        + [("effect", e) for e in parts.EFFECTS.values() if e.slot is None]
+    )  # fmt: skip
+    for kind, part in outside:
+        fields = [kind, part.name, str(getattr(part, "code", "")), repr(part.parameters),
+                  repr(getattr(part, "starts", ()))]  # fmt: skip
+        items.append("|".join(fields) + "|" + _code_fingerprint(getattr(part, "kernel", None)))
+    items += [repr(spec) for spec in layout.PARAMETER_SPECS[layout.NP :]]
+    if not items:
+        return ""
+    return hashlib.sha256("\n".join(items).encode()).hexdigest()
+
+
+def _code_fingerprint(function: object) -> str:
+    """What a kernel function computes, as text: its bytecode, constants,
+    names, closure cells and the numeric globals it reads (none: "")."""
+    py = getattr(function, "py_func", function)
+    code = getattr(py, "__code__", None)
+    if code is None:
+        return ""
+    env = getattr(py, "__globals__", {})
+    numbers = {n: env[n] for n in code.co_names if isinstance(env.get(n), (int, float))}
+    cells = [repr(c.cell_contents) for c in (py.__closure__ or ()) if _plain(c)]
+    return "|".join((code.co_code.hex(), repr(code.co_consts), repr(code.co_names),
+                     repr(cells), repr(sorted(numbers.items()))))  # fmt: skip
+
+
+def _plain(cell: Any) -> bool:
+    """A closure cell holding a number or a string (not a function, whose repr
+    names its address)."""
+    try:
+        return isinstance(cell.cell_contents, (int, float, str))
+    except ValueError:  # an empty cell
+        return False
 
 
 def effect_bit(name: str) -> int:

@@ -190,3 +190,32 @@ def test_workers_run_one_numba_thread(client: object) -> None:
 
     env, n = client.submit(threads, pure=False).result()  # type: ignore[attr-defined]
     assert (env, n) == ("1", 1)
+
+
+def test_fit_many_passes_the_valve_and_friction_laws_to_each_fit(
+    campaigns: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Plumbing: ``--valve`` and ``--friction`` reach every campaign's
+    ``pneumafit fit`` (a stub records them), and a name no registered law
+    has is refused before any cluster starts, with the hint to --parts."""
+    import pneumafit.cli.fit as cli_fit
+
+    seen: list[tuple[str, str]] = []
+
+    def stub(*args: object, valve: str = "", friction: str = "", **kw: object) -> int:
+        seen.append((valve, friction))
+        return 2
+
+    monkeypatch.setattr(cli_fit, "fit_command", stub)
+    fit_many(campaigns, "convection", tmp_path / "fits", mcmc=False, valve="map",
+             friction="lugre")  # fmt: skip
+    assert seen == [("map", "lugre")] * len(campaigns)
+    console = Console(file=io.StringIO(), width=200)
+    code = fit_many_command(
+        campaigns, "convection", tmp_path / "bad", scheduler=NOWHERE, workers=None, seed=0,
+        mcmc=False, walkers=None, steps=None, console=console, valve="nope", friction="nope",
+    )  # fmt: skip
+    log = console.file.getvalue()
+    assert code == 2 and "scheduler" not in log
+    assert "option --valve: expected one of iso6358, map" in log and "--parts" in log
+    assert "option --friction: expected one of auto, switch, lugre" in log

@@ -239,6 +239,8 @@ def _fit_one(
     steps: int | None,
     seed: int,
     mcmc: bool,
+    valve: str = "iso6358",
+    friction: str = "auto",
 ) -> dict[str, Any]:
     """One campaign's fit, as run on a worker: plain, picklable inputs and result."""
     _single_threaded()
@@ -253,7 +255,8 @@ def _fit_one(
         from pneumafit.cli.plugins import load_parts
 
         load_parts()
-        code = fit_command(Path(campaign), model, Path(out), walkers, steps, seed, mcmc, console)
+        code = fit_command(Path(campaign), model, Path(out), walkers, steps, seed, mcmc, console,
+                           valve=valve, friction=friction)  # fmt: skip
     except PneumafitInputError as exc:  # a parts file this worker cannot load
         console.print(f"error: {exc}")
         code = EXIT_BAD_INPUT
@@ -283,6 +286,8 @@ def fit_many(
     steps: int | None = None,
     client: Client | None = None,
     console: Console | None = None,
+    valve: str = "iso6358",
+    friction: str = "auto",
 ) -> dict[Path, CampaignFit]:
     """Fit one model to many campaigns, one task per campaign.
 
@@ -306,6 +311,9 @@ def fit_many(
         other in this process.
     console : rich.console.Console, optional
         One line per campaign as it completes (default: none printed).
+    valve, friction : str
+        As ``pneumafit fit --valve``, ``--friction`` (a law of one's own
+        too: the workers load the command's ``--parts``).
 
     Returns
     -------
@@ -320,7 +328,7 @@ def fit_many(
     campaigns = _check_campaigns(campaigns, out)
     jobs = {
         c: (os.fspath(c), model, os.fspath(Path(out) / _campaign_name(c)), walkers, steps,
-            seed, mcmc)
+            seed, mcmc, valve, friction)
         for c in campaigns
     }  # fmt: skip
     results: dict[Path, CampaignFit] = {}
@@ -371,6 +379,8 @@ def fit_many_command(
     walkers: int | None,
     steps: int | None,
     console: Console,
+    valve: str = "iso6358",
+    friction: str = "auto",
 ) -> int:
     """Body of ``pneumafit fit-many``: the campaigns' fits on a Dask cluster.
 
@@ -381,6 +391,7 @@ def fit_many_command(
         unreachable scheduler, bad options, duplicate campaign names; and a
         campaign with bad input when no fit failed otherwise).
     """
+    from pneumafit.cli.fit import law_problems
     from pneumafit.models.structure import MODELS
 
     # what is wrong for every campaign is said once, before starting a cluster
@@ -391,6 +402,7 @@ def fit_many_command(
         problems.append(str(exc))
     if model not in MODELS:
         problems.append(f"option --model: expected one of {', '.join(MODELS)}, found {model!r}")
+    problems += law_problems(valve, friction)
     problems += [int_problem("--walkers", walkers, 1), int_problem("--steps", steps, 1),
                  int_problem("--seed", seed, 0)]  # fmt: skip
     problems.append(folder_problem(out))
@@ -404,7 +416,7 @@ def fit_many_command(
             console.print(f"fitting {model} to {len(campaigns)} campaigns on {where}")
             results = fit_many(
                 campaigns, model, out, seed=seed, mcmc=mcmc, walkers=walkers, steps=steps,
-                client=client, console=console,
+                client=client, console=console, valve=valve, friction=friction,
             )  # fmt: skip
     except PneumafitInputError as exc:
         console.print(Text(str(exc), style="bold red"))

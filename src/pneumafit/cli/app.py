@@ -373,13 +373,20 @@ def fit_many(
     no_mcmc: Annotated[
         bool, typer.Option("--no-mcmc", help="Point estimates with Laplace intervals only.")
     ] = False,
+    valve: Annotated[
+        str, typer.Option(help=f"Valve law, one of {', '.join(Valve)} (see pneumafit fit).")
+    ] = "iso6358",
+    friction: Annotated[
+        str, typer.Option(help="Friction law: auto, switch or lugre (see pneumafit fit).")
+    ] = "auto",
 ) -> None:
     """Fit one model to many campaigns on Dask distributed: OUT/<campaign name>/fit.json."""
     from pneumafit.distributed import fit_many_command
 
     code = fit_many_command(
         campaigns, model, out, scheduler=scheduler, workers=workers, seed=seed,
-        mcmc=not no_mcmc, walkers=walkers, steps=steps, console=console,
+        mcmc=not no_mcmc, walkers=walkers, steps=steps, console=console, valve=valve,
+        friction=friction,
     )  # fmt: skip
     raise typer.Exit(code)
 

@@ -73,12 +73,31 @@ __all__ = [
     "EXIT_INTERRUPTED",
     "EXIT_OK",
     "fit_command",
+    "law_problems",
     "report_fit",
 ]
 
 
 #: The largest stage sampled by default has this many parameters (friction).
 MAX_SAMPLED = len(FRICTION_PARAMETERS)
+
+
+def law_problems(valve: str, friction: str) -> list[str]:
+    """What is wrong with the options ``--valve`` and ``--friction`` (none: []):
+    a name no registered law has, with the hint to load one's own first."""
+    problems = []
+    if valve not in VALVE_LAWS:
+        problems.append(
+            f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r} "
+            "(a valve law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
+        )
+    if friction not in ("auto", *FRICTION_LAWS):
+        problems.append(
+            f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "
+            f"found {friction!r} (a friction law of your own: load its file first, "
+            "pneumafit --parts FILE.py fit ...)"
+        )
+    return problems
 
 
 def fit_command(
@@ -151,17 +170,7 @@ def fit_command(
             f"option --model: expected one of {', '.join(MODELS)}, friction, found {model!r} "
             "(a heat law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
         )
-    if valve not in VALVE_LAWS:
-        problems.append(
-            f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r} "
-            "(a valve law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
-        )
-    if friction not in ("auto", *FRICTION_LAWS):
-        problems.append(
-            f"option --friction: expected one of auto, {', '.join(FRICTION_LAWS)}, "
-            f"found {friction!r} (a friction law of your own: load its file first, "
-            "pneumafit --parts FILE.py fit ...)"
-        )
+    problems += law_problems(valve, friction)
     if seal not in ("auto", "on", "off"):
         problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
     if noise_pooling not in NOISE_POOLINGS:

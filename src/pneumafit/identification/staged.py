@@ -1027,9 +1027,10 @@ def _valve_key(
         tuple(sorted(campaign.sha256.items())),
         tuple((r.file, r.kind, r.role) for r in campaign.recordings),
         tuple(sorted(campaign.rig.as_parameters().items())),
-        # the law itself: one registered again under its name (replace=True,
-        # a notebook's edit) is another law
-        structure.valve, repr(VALVE_LAWS[structure.valve]), id(VALVE_LAWS[structure.valve].kernel),
+        # the law itself, its name, fields and kernel code (whose repr names
+        # the function's address): one registered again under its name
+        # (replace=True, a notebook's edit) is another law
+        repr(VALVE_LAWS[structure.valve]),
         int(seed),
         repr((opts.valve, opts.max_step, opts.noise, opts.channels, opts.offsets,
               opts.initial_nuisance, opts.random_starts)),

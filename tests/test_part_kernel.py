@@ -37,11 +37,13 @@ import numpy as np
 import pytest
 from numba import njit
 
+from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel, layout, parts
 from pneumafit.models.layout import ParameterSpec
 from pneumafit.models.parameters import default_parameters, parameter_dict, parameter_vector
 from pneumafit.models.part_kernel import kernel_for
 from pneumafit.models.structure import ModelStructure
+from pneumafit.physics.friction import lugre_friction
 from pneumafit.simulation import Experiment, Simulator
 from pneumafit.simulation.reference import solve_reference
 
@@ -950,3 +952,127 @@ def test_the_parts_digest_follows_the_law_s_code(registered: None) -> None:
     assert parts_digest() != one
     parts.register_valve_law(replace(law, kernel=iso_again(c_s, c_e)), replace=True)
     assert parts_digest() == one
+
+
+# --------------------------------------------- a friction law with a state of its own
+_SIG0_I, _SIG1_I = layout.P["friction_stiffness"], layout.P["friction_damping"]
+
+
+@njit
+def lugre_again_force(v, f_s, f_c, x, p):
+    """The LuGre force from the bristle slot, its relaxation not limited."""
+    _dz, f = lugre_friction(v, x[layout.X_Z], f_s, f_c, p[_FV_I], p[_VST_I], p[_SIG0_I],
+                            p[_SIG1_I], math.inf)  # fmt: skip
+    return f
+
+
+@njit
+def lugre_again_rate(v, f_s, f_c, x, p, max_rate):
+    """The LuGre bristle rate, limited as the kernel limits its own."""
+    dz, _f = lugre_friction(v, x[layout.X_Z], f_s, f_c, p[_FV_I], p[_VST_I], p[_SIG0_I],
+                            p[_SIG1_I], max_rate)  # fmt: skip
+    return dz
+
+
+def _register_lugre_again() -> None:
+    parts.register_friction_law(
+        parts.FrictionLaw(
+            name="lugre-again", code=7, parameters=parts.FRICTION_LAWS["lugre"].parameters,
+            description="LuGre written again, its bristle state through state_rate",
+            kernel=lugre_again_force, state_rate=lugre_again_rate,
+        )
+    )  # fmt: skip
+
+
+def test_an_outside_friction_law_with_a_state_simulates_as_lugre(
+    registered: None, step_experiment: Experiment
+) -> None:
+    """Identity (not recovery): LuGre written again from outside, its bristle
+    deflection a state of its own (``FrictionLaw.state_rate``, the bristle
+    slot), against the kernel's LuGre on the step test, both from z = 0.
+    The force function does not get the step's rate limit, so the bristles
+    are made soft enough (sigma0 = 2e4 N/m) that the limit never acts on
+    this test (checked: the relaxation rate stays below 1 / h), and then the
+    same arithmetic runs through the hooks: measured bit for bit (the
+    frozen state: 64 mm apart); held to
+    1e-6 Pa, 1e-12 m and 1e-9 N (rounding of another inlining, with margin). Without
+    the state's rate (the state frozen at 0) the piston obeys F = (sigma1 +
+    b) v and ends millimetres elsewhere, so the check is not vacuous. The
+    step bound from central differences equals the LuGre law's analytic
+    one to 1e-6 (differences are exact for the law's linear dependence on v
+    and z at rest, up to rounding)."""
+    import dataclasses
+
+    from pneumafit.simulation import choose_step
+
+    values = default_parameters()
+    values["friction_stiffness"] = 2.0e4
+    vec = parameter_vector(values)
+    exp = dataclasses.replace(step_experiment, initial={**step_experiment.initial, "z_f": 0.0})
+    channels = ("y", "v", "p_P", "p_N", "F_f")
+    builtin = Simulator(ModelStructure("convection", friction="lugre"), channels=channels)
+    _register_lugre_again()
+    outside = Simulator(ModelStructure("convection", friction="lugre-again"), channels=channels)
+    assert outside._kernel is not kernel
+    ref, st_ref = builtin.simulate_batch(vec[None], [exp])
+    out, st_out = outside.simulate_batch(vec[None], [exp])
+    assert (st_ref == 0).all() and (st_out == 0).all()
+    v = ref[0, :, channels.index("v")]
+    assert np.ptp(ref[0, :, channels.index("F_f")]) > 30.0  # N: friction both ways
+    # the relaxation rate sigma0 |v| / g stays below the limit 1 / h (g >= F_c)
+    assert np.max(np.abs(v)) * values["friction_stiffness"] / values["friction_coulomb"] < 1e3
+    for name in ("p_P", "p_N"):
+        j = channels.index(name)
+        assert np.nanmax(np.abs(out[0, :, j] - ref[0, :, j])) < 1e-6  # Pa
+    j = channels.index("y")
+    assert np.nanmax(np.abs(out[0, :, j] - ref[0, :, j])) < 1e-12  # m
+    j = channels.index("F_f")  # sigma0 z + sigma1 dz/dt + b v: the state itself
+    assert np.nanmax(np.abs(out[0, :, j] - ref[0, :, j])) < 1e-9  # N
+    # the state's rate matters: frozen, the piston ends elsewhere
+    parts.register_friction_law(
+        dataclasses.replace(parts.FRICTION_LAWS["lugre-again"], name="lugre-frozen", code=8,
+                            state_rate=None)
+    )  # fmt: skip
+    frozen, _ = Simulator(
+        ModelStructure("convection", friction="lugre-frozen"), channels=channels
+    ).simulate_batch(vec[None], [exp])
+    y = channels.index("y")
+    assert np.nanmax(np.abs(frozen[0, :, y] - ref[0, :, y])) > 1e-3  # m
+    # the step bound from the hooks at rest against LuGre's analytic bound,
+    # with bristles stiff enough that their mode sets the step (measured:
+    # equal to the last digit, 0.344 ms against the chambers' 0.585 ms);
+    # frozen, the state's mode is not counted
+    stiff = parameter_vector({**values, "friction_stiffness": 1e8, "friction_damping": 5e4})
+    h_ref = choose_step(stiff, default=1.0, friction="lugre")
+    h_out = choose_step(stiff, default=1.0, friction="lugre-again")
+    assert h_ref < 0.9 * choose_step(stiff, default=1.0, friction="switch")
+    assert abs(h_out / h_ref - 1.0) < 1e-6
+    assert choose_step(stiff, default=1.0, friction="lugre-frozen") > 1.5 * h_ref
+
+
+def test_a_state_rate_needs_the_force_that_reads_it(registered: None) -> None:
+    """Plumbing: the checks of ``register_friction_law`` on ``state_rate``, and
+    the parts' fingerprint (``pipeline.fit_is_reusable``) follows it: a law
+    that gains or loses its state is another law."""
+    import dataclasses
+
+    from pneumafit.models.part_kernel import parts_digest
+
+    _register_lugre_again()
+    with_state = parts_digest()
+    law = parts.FRICTION_LAWS["lugre-again"]
+    parts.register_friction_law(dataclasses.replace(law, state_rate=None), replace=True)
+    assert parts_digest() != with_state
+    parts.register_friction_law(law, replace=True)
+    assert parts_digest() == with_state
+    with pytest.raises(PneumafitInputError, match="state_rate: expected it only with kernel"):
+        parts.register_friction_law(
+            parts.FrictionLaw(name="rate-only", code=9, parameters=("friction_coulomb",),
+                              description="no force", state_rate=lugre_again_rate)
+        )  # fmt: skip
+    with pytest.raises(PneumafitInputError, match="state_rate: expected a numba @njit"):
+        parts.register_friction_law(
+            parts.FrictionLaw(name="rate-python", code=9, parameters=("friction_coulomb",),
+                              description="a Python rate", kernel=lugre_again_force,
+                              state_rate=lugre_again_rate.py_func)
+        )  # fmt: skip

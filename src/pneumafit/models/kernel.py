@@ -361,9 +361,10 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
 # ----------------------------------------------------------------- hooks for outside parts
 # A heat, valve or friction law or an effect registered from outside the
 # package with kernel code (``HeatLaw.kernel``, ``ValveLaw.kernel``,
-# ``FrictionLaw.kernel``, ``Effect.kernel``; pneumafit.models.part_kernel) is
-# called through these four functions. In this module, the cached kernel of
-# the built-in parts, they do nothing: a structure that uses such a part runs
+# ``FrictionLaw.kernel`` and ``state_rate``, ``Effect.kernel``;
+# pneumafit.models.part_kernel) is called through these five functions. In
+# this module, the cached kernel of the built-in parts, they do nothing: a
+# structure that uses such a part runs
 # on a copy of this module compiled with the hooks bound to its parts
 # (``part_kernel.kernel_for``), never on this one.
 @njit(cache=True, fastmath=_FM, _nrt=False)
@@ -392,6 +393,15 @@ def part_friction(
     """Friction force (N, against the motion) of a friction law registered
     outside the package: none here (NaN)."""
     return math.nan
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
+def part_friction_rate(
+    law: int, v: float, f_s: float, f_c: float, x: np.ndarray, p: np.ndarray, max_rate: float
+) -> float:
+    """Rate of the own state (slot X_Z) of a friction law registered outside the
+    package (``FrictionLaw.state_rate``): none here (0, the state frozen)."""
+    return 0.0
 
 
 @njit(cache=True, fastmath=_FM, _nrt=False)
@@ -791,10 +801,11 @@ def rhs(
             dx[X_Z] = dz
         elif cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
             # a smooth law registered outside the package: no stuck mode
-            f_f = part_friction(cfg[C_FRICTION_LAW], v, f_s, f_c, x, p)
+            law_f = cfg[C_FRICTION_LAW]
+            f_f = part_friction(law_f, v, f_s, f_c, x, p)
             dx[X_Y] = v
             dx[X_V] = (f_drive - f_f) * d[D_IM]
-            dx[X_Z] = 0.0
+            dx[X_Z] = part_friction_rate(law_f, v, f_s, f_c, x, p, d[D_ZRATE])
         elif mode == 0:
             f_f = f_drive  # stuck: friction balances the drive, v stays 0
             dx[X_Y] = 0.0
@@ -855,9 +866,10 @@ def commands(
 @njit(cache=True, _nrt=False)
 def active_states(cfg: np.ndarray) -> int:
     """Number of leading state slots that can change: 8 (y, v, P, T, air
-    accounts) unless an effect adds wall-temperature or spool states or the
-    LuGre law its bristle state."""
-    if cfg[C_WALL_MASS] == 1 or cfg[C_VALVE_ORDER] > 0 or cfg[C_FRICTION_LAW] == FRICTION_LUGRE:
+    accounts) unless an effect adds wall-temperature or spool states or a
+    friction law other than the switch model (LuGre, a law from outside the
+    package) its state in the bristle slot."""
+    if cfg[C_WALL_MASS] == 1 or cfg[C_VALVE_ORDER] > 0 or cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
         return NX
     return 8
 
@@ -1152,8 +1164,9 @@ def initial_mode(
         x[X_UN] = u_n
     # initial friction mode
     mode = 0
-    if lugre:
+    if smooth:
         d[D_ZRATE] = LUGRE_RATE_LIMIT / h0
+    if lugre:
         if not math.isfinite(x[X_Z]):
             x[X_Z] = 0.0
             rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
@@ -1235,15 +1248,15 @@ def integrate_from(
     n = t.shape[0]
     blocked = cfg[C_BLOCKED] == 1
     # LuGre and the laws from outside: no friction modes (the stuck mode and
-    # event location are the switch model's)
-    lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
+    # event location are the switch model's), and a state whose relaxation
+    # rate is limited to what the step can follow (D_ZRATE)
     smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
     for k in range(n - 1):
         dt = t[k + 1] - t[k]
         n_sub = nsub[k] if nsub[k] > 0 else 1
         h = dt / n_sub
         dw = 1.0 / n_sub
-        if lugre:
+        if smooth:
             d[D_ZRATE] = LUGRE_RATE_LIMIT / h
         for j in range(n_sub):
             w0 = j * dw
@@ -1562,6 +1575,52 @@ def _part_valve_slope(p: np.ndarray, law: int) -> float:
 
 
 @njit(cache=True)
+def _part_friction_mode(p: np.ndarray, law: int) -> float:
+    """Rate bound (1/s) of the piston's friction mode under an outside friction law.
+
+    The law's force F(v, z) (:func:`part_friction`) and its state's rate
+    r(v, z) (:func:`part_friction_rate`, 0 without a state) linearised at
+    rest (v = 0, z = 0, mid-stroke, both chambers at the mean of supply and
+    exhaust, gas at ambient temperature) by central differences give the
+    Jacobian of (v, z), J = [[-F_v / M, -F_z / M], [r_v, r_z]], trace T and
+    determinant D. Its eigenvalues are bounded by |T| + 1.5 sqrt(|D|): the
+    LuGre bound of :func:`stiffness_bound` for the LuGre law ((sigma1 + b) /
+    M + 1.5 sqrt(sigma0 / M)), and F_v / M, a smooth law's damping at rest,
+    without a state. The relaxation of a state in sliding is the law's to
+    limit (``max_rate``, here unbounded: at rest it does not act).
+    """
+    x = np.zeros(NX)
+    x[X_Y] = 0.5 * p[P_STROKE]
+    x[X_PN] = 0.5 * (p[P_PS] + p[P_PE])
+    x[X_PP] = x[X_PN]
+    x[X_TN] = p[P_TAMB]
+    x[X_TP] = p[P_TAMB]
+    f_s = p[P_FS]
+    f_c = p[P_FC]
+    dv = 1e-7
+    dz = 1e-10
+    f_hi = part_friction(law, dv, f_s, f_c, x, p)
+    r_hi = part_friction_rate(law, dv, f_s, f_c, x, p, math.inf)
+    f_lo = part_friction(law, -dv, f_s, f_c, x, p)
+    r_lo = part_friction_rate(law, -dv, f_s, f_c, x, p, math.inf)
+    f_v = (f_hi - f_lo) / (2.0 * dv)
+    r_v = (r_hi - r_lo) / (2.0 * dv)
+    x[X_Z] = dz
+    f_hi = part_friction(law, 0.0, f_s, f_c, x, p)
+    r_hi = part_friction_rate(law, 0.0, f_s, f_c, x, p, math.inf)
+    x[X_Z] = -dz
+    f_lo = part_friction(law, 0.0, f_s, f_c, x, p)
+    r_lo = part_friction_rate(law, 0.0, f_s, f_c, x, p, math.inf)
+    f_z = (f_hi - f_lo) / (2.0 * dz)
+    r_z = (r_hi - r_lo) / (2.0 * dz)
+    m = p[P_MASS]
+    trace = -f_v / m + r_z
+    det = -f_v / m * r_z + f_z / m * r_v
+    bound = abs(trace) + 1.5 * math.sqrt(abs(det))
+    return bound if math.isfinite(bound) else 0.0
+
+
+@njit(cache=True)
 def stiffness_bound(
     p: np.ndarray, y_min: float, y_max: float, valve_law: int = 0, friction_law: int = 0
 ) -> float:
@@ -1584,6 +1643,9 @@ def stiffness_bound(
     shorter than on the real one, sqrt(3) against 2.51 for Kutta's RK3). The
     bristle relaxation rate sigma0 |v| / g(v) is not bounded here: the
     kernel limits it to LUGRE_RATE_LIMIT / h, inside every method's interval.
+    A law from outside the package adds the same bound taken from its
+    force and state rate by central differences at rest
+    (:func:`_part_friction_mode`).
     """
     d = np.empty(ND)
     derive(p, d)
@@ -1626,4 +1688,6 @@ def stiffness_bound(
     rate = max(rate_p, rate_stop, rate_visc)
     if friction_law == FRICTION_LUGRE:
         rate = max(rate, (p[P_SIG1] + p[P_FV]) / m + 1.5 * math.sqrt(p[P_SIG0] / m))
+    elif friction_law > FRICTION_LUGRE:
+        rate = max(rate, _part_friction_mode(p, friction_law))
     return rate

@@ -25,7 +25,11 @@ its own compiled code instead:
   float``, the friction force (N) against the motion from the piston speed
   (m/s), the static and Coulomb levels (N, the seal and asymmetry effects
   applied), the state and p; a smooth law, without the switch model's
-  stuck mode and events (as LuGre);
+  stuck mode and events (as LuGre). A law with a state of its own (a
+  bristle deflection) adds ``FrictionLaw.state_rate``: ``rate(v, f_s, f_c,
+  x, p, max_rate) -> float``, the rate of that state, held in the bristle
+  slot ``x[layout.X_Z]`` (``max_rate``: the relaxation rate the step can
+  follow, 1/s);
 - an effect (``Effect.kernel``): ``eff(x, p) -> (q_P, H_P, q_N, H_N, q_atm,
   F)``, from the state x (``layout.X_*``) and p: mass flows into chambers P
   and N (kg/s), the enthalpy they carry as sum q_i T_i (kg K/s: inflows at
@@ -40,9 +44,9 @@ may not allocate arrays.
 
 :func:`kernel_for` returns the module a structure runs on: the cached
 kernel when it uses built-in parts only, else a copy of the kernel's source
-compiled, without numba's disk cache, with its four hooks
+compiled, without numba's disk cache, with its hooks
 (``kernel.part_heat``, ``kernel.part_valve``, ``kernel.part_friction``,
-``kernel.part_effects``)
+``kernel.part_friction_rate``, ``kernel.part_effects``)
 bound to every outside part
 registered at the time. The copy is made once per set of registered parts
 (the first simulation compiles it: 20 s on the 2-core machine, measured as
@@ -77,6 +81,7 @@ __all__ = [
     "hooked_valve_laws",
     "kernel_for",
     "kernel_for_config",
+    "kernel_for_laws",
     "kernel_for_valve",
     "parts_digest",
     "rebound",
@@ -141,7 +146,11 @@ def parts_digest() -> str:
     for kind, part in outside:
         fields = [kind, part.name, str(getattr(part, "code", "")), repr(part.parameters),
                   repr(getattr(part, "starts", ()))]  # fmt: skip
-        items.append("|".join(fields) + "|" + _code_fingerprint(getattr(part, "kernel", None)))
+        item = "|".join(fields) + "|" + _code_fingerprint(getattr(part, "kernel", None))
+        rate = getattr(part, "state_rate", None)
+        if rate is not None:  # appended only when present: older digests unchanged
+            item += "|state_rate|" + _code_fingerprint(rate)
+        items.append(item)
     items += [repr(spec) for spec in layout.PARAMETER_SPECS[layout.NP :]]
     if not items:
         return ""
@@ -253,6 +262,21 @@ def kernel_for_valve(code: int) -> ModuleType:
     return kernel if int(code) in parts.KERNEL_VALVE_CODES else _copy()
 
 
+def kernel_for_laws(valve: int, friction: int) -> ModuleType:
+    """The compiled kernel module whose rate bound (``stiffness_bound``) knows
+    the valve law ``valve`` and the friction law ``friction`` (codes).
+
+    Returns
+    -------
+    module
+        :mod:`pneumafit.models.kernel` when both are the kernel's own laws,
+        else the copy bound to the outside parts registered now.
+    """
+    if int(friction) in parts.KERNEL_FRICTION_CODES:
+        return kernel_for_valve(valve)
+    return _copy()
+
+
 def rebound(function: Any, module: ModuleType) -> Any:
     """A compiled function of another module that calls ``kernel.*``, bound to ``module``.
 
@@ -304,7 +328,7 @@ def _copy() -> ModuleType:
     key = (
         tuple((h.name, h.code, id(h.kernel)) for h in heat),
         tuple((v.name, v.code, id(v.kernel)) for v in valve),
-        tuple((f.name, f.code, id(f.kernel)) for f in friction),
+        tuple((f.name, f.code, id(f.kernel), id(f.state_rate)) for f in friction),
         tuple((e.name, id(e.kernel)) for e in effects),
     )
     module = _BUILT.get(key)
@@ -319,7 +343,7 @@ def _hook_source(
     friction: list[parts.FrictionLaw],
     effects: list[parts.Effect],
 ) -> str:
-    """Source of the four hooks, dispatching on the heat, valve and friction
+    """Source of the five hooks, dispatching on the heat, valve and friction
     codes and the effect bits."""
     lines = [
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
@@ -356,6 +380,19 @@ def _hook_source(
         ]
     lines += [
         "    return math.nan",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_friction_rate(law, v, f_s, f_c, x, p, max_rate):",
+    ]
+    for f in friction:
+        if f.state_rate is not None:
+            lines += [
+                f"    if law == {int(f.code)}:",
+                f"        return _friction_rate_{int(f.code)}(v, f_s, f_c, x, p, max_rate)",
+            ]
+    lines += [
+        "    return 0.0",
         "",
         "",
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
@@ -422,6 +459,10 @@ def _build(
         namespace[f"_friction_{int(law.code)}"] = _recompiled(
             law.kernel, f"friction law {law.name!r}"
         )
+        if law.state_rate is not None:
+            namespace[f"_friction_rate_{int(law.code)}"] = _recompiled(
+                law.state_rate, f"friction law {law.name!r}: state_rate"
+            )
     for i, effect in enumerate(effects):
         namespace[f"_effect_{i}"] = _recompiled(effect.kernel, f"effect {effect.name!r}")
     exec(compile(_hook_source(heat, valve, friction, effects), f"<pneumafit part hooks {serial}>",

@@ -31,7 +31,7 @@ from pneumafit.models.layout import (
     n_parameters,
 )
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.models.part_kernel import kernel_for, kernel_for_valve
+from pneumafit.models.part_kernel import kernel_for, kernel_for_laws
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.simulation import counter
 from pneumafit.simulation.experiment import Experiment
@@ -432,12 +432,15 @@ def choose_step(
         Positions (m) the piston visits.
     method : str or Tableau
         Integration method the step is for.
-    valve : {"iso6358", "map"}
-        Valve law of the model (:attr:`ModelStructure.valve`): the rate
-        bound takes that law's largest conductance.
-    friction : {"switch", "lugre"}
-        Friction law of the model (:attr:`ModelStructure.friction`): LuGre
-        adds its bristle mode (stiffness and damping over the moving mass).
+    valve : str
+        Valve law of the model (:attr:`ModelStructure.valve`, a registered
+        name): the rate bound takes that law's largest conductance (a law
+        from outside the package: its largest slope on a grid).
+    friction : str
+        Friction law of the model (:attr:`ModelStructure.friction`, a
+        registered name): LuGre adds its bristle mode (stiffness and damping
+        over the moving mass), a law from outside the package the mode of
+        its force and state at rest, by central differences.
     spool : (float, float), optional
         The spool's fastest mode as (|lambda| in 1/s, direction in rad)
         (:func:`spool_mode`: a first-order lag's is 1 / tau on the negative
@@ -462,7 +465,7 @@ def choose_step(
     )
     stroke = vec[P["stroke"]]
     lo, hi = y_range if y_range is not None else (0.0, stroke)
-    rate = kernel_for_valve(VALVE_LAWS[valve]).stiffness_bound(
+    rate = kernel_for_laws(VALVE_LAWS[valve], FRICTION_LAWS[friction]).stiffness_bound(
         vec, max(lo, 0.0), min(hi, stroke), VALVE_LAWS[valve], FRICTION_LAWS[friction]
     )
     step = min(default, STABILITY_MARGIN * tableau.stability / rate)

@@ -283,11 +283,26 @@ class FrictionLaw(_Law):
         Starting values of the law's own parameters for the friction stage
         (each a mapping name -> SI value; the switch model's levels seed the
         rest).
+    state_rate : numba njit function or None
+        A law with a state of its own (pre-sliding: a bristle deflection, a
+        Dahl or elasto-plastic state): an ``@njit`` function ``rate(v, f_s,
+        f_c, x, p, max_rate) -> float``, the state's time derivative, with
+        the arguments of ``kernel`` and the largest relaxation rate (1/s)
+        the fixed step can follow (``LUGRE_RATE_LIMIT / h``: a law whose
+        state relaxes faster, as LuGre's bristles at high speed, limits its
+        rate there as :func:`pneumafit.physics.friction.lugre_friction`
+        does). The state is the bristle slot ``x[layout.X_Z]``, which
+        ``kernel`` reads too; it starts at 0 (or at the experiment's initial
+        ``z_f``) and is frozen in blocked tests. The integration step bounds
+        the state's mode by central differences of ``kernel`` and
+        ``rate`` at rest (:func:`pneumafit.models.kernel.stiffness_bound`).
+        None: no state (only with ``kernel``).
     """
 
     joint_prior: Callable[[Mapping[str, Any]], Any] | None = None
     kernel: Callable[..., float] | None = field(default=None, compare=False)
     starts: tuple[Mapping[str, float], ...] = ()
+    state_rate: Callable[..., float] | None = field(default=None, compare=False)
 
 
 # ----------------------------------------------------------------- effects
@@ -549,6 +564,13 @@ def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
     """A law's kernel code is an njit function, and a law with one takes a
     code outside ``codes`` (the kernel's own branches)."""
     _check_kernel(where, law.kernel)
+    rate = getattr(law, "state_rate", None)
+    _check_kernel(where, rate, "state_rate")
+    if rate is not None and law.kernel is None:
+        raise PneumafitInputError(
+            f"{where}: state_rate: expected it only with kernel code (the force that "
+            "reads the state), found no kernel"
+        )
     if law.kernel is not None and law.code in codes:
         raise PneumafitInputError(
             f"{where}: kernel: expected a code outside {sorted(codes)} (the "
@@ -556,13 +578,13 @@ def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
         )
 
 
-def _check_kernel(where: str, function: object) -> None:
-    """A part's kernel code is a numba njit function (or None)."""
+def _check_kernel(where: str, function: object, key: str = "kernel") -> None:
+    """A part's kernel code (its field ``key``) is a numba njit function (or None)."""
     if function is not None and not (
         callable(function) and callable(getattr(function, "py_func", None))
     ):
         raise PneumafitInputError(
-            f"{where}: kernel: expected a numba @njit function or None, "
+            f"{where}: {key}: expected a numba @njit function or None, "
             f"found {type(function).__name__}"
         )
 

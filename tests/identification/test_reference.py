@@ -71,3 +71,25 @@ def test_the_console_summary_quotes_the_figures() -> None:
     same = {**lam, "full_area_equivalent": {"value": 16.1, "interval_90": [16.0, 16.2]}}
     assert "every wall" not in _reference_lines({"lambda_reference": same})[0]
     assert _reference_lines({}) == []
+
+
+def test_a_friction_law_without_a_static_level_quotes_what_it_has() -> None:
+    """A friction law from outside the package that names no static level
+    (Dahl's: breakaway and sliding at F_c) gets the Coulomb figure only, and
+    the console quotes it (until 2026-11-30 the fit ended with an internal
+    KeyError after its joint stage)."""
+    from types import SimpleNamespace
+
+    from pneumafit.cli.fit import _reference_lines
+    from pneumafit.identification.staged import _friction_reference
+    from pneumafit.models.structure import ModelStructure
+
+    rig = {"supply_pressure": 7e5, "exhaust_pressure": 1e5}
+    no_covariance = SimpleNamespace(covariance=None)
+    fr = _friction_reference(ModelStructure("convection"), {"friction_coulomb": 37.0}, rig,
+                             None, no_covariance, None, 0)  # fmt: skip
+    assert fr["coulomb"]["value"] == 37.0
+    assert "static" not in fr and "sliding" not in fr
+    assert _reference_lines({"friction_reference": fr}) == [
+        "friction at mid pressure: Coulomb 37 N"
+    ]

@@ -305,8 +305,12 @@ def _reference_lines(metrics: dict[str, Any]) -> list[str]:
             line += f"; on every wall's area (chamber P, mid-stroke): {_figure(full, 'W/m^2/K')}"
         lines.append(line)
     fr = metrics.get("friction_reference")
-    if fr and fr.get("static"):
-        parts = [f"static {_figure(fr['static'], 'N')}", f"Coulomb {_figure(fr['coulomb'], 'N')}"]
+    if fr and (fr.get("static") or fr.get("coulomb")):
+        parts = [
+            f"{label} {_figure(fr[key], 'N')}"
+            for key, label in (("static", "static"), ("coulomb", "Coulomb"))
+            if fr.get(key)
+        ]
         if fr.get("sliding"):
             v = fr["sliding"]["velocity"] * 1e3
             parts.append(f"sliding at {v:g} mm/s less viscous {_figure(fr['sliding'], 'N')}")

@@ -2182,7 +2182,9 @@ def _friction_reference(
     Coulomb level plus what remains of the Stribeck drop there. Values are
     the medians of the friction stage's propagated MCMC draws when sampled,
     else of 4000 draws of the joint Laplace approximation, with their 90 %
-    intervals.
+    intervals. A friction law that does not name a level (a law from outside
+    the package, e.g. Dahl's, without a static level) has no entry for it,
+    and ``sliding`` needs all three of F_s, F_c and v_s.
     """
     delta = float(rig["supply_pressure"] - rig["exhaust_pressure"])
     seal = SEAL if structure.effects.get("seal_friction") else None
@@ -2190,6 +2192,8 @@ def _friction_reference(
     if draws is None or not all(n in draws for n in ("friction_static", "friction_coulomb")):
         draws = _laplace_draws(laplace, est, seed)
     for key, name in (("static", "friction_static"), ("coulomb", "friction_coulomb")):
+        if name not in values:
+            continue
         c = float(values.get(seal, 0.0)) if seal else 0.0
         entry: dict[str, Any] = {"value": float(values[name]) + c * delta, "interval_90": None}
         if draws is not None and name in draws:
@@ -2200,6 +2204,8 @@ def _friction_reference(
         out[key] = entry
     c = float(values.get(seal, 0.0)) if seal else 0.0
     names = ("friction_static", "friction_coulomb", "stribeck_velocity")
+    if not all(n in values for n in names):
+        return out
     sliding: dict[str, Any] = {
         "velocity": SLIDING_VELOCITY,
         "value": float(reference_sliding(values, c * delta)),

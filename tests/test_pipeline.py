@@ -216,3 +216,28 @@ def test_a_fit_made_with_other_outside_parts_is_not_reused(
     doc["provenance"]["parts"] = "0" * 64  # made with another law of one's own
     (folder / "fit.json").write_text(json.dumps(doc))
     assert not fit_is_reusable(folder, campaign, "convection")
+
+
+def test_run_takes_a_friction_law(finished_run: tuple, tmp_path: Path) -> None:
+    """``run --friction``: a name no law has is bad input before anything
+    runs; the law the convection fit chose, named, reuses every fit (they
+    were all made with it), and another law would not
+    (``fit_is_reusable(friction=...)``)."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.identification.staged import FitResult
+
+    campaign, out, _, _ = finished_run
+    console = _console()
+    assert run_pipeline(campaign, tmp_path / "out", console, mcmc=False,
+                        friction="karnopp") == 2  # fmt: skip
+    log = console.file.getvalue()
+    assert "option --friction: expected one of auto, switch, lugre" in log and "--parts" in log
+    assert not (tmp_path / "out" / "fits").exists()
+    chosen = FitResult.load(out / "fits" / "convection" / "fit.json").structure.friction
+    console = _console()
+    assert run_pipeline(campaign, out, console, mcmc=False, friction=chosen) == 0
+    log = console.file.getvalue()
+    assert all(f"fit {model}: reused" in log for model in RUN_MODELS)
+    other = "switch" if chosen == "lugre" else "lugre"
+    camp = read_campaign(campaign)
+    assert not fit_is_reusable(out / "fits" / "convection", camp, "convection", friction=other)

@@ -72,7 +72,6 @@ from pneumafit.comparison.replays import REPLAYS_FILE
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.fileio import write_text_atomic
-from pneumafit.models.layout import VALVE_LAWS
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.models.structure import INPUT_MODE, INPUT_MODES
 from pneumafit.outputs.residual_file import RESIDUALS_FILE
@@ -202,6 +201,7 @@ def run(
     strict: bool = False,
     valve: str = "iso6358",
     inputs: str = INPUT_MODE,
+    friction: str = "auto",
 ) -> int:
     """Run the main job; returns the exit status (0 ok, 1 a stage failed, 2 bad input,
     3 a fit is not trustworthy under ``strict``).
@@ -230,12 +230,17 @@ def run(
         How the fits read the recorded commands and set-points between
         samples (``pneumafit fit --inputs``); a finished fit read the other
         way (a fit.json without the key interpolated) is not reused.
+    friction : str
+        Friction law of the three fits (``pneumafit fit --friction``): "auto",
+        the convection fit chooses and the other two use its law, or a
+        registered law's name, which all three use (a finished fit of another
+        law is not reused).
     """
     started = time.perf_counter()
     path = Path(campaign_path) if campaign_path is not None else DEMO
-    friction = _friction_job(path, out, console, seed, mcmc, walkers, steps, strict)
-    if friction is not None:
-        return friction
+    job = _friction_job(path, out, console, seed, mcmc, walkers, steps, strict)
+    if job is not None:
+        return job
     console.rule(f"[bold]pneumafit run[/bold]: {path}")
     status = check_campaign(path, console=console)
     if status != 0:
@@ -243,16 +248,14 @@ def run(
         return EXIT_BAD_INPUT  # check's own status is 1: problems found
     campaign = read_campaign(path)
     out = Path(out)
-    from pneumafit.cli.fit import MAX_SAMPLED
+    from pneumafit.cli.fit import MAX_SAMPLED, law_problems
 
     problems = [
         folder_problem(out),
         int_problem("--walkers", walkers, 2 * MAX_SAMPLED),
         int_problem("--steps", steps, 1),
         int_problem("--seed", seed, 0),
-        None
-        if valve in VALVE_LAWS
-        else f"option --valve: expected one of {', '.join(VALVE_LAWS)}, found {valve!r}",
+        *law_problems(valve, friction),
         None
         if inputs in INPUT_MODES
         else f"option --inputs: expected one of {', '.join(INPUT_MODES)}, found {inputs!r}",
@@ -282,7 +285,7 @@ def run(
 
     try:
         fit_files = _fits(campaign, path, out, console, seed, mcmc, walkers, steps, timings,
-                          sims, valve, inputs)  # fmt: skip
+                          sims, valve, inputs, friction)  # fmt: skip
         for model, file in fit_files.items():  # fit times, for the report
             seconds = timings.get(f"fit {model}")
             if seconds:
@@ -348,10 +351,12 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
 def _fits(
     campaign: Campaign, path: Path, out: Path, console: Console, seed: int, mcmc: bool,
     walkers: int | None, steps: int | None, timings: dict[str, float], sims: dict[str, int],
-    valve: str = "iso6358", inputs: str = INPUT_MODE,
+    valve: str = "iso6358", inputs: str = INPUT_MODE, friction: str = "auto",
 ) -> dict[str, Path]:  # fmt: skip
     """Fit the three models (or reuse finished fits); fit.json path per model.
-    Each fit's wall time goes into ``timings`` and its simulations into ``sims``."""
+    Each fit's wall time goes into ``timings`` and its simulations into ``sims``.
+    ``friction`` "auto": the first fit chooses the friction law and the others
+    use it; a law's name: every fit uses it."""
     from pneumafit.cli.fit import report_fit
     from pneumafit.identification.staged import FitOptions, FitResult
     from pneumafit.services.fit import (
@@ -371,7 +376,9 @@ def _fits(
         inputs=inputs,
     )
     files = {}
-    law: str | None = None  # the first fit's friction law, the others' too
+    # the friction law asked for, else the first fit's, the others' too
+    law: str | None = None if friction == "auto" else friction
+    asked = law is not None
     for model in FIT_ORDER:
         folder = out / "fits" / model
         name = f"fit {model}"
@@ -385,7 +392,9 @@ def _fits(
             t0, n0 = time.perf_counter(), counter.simulations()
             console.print(f"fitting {model} to {campaign.name} "
                           f"({len(campaign.by_role('fit'))} fit recordings)")  # fmt: skip
-            if law is not None:
+            if asked:
+                console.print(f"friction law {law}, as asked (--friction)")
+            elif law is not None:
                 console.print(f"friction law {law}, as chosen by the {FIT_ORDER[0]} fit")
             command = fit_command_line(path, model, folder, walkers, steps, seed, mcmc,
                                        valve=valve, inputs=inputs,

@@ -224,6 +224,14 @@ def run(
             "every later stage uses the fits' law.",
         ),
     ] = "iso6358",
+    friction: Annotated[
+        str,
+        typer.Option(
+            help=f"Friction law of the three fits: auto or one of {', '.join(Friction)} (or a "
+            "law of your own loaded with --parts; see pneumafit fit). auto: the convection "
+            "fit chooses, the other two fits use its law.",
+        ),
+    ] = "auto",
     inputs: Annotated[
         str,
         typer.Option(
@@ -245,7 +253,8 @@ def run(
 
     check_output(out, "folder")
     code = run_pipeline(campaign, out, console, seed=seed, mcmc=not no_mcmc, walkers=walkers,
-                        steps=steps, strict=strict, valve=valve, inputs=inputs)  # fmt: skip
+                        steps=steps, strict=strict, valve=valve, inputs=inputs,
+                        friction=friction)  # fmt: skip
     raise typer.Exit(code)
 
 

@@ -375,19 +375,22 @@ def _rates_along(
     parameters (:func:`~pneumafit.models.kernel.initial_deflection`, seal and
     asymmetry included): the measurement does not give z, and after the
     pre-sliding travel g / sigma0 (~0.1 mm) a sliding piston's bristles sit
-    there, so the LuGre friction is the switch model's s g(v) + b v.
+    there, so the LuGre friction is the switch model's s g(v) + b v. A law
+    from outside the package with a state of its own: the state where its
+    rate vanishes at that speed
+    (:func:`~pneumafit.models.kernel.steady_friction_state`).
     """
     n = xs.shape[0]
     out = np.empty((n, 7))
     dx = np.empty(xs.shape[1])
     aux = np.empty(kernel.NAUX)
     x = np.empty(xs.shape[1])
-    lugre = cfg[layout.C_FRICTION_LAW] == kernel.FRICTION_LUGRE
+    smooth = cfg[layout.C_FRICTION_LAW] != kernel.FRICTION_SWITCH
     for k in range(n):
         for i in range(xs.shape[1]):
             x[i] = xs[k, i]
-        if lugre and x[layout.X_V] != 0.0:
-            x[layout.X_Z] = kernel.initial_deflection(x, p, cfg, 0.0)
+        if smooth and x[layout.X_V] != 0.0:
+            x[layout.X_Z] = kernel.steady_friction_state(x, p, cfg)
         kernel.rhs(x, modes[k], cmds[k, 0], cmds[k, 1], p, d, cfg, dx, aux)
         out[k, 0] = dx[layout.X_PP]
         out[k, 1] = dx[layout.X_PN]

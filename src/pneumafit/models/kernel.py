@@ -1084,16 +1084,9 @@ def _initial_state(x0: np.ndarray, p: np.ndarray, cfg: np.ndarray, x: np.ndarray
 
 
 @njit(cache=True, fastmath=_FM)
-def initial_deflection(x: np.ndarray, p: np.ndarray, cfg: np.ndarray, f_drive: float) -> float:
-    """Initial LuGre bristle deflection z_f (m) of a moving-piston test.
-
-    A piston at rest (v = 0) starts in static equilibrium if the bristles can
-    hold it, z = clip(F_d / sigma0, -g(0) / sigma0, g(0) / sigma0) (the
-    pre-sliding force sigma0 z balances the driving force F_d up to the
-    static level g(0) = F_s); a moving one on its steady sliding deflection
-    z = sign(v) g(v) / sigma0. Levels with the seal-friction and asymmetry
-    effects if on.
-    """
+def _moving_levels(x: np.ndarray, p: np.ndarray, cfg: np.ndarray) -> tuple[float, float]:
+    """Static and Coulomb levels (N) at state x with the seal-friction and
+    asymmetry effects if on (the asymmetry's direction: sign v, none at rest)."""
     f_s = p[P_FS]
     f_c = p[P_FC]
     if cfg[C_SEAL_FRICTION] == 1:
@@ -1106,6 +1099,72 @@ def initial_deflection(x: np.ndarray, p: np.ndarray, cfg: np.ndarray, f_drive: f
         scale = 1.0 + p[P_FASYM] * (1.0 if v > 0.0 else -1.0)
         f_s *= scale
         f_c *= scale
+    return f_s, f_c
+
+
+@njit(cache=True, fastmath=_FM)
+def steady_friction_state(x: np.ndarray, p: np.ndarray, cfg: np.ndarray) -> float:
+    """The friction law's state (slot X_Z) of a piston sliding steadily at x[X_V].
+
+    LuGre: sign(v) g(v) / sigma0 (:func:`initial_deflection`). A law from
+    outside the package with a state of its own: the root in z of its rate
+    (:func:`part_friction_rate`, unlimited), bracketed by doubling from
+    1e-12 in the direction the rate moves z from 0 and refined by 60
+    bisections; x[X_Z] itself when the rate vanishes at 0 (no state, or at
+    rest) or no root lies within 1e3 (the state's units). For residual
+    attribution, which rebuilds states from measurements that do not give z.
+    """
+    law = cfg[C_FRICTION_LAW]
+    if law == FRICTION_LUGRE:
+        return initial_deflection(x, p, cfg, 0.0)
+    z0 = x[X_Z]
+    if law == FRICTION_SWITCH:
+        return z0
+    v = x[X_V]
+    f_s, f_c = _moving_levels(x, p, cfg)
+    x[X_Z] = 0.0
+    r0 = part_friction_rate(law, v, f_s, f_c, x, p, math.inf)
+    if not r0 != 0.0:  # zero or NaN
+        x[X_Z] = z0
+        return z0
+    s = 1.0 if r0 > 0.0 else -1.0
+    lo = 0.0
+    hi = s * 1e-12
+    found = False
+    for _ in range(60):
+        x[X_Z] = hi
+        if part_friction_rate(law, v, f_s, f_c, x, p, math.inf) * s <= 0.0:
+            found = True
+            break
+        lo = hi
+        hi *= 2.0
+    if not found:
+        x[X_Z] = z0
+        return z0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        x[X_Z] = mid
+        if part_friction_rate(law, v, f_s, f_c, x, p, math.inf) * s > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    x[X_Z] = z0
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True, fastmath=_FM)
+def initial_deflection(x: np.ndarray, p: np.ndarray, cfg: np.ndarray, f_drive: float) -> float:
+    """Initial LuGre bristle deflection z_f (m) of a moving-piston test.
+
+    A piston at rest (v = 0) starts in static equilibrium if the bristles can
+    hold it, z = clip(F_d / sigma0, -g(0) / sigma0, g(0) / sigma0) (the
+    pre-sliding force sigma0 z balances the driving force F_d up to the
+    static level g(0) = F_s); a moving one on its steady sliding deflection
+    z = sign(v) g(v) / sigma0. Levels with the seal-friction and asymmetry
+    effects if on.
+    """
+    f_s, f_c = _moving_levels(x, p, cfg)
+    v = x[X_V]
     r = v / p[P_VST]
     g = max(f_c + (f_s - f_c) * math.exp(-r * r), LUGRE_MIN_LEVEL)
     z_max = g / p[P_SIG0]

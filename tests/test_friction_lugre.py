@@ -82,8 +82,9 @@ def test_structure_field_layout_and_parameters() -> None:
     assert FRICTION_LAWS == {"switch": 0, "lugre": 1}
     # NCFG 15 -> 17: the seal effects' slots friction_asymmetry and effective_area;
     # 17 -> 18: the input hold (ModelStructure.inputs); 18 -> 19: the bit mask
-    # of the effects from outside the package (C_PART_EFFECTS)
-    assert (C_FRICTION_LAW, NCFG, X_Z, NX) == (14, 19, 14, 15)
+    # of the effects from outside the package (C_PART_EFFECTS); NX 15 -> 16:
+    # a state slot for those effects after z_f (layout.X_E0)
+    assert (C_FRICTION_LAW, NCFG, X_Z, NX) == (14, 19, 14, 16)
     assert (STATE_NAMES[X_Z], STATE_UNITS[X_Z]) == ("z_f", "m")
     assert LUGRE.config()[C_FRICTION_LAW] == 1
     assert ModelStructure("convection").config()[C_FRICTION_LAW] == 0

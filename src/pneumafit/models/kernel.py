@@ -138,6 +138,7 @@ from pneumafit.models.layout import (
     PARAMETER_SPECS,
     X_DUN,
     X_DUP,
+    X_E0,
     X_ME,
     X_MS,
     X_PN,
@@ -387,6 +388,13 @@ def part_effects(
 
 
 @njit(cache=True, fastmath=_FM, _nrt=False)
+def part_effect_rates(mask: int, x: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
+    """Rate of the state of an outside effect switched on in ``mask`` (slot
+    X_E0; ``Effect.states``, ``Effect.state_rate``): none here (zero)."""
+    dx[X_E0] = 0.0
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
 def part_friction(
     law: int, v: float, f_s: float, f_c: float, x: np.ndarray, p: np.ndarray
 ) -> float:
@@ -590,11 +598,14 @@ def rhs(
     t_amb = p[P_TAMB]
     p_e = p[P_PE]
     # every slot of dx is written below, except the optional states (zeroed
-    # here when their effect is off) and the piston states (zeroed when stuck
-    # or blocked)
+    # here when their effect is off; the outside effects' states are set by
+    # their hook when one is on) and the piston states (zeroed when stuck or
+    # blocked)
     if cfg[C_WALL_MASS] == 0 and cfg[C_VALVE_ORDER] == 0:
         for i in range(8, NX):
             dx[i] = 0.0
+    else:
+        dx[X_E0] = 0.0
 
     # --- valve commands: static, or spool dynamics (effect valve_dynamics)
     order = cfg[C_VALVE_ORDER]
@@ -703,6 +714,7 @@ def rhs(
         q_n += e_qn
         h_n += e_hn
         qe_total += e_qa
+        part_effect_rates(cfg[C_PART_EFFECTS], x, p, dx)
 
     # --- wall heat exchange (paper eqs. 6-8)
     wall_mass = cfg[C_WALL_MASS] == 1
@@ -866,10 +878,16 @@ def commands(
 @njit(cache=True, _nrt=False)
 def active_states(cfg: np.ndarray) -> int:
     """Number of leading state slots that can change: 8 (y, v, P, T, air
-    accounts) unless an effect adds wall-temperature or spool states or a
+    accounts) unless an effect adds wall-temperature or spool states, a
     friction law other than the switch model (LuGre, a law from outside the
-    package) its state in the bristle slot."""
-    if cfg[C_WALL_MASS] == 1 or cfg[C_VALVE_ORDER] > 0 or cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
+    package) its state in the bristle slot, or an effect from outside the
+    package its state (X_E0)."""
+    if (
+        cfg[C_WALL_MASS] == 1
+        or cfg[C_VALVE_ORDER] > 0
+        or cfg[C_FRICTION_LAW] != FRICTION_SWITCH
+        or cfg[C_PART_EFFECTS] != 0
+    ):
         return NX
     return 8
 
@@ -1081,6 +1099,8 @@ def _initial_state(x0: np.ndarray, p: np.ndarray, cfg: np.ndarray, x: np.ndarray
     x[X_DUP] = 0.0
     if not math.isfinite(x[X_Z]) and (cfg[C_FRICTION_LAW] != FRICTION_LUGRE or cfg[C_BLOCKED] == 1):
         x[X_Z] = 0.0  # unused (switch model) or frozen (blocked piston)
+    if not math.isfinite(x[X_E0]):  # an outside effect's state: from 0 unless given
+        x[X_E0] = 0.0
 
 
 @njit(cache=True, fastmath=_FM)

@@ -32,13 +32,18 @@ X_TWN, X_TWP = 8, 9  # wall temperatures (effect wall_thermal_mass)
 X_UN, X_UP = 10, 11  # effective spool commands (effect valve_dynamics)
 X_DUN, X_DUP = 12, 13  # their rates (second-order valve dynamics)
 X_Z = 14  # bristle deflection z (m) of the LuGre friction law
-NX = 15
+# the state of an effect registered from outside the package (Effect.states:
+# one effect claims it; its unit is the effect's). One slot: 16 states cost
+# 1-3 % of a simulation, 17 cost 3-5 % (docs/effects.md)
+X_E0 = 15
+EFFECT_STATE_SLOTS = (X_E0,)
+NX = 16
 STATE_NAMES = (
     "y", "v", "p_N", "p_P", "T_N", "T_P", "m_supply", "m_exhaust",
-    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P", "z_f",
+    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P", "z_f", "e_0",
 )  # fmt: skip
 STATE_UNITS = (
-    "m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s", "m",
+    "m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s", "m", "",
 )  # fmt: skip
 
 # ----------------------------------------------------------------------------

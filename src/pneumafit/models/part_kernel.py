@@ -36,7 +36,9 @@ its own compiled code instead:
   their upstream temperature, outflows at the chamber's), the mass sent to
   atmosphere (kg/s, for the air consumed) and a force on the piston along
   +y (N). The structure switches it on by its bit in the configuration slot
-  ``C_PART_EFFECTS``.
+  ``C_PART_EFFECTS``. An effect with a state of its own (``Effect.states``,
+  the slot ``layout.X_E0``) adds ``Effect.state_rate``: ``rate(x, p) ->
+  float``, its time derivative.
 
 All are numba ``@njit`` functions. They are compiled again here with the
 kernel's own flags (``fastmath`` as the kernel, no reference counting): they
@@ -46,7 +48,8 @@ may not allocate arrays.
 kernel when it uses built-in parts only, else a copy of the kernel's source
 compiled, without numba's disk cache, with its hooks
 (``kernel.part_heat``, ``kernel.part_valve``, ``kernel.part_friction``,
-``kernel.part_friction_rate``, ``kernel.part_effects``)
+``kernel.part_friction_rate``, ``kernel.part_effects``,
+``kernel.part_effect_rates``)
 bound to every outside part
 registered at the time. The copy is made once per set of registered parts
 (the first simulation compiles it: 20 s on the 2-core machine, measured as
@@ -149,7 +152,7 @@ def parts_digest() -> str:
         item = "|".join(fields) + "|" + _code_fingerprint(getattr(part, "kernel", None))
         rate = getattr(part, "state_rate", None)
         if rate is not None:  # appended only when present: older digests unchanged
-            item += "|state_rate|" + _code_fingerprint(rate)
+            item += f"|state_rate|{getattr(part, 'states', '')}|" + _code_fingerprint(rate)
         items.append(item)
     items += [repr(spec) for spec in layout.PARAMETER_SPECS[layout.NP :]]
     if not items:
@@ -329,7 +332,7 @@ def _copy() -> ModuleType:
         tuple((h.name, h.code, id(h.kernel)) for h in heat),
         tuple((v.name, v.code, id(v.kernel)) for v in valve),
         tuple((f.name, f.code, id(f.kernel), id(f.state_rate)) for f in friction),
-        tuple((e.name, id(e.kernel)) for e in effects),
+        tuple((e.name, id(e.kernel), e.states, id(e.state_rate)) for e in effects),
     )
     module = _BUILT.get(key)
     if module is None:
@@ -343,7 +346,7 @@ def _hook_source(
     friction: list[parts.FrictionLaw],
     effects: list[parts.Effect],
 ) -> str:
-    """Source of the five hooks, dispatching on the heat, valve and friction
+    """Source of the six hooks, dispatching on the heat, valve and friction
     codes and the effect bits."""
     lines = [
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
@@ -415,7 +418,21 @@ def _hook_source(
             "        q_a += a4",
             "        f += a5",
         ]
-    lines += ["    return q_p, h_p, q_n, h_n, q_a, f", ""]
+    lines += [
+        "    return q_p, h_p, q_n, h_n, q_a, f",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_effect_rates(mask, x, p, dx):",
+        "    dx[X_E0] = 0.0",
+    ]
+    for i, effect in enumerate(effects):
+        for slot in effect.states:
+            lines += [
+                f"    if mask & {1 << i}:",
+                f"        dx[{int(slot)}] = _effect_rate_{i}(x, p)",
+            ]
+    lines += ["    return", ""]
     return "\n".join(lines)
 
 
@@ -465,6 +482,10 @@ def _build(
             )
     for i, effect in enumerate(effects):
         namespace[f"_effect_{i}"] = _recompiled(effect.kernel, f"effect {effect.name!r}")
+        if effect.state_rate is not None:
+            namespace[f"_effect_rate_{i}"] = _recompiled(
+                effect.state_rate, f"effect {effect.name!r}: state_rate"
+            )
     exec(compile(_hook_source(heat, valve, friction, effects), f"<pneumafit part hooks {serial}>",
                  "exec"), namespace)  # fmt: skip
     return module

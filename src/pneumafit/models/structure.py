@@ -29,6 +29,7 @@ from pneumafit.models.layout import (
     C_STATIC_FLOW,
     C_VALVE_LAW,
     NCFG,
+    STATE_NAMES,
 )
 from pneumafit.models.parts import Effect, FrictionLaw, HeatLaw, RegistryView, ValveLaw
 
@@ -173,8 +174,12 @@ class ModelStructure:
             names += ["us_N", "us_P"]
         if order == 2:
             names += ["dus_N", "dus_P"]
-        if self.friction == "lugre":
+        law = parts.FRICTION_LAWS.get(self.friction)
+        if self.friction == "lugre" or getattr(law, "state_rate", None) is not None:
             names += ["z_f"]
+        for effect, value in self.effects.items():
+            states = getattr(parts.EFFECTS.get(effect), "states", ()) if value else ()
+            names += [STATE_NAMES[i] for i in states]
         return tuple(names)
 
     @property

@@ -174,7 +174,7 @@ def solve_reference(
     aux = np.empty(kernel.NAUX)
     if atol is None:
         scale = np.array(
-            [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4]
+            [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4, 1.0]
         )
         atol_v = rtol * scale
     else:

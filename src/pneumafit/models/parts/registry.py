@@ -31,6 +31,7 @@ from pneumafit.models.layout import (
     C_PART_EFFECTS,
     C_STATIC_FLOW,
     C_VALVE_LAW,
+    EFFECT_STATE_SLOTS,
     NCFG,
     PART_PARAMETER_GROUPS,
     SPECS,
@@ -432,6 +433,17 @@ class Effect:
         along +y (N); it may not allocate arrays
         (:mod:`pneumafit.models.part_kernel`). Such an effect has the single
         option 1.
+    states : tuple of int
+        State slots the effect claims (``layout.EFFECT_STATE_SLOTS``: the
+        one slot X_E0), for a state of its own that its ``kernel`` reads
+        from ``x`` (a wall temperature, a spool, a leak that opens over
+        time); none by default. No two registered effects claim the same
+        slot.
+    state_rate : numba njit function or None
+        With ``states``: an ``@njit`` function ``rate(x, p) -> float``, the
+        state's time derivative (its unit per second). The state starts at
+        0 (from the experiment's initial state when it gives it) and
+        evolves in every test, blocked or not.
     """
 
     name: str
@@ -450,6 +462,8 @@ class Effect:
     start_floor: float = 0.0
     moves: frozenset[str] = frozenset({"blocked", "motion"})
     kernel: Callable[..., tuple[float, ...]] | None = field(default=None, compare=False)
+    states: tuple[int, ...] = ()
+    state_rate: Callable[..., Any] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         options = {int(k): tuple(v) for k, v in self.options.items()} or {1: self.parameters}
@@ -575,6 +589,37 @@ def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
         raise PneumafitInputError(
             f"{where}: kernel: expected a code outside {sorted(codes)} (the "
             f"kernel's own branches), found {law.code}"
+        )
+
+
+def _check_effect_states(where: str, effect: Effect) -> None:
+    """An effect's states: slots among ``EFFECT_STATE_SLOTS``, distinct, no
+    other registered effect's, and a compiled rate exactly when it has some
+    (and kernel code that reads them)."""
+    _check_kernel(where, effect.state_rate, "state_rate")
+    states = tuple(effect.states)
+    if not states:
+        if effect.state_rate is not None:
+            raise PneumafitInputError(
+                f"{where}: state_rate: expected it only with states, found no states"
+            )
+        return
+    if effect.kernel is None or effect.state_rate is None:
+        missing = "kernel" if effect.kernel is None else "state_rate"
+        raise PneumafitInputError(
+            f"{where}: states: expected kernel code and a state_rate with them, found no {missing}"
+        )
+    if len(set(states)) != len(states) or not set(states) <= set(EFFECT_STATE_SLOTS):
+        raise PneumafitInputError(
+            f"{where}: states: expected distinct slots among {list(EFFECT_STATE_SLOTS)} "
+            f"(layout.X_E0), found {list(states)}"
+        )
+    taken = {s: e.name for e in _EFFECTS.values() if e.name != effect.name for s in e.states}
+    clash = sorted(set(states) & set(taken))
+    if clash:
+        raise PneumafitInputError(
+            f"{where}: states: expected slots no other effect has, found {clash[0]} taken by "
+            f"{taken[clash[0]]!r}"
         )
 
 
@@ -785,6 +830,7 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
                 f"{where}: options: expected the single option 1 for an effect with kernel "
                 f"code of its own, found {sorted(effect.options)}"
             )
+    _check_effect_states(where, effect)
     if effect.slot is not None:
         if not isinstance(effect.slot, int) or not 0 <= effect.slot < NCFG:
             raise PneumafitInputError(

@@ -1194,3 +1194,21 @@ def test_an_effect_s_states_are_checked_at_registration(registered: None) -> Non
         with pytest.raises(PneumafitInputError, match=message):
             parts.register_effect(bad)
     assert "other" not in parts.EFFECTS
+
+
+def test_pneumafit_parts_names_the_states_of_one_s_own(registered: None) -> None:
+    """``pneumafit parts`` says which state a law or an effect of one's own
+    carries (the bristle slot, the effect slot)."""
+    from rich.console import Console
+
+    from pneumafit.cli.plugins import parts_tables
+
+    _register_lugre_again()
+    _register_drain()
+    console = Console(width=250, color_system=None, record=True)
+    for table in parts_tables():
+        console.print(table)
+    text = console.export_text()
+    rows = {line.split("│")[1].strip(): line for line in text.splitlines() if "│" in line}
+    assert "its own (@njit), state z_f" in rows["lugre-again"]
+    assert "its own (@njit), state e_0" in rows["drain"]

@@ -139,7 +139,11 @@ def parts_tables() -> list[Table]:
 
     def kernel_of(part: object, built_in: bool) -> str:
         if getattr(part, "kernel", None) is not None:
-            return "its own (@njit)"
+            if getattr(part, "state_rate", None) is None:
+                return "its own (@njit)"
+            slots = getattr(part, "states", ()) or (layout.X_Z,)
+            names = ", ".join(layout.STATE_NAMES[i] for i in slots)
+            return f"its own (@njit), state {names}"
         return "built in" if built_in else "none (Python side only)"
 
     heat = Table(title="heat laws (--model)")

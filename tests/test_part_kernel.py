@@ -1212,3 +1212,64 @@ def test_pneumafit_parts_names_the_states_of_one_s_own(registered: None) -> None
     rows = {line.split("│")[1].strip(): line for line in text.splitlines() if "│" in line}
     assert "its own (@njit), state z_f" in rows["lugre-again"]
     assert "its own (@njit), state e_0" in rows["drain"]
+
+
+# ------------------------------------------- a Dahl law of one's own on a Dahl rig
+_DAHL_S0, _DAHL_S1 = layout.P["friction_stiffness"], layout.P["friction_damping"]
+
+
+@njit
+def dahl_rate(v, f_s, f_c, x, p, max_rate):
+    a = min(p[_DAHL_S0] * abs(v) / f_c, max_rate)
+    z_ss = math.copysign(f_c / p[_DAHL_S0], v) if v != 0.0 else x[layout.X_Z]
+    return a * (z_ss - x[layout.X_Z])
+
+
+@njit
+def dahl_force(v, f_s, f_c, x, p):
+    dz = v - p[_DAHL_S0] * abs(v) * x[layout.X_Z] / f_c
+    return p[_DAHL_S0] * x[layout.X_Z] + p[_DAHL_S1] * dz + p[_FV_I] * v
+
+
+@pytest.mark.slow
+def test_a_dahl_law_of_one_s_own_on_a_dahl_rig(registered: None, tmp_path: Path) -> None:
+    """Mismatched (not an inverse crime): docs/architecture.md's Dahl law,
+    with a state of its own (exponent 1, no seal term), fitted to the
+    virtual rig's Dahl truth (exponent 1.5, an additive seal term, power-law
+    valves, a shifted leak, lagging probes; sparse plan, seed 1), with the
+    rig's finer solver and sensor noise. Measured 2026-11-30: held-out step
+    test p_N 2.85x and p_P 2.50x the noise (LuGre, the built-in law auto
+    keeps: 3.48x and 3.24x), Coulomb level at mid pressure 37.05 N against
+    the truth's 37.59 N. Held: the held-out step test within the issue's
+    3x, and the Coulomb level within 5 % (the seal term the law lacks costs
+    1.4 %). Also the plumbing of a law without a static level: the fit's
+    reference figures quote its Coulomb level only (the fit crashed there
+    before 2026-11-30)."""
+    import pneumafit as pf
+    from pneumafit.identification.staged import FitOptions
+    from pneumafit.virtual_rig import VirtualRig
+    from pneumafit.virtual_rig.truth import reference_quantities
+
+    parts.register_friction_law(
+        parts.FrictionLaw(
+            name="dahl-own", code=10, kernel=dahl_force, state_rate=dahl_rate,
+            parameters=("friction_coulomb", "friction_stiffness", "friction_damping",
+                        "friction_viscous"),
+            description="Dahl (1968): a bristle that yields to F_c, no Stribeck drop",
+        )
+    )  # fmt: skip
+    rig = VirtualRig(truth="dahl-bump-leak", seed=1)
+    rig.write(tmp_path / "campaign", protocol="sparse")
+    truth = reference_quantities(rig.truth, rig.parameters)
+    campaign = pf.read_campaign(tmp_path / "campaign")
+    fit = pf.fit(campaign, "convection", mcmc=False, seed=1,
+                 options=FitOptions(friction="dahl-own"))  # fmt: skip
+    reference = fit.metrics["friction_reference"]
+    assert "static" not in reference and "sliding" not in reference
+    coulomb = reference["coulomb"]["value"]
+    assert abs(coulomb / truth["friction_coulomb"] - 1.0) < 0.05
+    held_out = [
+        c for c in fit.quality.channels
+        if c.role == "validate" and c.kind == "step" and c.channel in ("p_P", "p_N")
+    ]  # fmt: skip
+    assert held_out and all(c.ratio is not None and c.ratio < 3.0 for c in held_out)

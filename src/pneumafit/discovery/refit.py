@@ -531,8 +531,10 @@ def refit(
     like = LogLikelihood(prob, ps)
     # a suggested start on or beyond a bound (the attribution's regression
     # clips a level at 0, the lower end of its physical range) is moved inside
-    # the fit bounds: 0 has no log-scale coordinate
-    full_starts = [_inside(ps, {**ps.values(), **dict(s)}) for s in starts] or [ps.values()]
+    # the fit bounds (with_values clips): 0 has no log-scale coordinate
+    full_starts = [
+        ps.with_values({k: v for k, v in s.items() if k in ps}).values() for s in starts
+    ] or [ps.values()]
     # the joint stage's stall rule: a round stops when it gains less than a
     # one-sigma move of one parameter (in effective samples) over 10 points,
     # far below what the acceptance rule can resolve (a BIC threshold of
@@ -930,15 +932,6 @@ def _catalog_names() -> list[str]:
     from pneumafit.discovery.catalog import EFFECTS
 
     return list(EFFECTS)
-
-
-def _inside(ps: ParameterSet, values: Mapping[str, float]) -> dict[str, float]:
-    """``values`` with each free parameter of ``ps`` clipped into its fit bounds."""
-    out = dict(values)
-    for par in ps.free:
-        if par.name in out:
-            out[par.name] = min(max(float(out[par.name]), par.lower), par.upper)
-    return out
 
 
 def _starts(cand: Candidate) -> list[dict[str, float]]:

@@ -1131,7 +1131,7 @@ def steady_friction_state(x: np.ndarray, p: np.ndarray, cfg: np.ndarray) -> floa
     (:func:`part_friction_rate`, unlimited), bracketed by doubling from
     1e-12 in the direction the rate moves z from 0 and refined by 60
     bisections; x[X_Z] itself when the rate vanishes at 0 (no state, or at
-    rest) or no root lies within 1e3 (the state's units). For residual
+    rest) or no root lies within 1e-12 2^60 ~ 1e6 (the state's units). For residual
     attribution, which rebuilds states from measurements that do not give z.
     """
     law = cfg[C_FRICTION_LAW]

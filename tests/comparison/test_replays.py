@@ -84,5 +84,10 @@ def test_the_fingerprint_follows_what_the_replay_depends_on() -> None:
     moved = {**doc, "parameters": {"xi": {"value": 0.41}, "beta": {"value": 0.27}}}
     lagged = {**doc, "metrics": {"temperature_sensor_lag": 0.5}}
     started = {**doc, "nuisance": {"initial_states": {"a.h5": {"p_P": 1.1e5}}}}
-    for other in (moved, lagged, started):
+    probe = {"time_constant": 0.4, "second_time_constant": 0.0, "offset": 0.0}
+    # the probe and the one lag it replaces are one and the same replay
+    same_probe = {**doc, "metrics": {"temperature_probe": probe}}
+    assert replay_fingerprint(same_probe) == replay_fingerprint(doc)
+    offset = {**doc, "metrics": {"temperature_probe": {**probe, "offset": 0.2}}}
+    for other in (moved, lagged, started, offset):
         assert replay_fingerprint(other) != replay_fingerprint(doc)

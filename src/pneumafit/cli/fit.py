@@ -50,7 +50,7 @@ from pneumafit.cli.console import (
     run_guarded,
 )
 from pneumafit.identification.fitfile import widening_label
-from pneumafit.identification.problem import NOISE_POOLINGS
+from pneumafit.identification.problem import NOISE_POOLINGS, QUANTITIES
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
@@ -66,6 +66,7 @@ from pneumafit.services.fit import (
     partial_path,
     written_line,
 )
+from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -280,6 +281,13 @@ def _quality_table(result: FitResult, console: Console) -> None:
             ", ".join(f"{p} {c.phases[p]['ratio']:.1f}x" for p in c.failing_phases()),
         )  # fmt: skip
     console.print(table)
+    probe = TemperatureProbe.from_metrics(result.metrics)
+    if probe is not None and any(QUANTITIES.get(c.channel) == "temperature" for c in rows):
+        console.print(
+            "temperatures compared through the fit's temperature probe: lags "
+            f"{probe.time_constant:.3g} s and {probe.second_time_constant:.3g} s in series, "
+            f"offset {probe.offset:+.2f} K"
+        )
 
 
 def _figure(entry: dict[str, Any], unit: str) -> str:

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.campaign.model import Campaign
-from pneumafit.comparison.replays import sensor_lag
+from pneumafit.comparison.replays import temperature_probe
 from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.problem import (
     INITIAL_PREFIX,
@@ -36,6 +36,7 @@ from pneumafit.identification.problem import (
 from pneumafit.identification.replay import replay
 from pneumafit.models.structure import MODELS, ModelStructure
 from pneumafit.parameters_io import parse_parameters
+from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
     "TRACE_CHANNELS",
@@ -153,10 +154,12 @@ class ModelEvaluation:
     traces : list of RecordingTrace
         One per simulated recording, campaign order.
     temperature_sensor_lag : float or None
-        Time constant (s) of the sensor lag applied to temperatures.
+        Total lag (s) of the temperature probe applied to temperatures.
     lag_source : str
-        ``"fit"`` (from fit.json) or ``"estimated"`` (1-D search here).
+        ``"fit"`` (from fit.json) or ``"estimated"`` (fitted here).
     warnings : list of str
+    temperature_probe : TemperatureProbe or None
+        The probe itself (two lags and an offset).
     """
 
     model: str
@@ -165,6 +168,7 @@ class ModelEvaluation:
     temperature_sensor_lag: float | None
     lag_source: str
     warnings: list[str] = field(default_factory=list)
+    temperature_probe: TemperatureProbe | None = None
 
     def pooled(self, role: str, by: str = "channel") -> dict[str, ChannelError]:
         """Errors pooled over the ``role`` recordings, per channel or per quantity.
@@ -263,10 +267,10 @@ def evaluate_fit(
         Not a fit document.
     """
     model, structure, values = fit_values(document, where)
-    lag = sensor_lag(document) or None  # the one reading of the fitted lag
+    probe = temperature_probe(document)  # the one reading of the fitted probe
     # the one replay (fit metrics, discovery and the report read the same)
     rep = replay(
-        campaign, structure, values, trace_channels=TRACE_CHANNELS, lag=lag,
+        campaign, structure, values, trace_channels=TRACE_CHANNELS, lag=probe,
         gas_temperatures=True, max_step=max_step,
     )  # fmt: skip
     warnings: list[str] = []
@@ -283,4 +287,4 @@ def evaluate_fit(
             if r.ok and np.all(np.isfinite(cmp.predicted)):
                 trace.errors[c] = channel_error(cmp.measured, cmp.predicted)
         traces.append(trace)
-    return ModelEvaluation(model, structure, traces, rep.lag, rep.lag_source, warnings)
+    return ModelEvaluation(model, structure, traces, rep.lag, rep.lag_source, warnings, rep.probe)

@@ -7,7 +7,7 @@ the traces to ``replays.npz`` beside comparison.json; the validation report
 reads them (:func:`load_replays`) and simulates nothing
 (``docs/report.md``). Each model's entry carries a fingerprint of the fit
 it was simulated with (:func:`replay_fingerprint`: structure, parameters,
-initial states, sensor lag) and the campaign's file hashes, so that a
+initial states, temperature probe) and the campaign's file hashes, so that a
 report never shows the traces of another fit or campaign as this one's.
 
 The replay is :func:`pneumafit.identification.replay.replay`, the one that
@@ -15,12 +15,12 @@ gives fit.json's metrics and the comparison's traces: the fit's parameters,
 structure and fitted initial states, the reference solver, every sample.
 Saved per recording: the channels the report compares
 (:func:`compared_channels`, SI, every sample, temperatures through the
-fitted sensor lag) and the air the test draws (mass supplied and exhausted,
+fit's temperature probe) and the air the test draws (mass supplied and exhausted,
 kg; exergy, J).
 
 File layout (NumPy ``.npz``, no pickled objects): ``meta`` holds a JSON
 string (format ``pneumafit-replays``, version, campaign identity, per model
-its name, structure, fingerprint, sensor lag, failed recordings with the
+its name, structure, fingerprint, the probe's total lag, failed recordings with the
 simulator's message, air per recording, and the array key of each
 recording's channels); the arrays are named ``m<i>/<k>/<channel>``.
 """
@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import zipfile
 from collections.abc import Mapping, Sequence
@@ -43,6 +42,7 @@ from numpy.typing import NDArray
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.errors import PneumafitInputError
 from pneumafit.fileio import atomic_path
+from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
     "COMPARED",
@@ -54,6 +54,7 @@ __all__ = [
     "replay_model",
     "save_replays",
     "sensor_lag",
+    "temperature_probe",
 ]
 
 #: The replays' file beside comparison.json.
@@ -101,14 +102,14 @@ class ModelReplay:
         Structure name (heat law and effects).
     channels : dict of str to dict of str to ndarray
         Recording file -> channel -> simulated values at the recording's
-        sample times (SI; temperatures through the sensor lag), for the
+        sample times (SI; temperatures through the fit's probe), for the
         channels the report compares. Missing for a failed simulation.
     failed : dict of str to str
         Recording file -> the simulator's message.
     air : dict of str to tuple of float
         Recording file -> (mass supplied kg, mass exhausted kg, exergy J).
     sensor_lag : float
-        Temperature sensor time constant applied (s; 0: none).
+        Total lag of the temperature probe applied (s; 0: none).
     fingerprint : str
         :func:`replay_fingerprint` of the fit simulated.
     """
@@ -122,22 +123,28 @@ class ModelReplay:
     fingerprint: str = ""
 
 
+def temperature_probe(document: Mapping[str, Any]) -> TemperatureProbe | None:
+    """The fit's temperature probe (``metrics.temperature_probe``, else the one
+    lag ``metrics.temperature_sensor_lag``), None if it names none."""
+    return TemperatureProbe.from_metrics(document.get("metrics"))
+
+
 def sensor_lag(document: Mapping[str, Any]) -> float:
-    """The fit's temperature sensor lag (s; ``metrics.temperature_sensor_lag``), 0 if none."""
-    lag = (document.get("metrics") or {}).get("temperature_sensor_lag")
-    ok = isinstance(lag, int | float) and not isinstance(lag, bool)
-    return float(lag) if ok and math.isfinite(lag) and lag > 0 else 0.0
+    """The fit's temperature probe's total lag (s; :func:`temperature_probe`), 0 if none."""
+    probe = temperature_probe(document)
+    return probe.total_lag if probe is not None else 0.0
 
 
 def replay_fingerprint(document: Mapping[str, Any]) -> str:
     """SHA-256 of what a replay of this fit depends on.
 
     The structure, the parameters' values, the nuisance block (initial
-    states, offsets) and the temperature sensor lag of a parsed fit.json:
+    states, offsets) and the temperature probe of a parsed fit.json:
     the same fit written again (other formatting, another run folder) has
     the same fingerprint; a refit has another.
     """
     params = document.get("parameters") or {}
+    probe = temperature_probe(document)
     values = {
         k: (v.get("value") if isinstance(v, Mapping) else v) for k, v in sorted(params.items())
     }
@@ -145,7 +152,7 @@ def replay_fingerprint(document: Mapping[str, Any]) -> str:
         "structure": document.get("structure"),
         "parameters": values,
         "nuisance": document.get("nuisance"),
-        "sensor_lag": sensor_lag(document),
+        "probe": probe.as_dict() if probe is not None else None,
     }
     text = json.dumps(key, sort_keys=True, default=str, allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -178,15 +185,15 @@ def replay_model(
     from pneumafit.comparison.evaluate import fit_values
     from pneumafit.identification.replay import replay as replay_campaign
     from pneumafit.models import parameter_vector
-    from pneumafit.simulation.sensor import first_order_lag
     from pneumafit.simulation.simulator import STATUS_MESSAGES, AirConsumption
 
     _name, structure, values = fit_values(document, where)  # the one fit.json reader
-    lag = sensor_lag(document)
+    probe = temperature_probe(document)
+    lag = probe.total_lag if probe is not None else 0.0
     params = parameter_vector({k: v for k, v in values.items() if ":" not in k})
     # the one replay: the comparison's and the fit metrics' traces, every sample
     rep = replay_campaign(
-        campaign, structure, values, trace_channels=SIMULATED, lag=lag or None,
+        campaign, structure, values, trace_channels=SIMULATED, lag=probe,
         estimate_lag=False,
     )  # fmt: skip
     out = ModelReplay(
@@ -199,10 +206,10 @@ def replay_model(
             out.failed[rec.file] = STATUS_MESSAGES.get(rec.status, f"status {rec.status}")
             continue
         chans = dict(rec.simulated)
-        if lag > 0:
+        if probe is not None:
             for t_name in ("T_P", "T_N"):
                 if np.all(np.isfinite(chans[t_name])):
-                    chans[t_name] = first_order_lag(chans[t_name], rec.time, lag)
+                    chans[t_name] = probe.read(chans[t_name], rec.time)
         names = compared_channels(by_file[rec.file])
         out.channels[rec.file] = {n: np.asarray(chans[n], dtype=float) for n in names}
         air = AirConsumption.from_mass(chans["m_supply"][-1], chans["m_exhaust"][-1], params)

@@ -19,7 +19,8 @@ Keys (version 1; keys are only ever added):
     ``{"available": false, "reason": ...}``; with every model scored on the
     same points, ``waic``/``loo`` also hold ``best``, ``elpd_diff`` (best
     minus this model) and ``se_diff`` (its standard error);
-  - ``temperature``: ``sensor_lag`` (s) and ``lag_source``, ``rmse`` /
+  - ``temperature``: ``sensor_lag`` (s, the probe's total lag), ``probe``
+    (two lags in s and an offset in K) and ``lag_source``, ``rmse`` /
     ``max_abs_error`` (``{role: K}``) where a temperature is measured, and
     ``predicted`` (``{recording: {T_P|T_N: {initial, min, max, final}}}``,
     K, the gas temperature without sensor lag in every chamber);
@@ -89,6 +90,7 @@ def _temperature_summary(ev: ModelEvaluation) -> dict[str, Any]:
             worst[role] = pooled.max_abs_error
     return {
         "sensor_lag": ev.temperature_sensor_lag,
+        "probe": ev.temperature_probe.as_dict() if ev.temperature_probe else None,
         "lag_source": ev.lag_source,
         "rmse": rmse,
         "max_abs_error": worst,

@@ -78,6 +78,7 @@ from pneumafit.identification.staged import (
 )
 from pneumafit.models.structure import ModelStructure
 from pneumafit.progress import Progress, Reporter
+from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
     "MAX_CHANNEL_LOSS",
@@ -185,9 +186,9 @@ class BaseFit:
     noise_pooling : str
         How the base fit profiled the noise (``FitOptions.noise_pooling``;
         ``recording`` for a fit.json written before the option existed).
-    temperature_sensor_lag : float or None
-        Temperature sensor time constant (s) of fit.json's metrics, used for
-        the temperature RMSEs.
+    temperature_probe : TemperatureProbe or None
+        The temperature probe of fit.json's metrics, through which the
+        temperature RMSEs are taken.
     """
 
     structure: ModelStructure
@@ -198,7 +199,7 @@ class BaseFit:
     max_step: float | None = MAX_STEP
     correct_solver: bool = True
     noise_pooling: str = NOISE_POOLING
-    temperature_sensor_lag: float | None = None
+    temperature_probe: TemperatureProbe | None = None
 
     @classmethod
     def from_document(cls, doc: Mapping[str, Any] | SavedFit) -> BaseFit:
@@ -220,7 +221,7 @@ class BaseFit:
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
             noise_pooling=fit.noise_pooling,
-            temperature_sensor_lag=fit.metrics.get("temperature_sensor_lag"),
+            temperature_probe=TemperatureProbe.from_metrics(fit.metrics),
         )
 
 
@@ -418,11 +419,12 @@ def rmse(
     values: Mapping[str, float],
     *,
     max_step: float | None = MAX_STEP,
-    temperature_lag: float | None = None,
+    temperature_lag: float | TemperatureProbe | None = None,
 ) -> dict[str, dict[str, float]]:
     """RMSE per role and channel (SI), as fit.json's ``metrics.rmse``
     (:func:`pneumafit.identification.replay.replay`; temperatures after
-    the ``temperature_sensor_lag`` value, else ``temperature_lag`` s, else none).
+    the ``temperature_sensor_lag`` value, else through ``temperature_lag``
+    (a probe, or one lag in s), else as the gas's).
     """
     rep = replay(
         campaign, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
@@ -472,7 +474,7 @@ def evaluate_model(
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
         rmse=rmse(
             campaign, structure, values, max_step=base.max_step,
-            temperature_lag=base.temperature_sensor_lag,
+            temperature_lag=base.temperature_probe,
         ),
         offset_free=offset_free_rmse(campaign, structure, values, max_step=base.max_step),
         seconds=time.perf_counter() - t0, evaluations=prob.n_evaluations,
@@ -573,7 +575,7 @@ def refit(
             structure,
             new_values,
             max_step=base.max_step,
-            temperature_lag=base.temperature_sensor_lag,
+            temperature_lag=base.temperature_probe,
         )
         if math.isfinite(ll)
         else {"fit": {}, "validate": {}}

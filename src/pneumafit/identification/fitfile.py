@@ -23,7 +23,11 @@ Keys (version 1; keys are only ever added):
 - ``correlation``: posterior correlation matrices by stage (``names``,
   ``matrix``), from MCMC or else the joint Laplace approximation;
 - ``metrics``: ``rmse`` (``fit``, ``validate``: channel -> SI), ``log_likelihood``,
-  ``aic``, ``bic``, ``n_data``, ``n_parameters``, ``temperature_sensor_lag``;
+  ``aic``, ``bic``, ``n_data``, ``n_parameters``, ``temperature_probe``
+  (``time_constant``, ``second_time_constant`` in s, ``offset`` in K; null
+  without temperatures; since 2026-11-30, read by
+  :meth:`~pneumafit.simulation.sensor.TemperatureProbe.from_metrics`) and
+  ``temperature_sensor_lag`` (its total lag, s; the one lag of older files);
 - ``mcmc``: ``walkers``, ``steps`` (largest over the sampled stages),
   ``acceptance`` (mean), ``tau``, ``rhat``, ``ess`` (parameter -> value),
   ``stages`` (per stage: all diagnostics), ``chains`` (file name, group per

@@ -86,7 +86,7 @@ from pneumafit.simulation import (
     spool_lag,
     spool_mode,
 )
-from pneumafit.simulation.sensor import first_order_lag
+from pneumafit.simulation.sensor import TemperatureProbe, first_order_lag
 
 __all__ = [
     "COMPARABLE_CHANNELS",
@@ -97,6 +97,7 @@ __all__ = [
     "Problem",
     "first_order_lag",
     "fit_sensor_lag",
+    "fit_temperature_probe",
 ]
 
 #: Channels a problem can compare, and the quantity each measures.
@@ -202,6 +203,65 @@ def fit_sensor_lag(
 
     sol = minimize_scalar(cost, bounds=(math.log(1e-3), math.log(10.0)), method="bounded")
     return float(math.exp(sol.x))
+
+
+#: Bounds of a fitted temperature probe: each lag in [1 ms, 10 s] (as
+#: :func:`fit_sensor_lag`), the offset within +-20 K (a thermocouple's
+#: calibration is off by tenths of a kelvin, a wrong channel by tens).
+PROBE_LAG_BOUNDS = (1e-3, 10.0)
+PROBE_OFFSET_BOUND = 20.0
+
+
+def fit_temperature_probe(
+    blocks: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
+) -> TemperatureProbe | None:
+    """The temperature probe (two lags and an offset) that best fits its readings.
+
+    Least squares over (log tau_1, log tau_2, offset), started from the best
+    single lag (:func:`fit_sensor_lag`) split 80/20 and from that lag alone;
+    the result is never worse than the single lag, which it returns when
+    the second lag and the offset gain nothing.
+
+    Parameters
+    ----------
+    blocks : sequence of (time, measured, simulated)
+        Sample times (s), readings (K) and the simulated gas temperature (K),
+        per block (recording and channel). Non-finite samples are left out.
+
+    Returns
+    -------
+    TemperatureProbe or None
+        None without blocks.
+    """
+    from scipy.optimize import least_squares
+
+    clean = []
+    for t, d, x in blocks:
+        t, d, x = (np.asarray(a, dtype=float) for a in (t, d, x))
+        keep = np.isfinite(d) & np.isfinite(x) & np.isfinite(t)
+        if keep.sum() >= 3:
+            clean.append((t[keep], d[keep], x[keep]))
+    tau0 = fit_sensor_lag(clean)
+    if tau0 is None:
+        return None
+    one = TemperatureProbe(tau0)
+
+    def residual(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        probe = TemperatureProbe(math.exp(theta[0]), math.exp(theta[1]), theta[2])
+        return np.concatenate([d - probe.read(x, t) for t, d, x in clean])
+
+    lo, hi = (math.log(b) for b in PROBE_LAG_BOUNDS)
+    bounds = ([lo, lo, -PROBE_OFFSET_BOUND], [hi, hi, PROBE_OFFSET_BOUND])
+    best = one
+    best_cost = sum(float(np.sum((d - one.read(x, t)) ** 2)) for t, d, x in clean)
+    for t1, t2 in ((0.8 * tau0, 0.2 * tau0), (tau0, 2.0 * PROBE_LAG_BOUNDS[0])):
+        start = np.clip([math.log(t1), math.log(t2), 0.0], bounds[0], bounds[1])
+        sol = least_squares(residual, start, bounds=bounds, x_scale=[1.0, 1.0, 0.1])
+        cost = float(np.sum(sol.fun**2))
+        if cost < best_cost:
+            best = TemperatureProbe(math.exp(sol.x[0]), math.exp(sol.x[1]), float(sol.x[2]))
+            best_cost = cost
+    return best
 
 
 def _force_balance_only() -> frozenset[str]:

@@ -17,8 +17,9 @@ read the same :class:`Replay`, made here and nowhere else:
   fit's defect-corrected predictions reproduce), so the traces serve the
   figures and attribution's rates as they are, and the compared samples are
   read off them;
-- temperatures are compared after the first-order sensor lag (the fit's, or
-  the one that best fits the replay's own temperatures, or none).
+- temperatures are compared through the temperature probe (two lags and an
+  offset, :class:`~pneumafit.simulation.sensor.TemperatureProbe`): the fit's,
+  or the one that best fits the replay's own temperatures, or none.
 """
 
 from __future__ import annotations
@@ -36,12 +37,12 @@ from pneumafit.identification.problem import (
     MAX_STEP,
     QUANTITIES,
     Problem,
-    fit_sensor_lag,
+    fit_temperature_probe,
 )
 from pneumafit.models.layout import CHANNELS
 from pneumafit.models.structure import ModelStructure
 from pneumafit.simulation import Experiment, Simulator
-from pneumafit.simulation.sensor import first_order_lag
+from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
     "REFERENCE_METHOD",
@@ -73,7 +74,7 @@ class Compared:
     measured : ndarray
         The measurement (SI).
     predicted : ndarray
-        The replay at those samples (SI), temperatures after the sensor lag.
+        The replay at those samples (SI), temperatures through the probe.
     """
 
     channel: str
@@ -100,7 +101,7 @@ class RecordingReplay:
         Every sample time of the recording (s).
     simulated : dict of str to ndarray
         Simulated channels on every sample (SI; temperatures are the gas's,
-        without the sensor lag). NaN after a failure.
+        not through the probe). NaN after a failure.
     status : int
         The simulator's status, 0 on success.
     compared : dict of str to Compared
@@ -130,16 +131,21 @@ class Replay:
     structure : ModelStructure
     recordings : tuple of RecordingReplay
         In the order of the campaign.
-    lag : float or None
-        Temperature sensor lag (s) applied to the compared temperatures.
+    probe : TemperatureProbe or None
+        Temperature probe through which the compared temperatures are read.
     lag_source : str
         ``"fit"`` (given), ``"estimated"`` or ``"none"``.
     """
 
     structure: ModelStructure
     recordings: tuple[RecordingReplay, ...]
-    lag: float | None
+    probe: TemperatureProbe | None
     lag_source: str
+
+    @property
+    def lag(self) -> float | None:
+        """The probe's total lag (s; its one-lag equivalent), None without a probe."""
+        return self.probe.total_lag if self.probe is not None else None
 
     def recording(self, file: str) -> RecordingReplay:
         """The replay of one recording, by file name."""
@@ -223,7 +229,7 @@ def replay(
     *,
     channels: Sequence[str] = COMPARABLE_CHANNELS,
     trace_channels: Sequence[str] | None = None,
-    lag: float | None = None,
+    lag: float | TemperatureProbe | None = None,
     estimate_lag: bool = True,
     gas_temperatures: bool = False,
     max_step: float | None = MAX_STEP,
@@ -241,11 +247,15 @@ def replay(
         Measured channels to compare (those the recordings have).
     trace_channels : sequence of str, optional
         Simulated channels kept on every sample (default: all the simulator's).
-    lag : float, optional
-        Temperature sensor lag (s); default ``values["temperature_sensor_lag"]``.
+    lag : float or TemperatureProbe, optional
+        Temperature probe, or a one-lag probe's time constant (s); default
+        ``values["temperature_sensor_lag"]`` (a fit that had the temperatures
+        in its likelihood, with that lag).
     estimate_lag : bool
-        Without a lag, fit one to the replay's temperatures (the ``fit``
-        recordings' if they have any), except for the polytropic structure.
+        Without a probe, fit one (two lags and an offset,
+        :func:`~pneumafit.identification.problem.fit_temperature_probe`) to
+        the replay's temperatures (the ``fit`` recordings' if they have any),
+        except for the polytropic structure.
     gas_temperatures : bool
         Also compare the measured gas temperatures that the problem leaves
         out (the polytropic structure predicts the gas at the wall
@@ -296,18 +306,21 @@ def replay(
         return rows, out[0, slices[i], col[c]][rows]
 
     lag = values.get("temperature_sensor_lag", lag)
-    lag_source = "fit" if lag else "none"
-    if not (isinstance(lag, int | float) and lag > 0):
-        lag = None
-        if estimate_lag and structure.heat != "polytropic":
-            temps = [
-                (i, t, d, at(i, c, t)[1])
-                for i, c, t, d in blocks
-                if QUANTITIES[c] == "temperature" and status[0, i] == 0
-            ]
-            fitted = [b for b in temps if problem.recordings[b[0]].role == "fit"] or temps
-            lag = fit_sensor_lag([(t, d, p) for _i, t, d, p in fitted if np.all(np.isfinite(p))])
-            lag_source = "estimated" if lag else "none"
+    probe = lag if isinstance(lag, TemperatureProbe) else None
+    if probe is None and isinstance(lag, int | float) and lag > 0:
+        probe = TemperatureProbe(float(lag))
+    lag_source = "fit" if probe is not None else "none"
+    if probe is None and estimate_lag and structure.heat != "polytropic":
+        temps = [
+            (i, t, d, at(i, c, t)[1])
+            for i, c, t, d in blocks
+            if QUANTITIES[c] == "temperature" and status[0, i] == 0
+        ]
+        fitted = [b for b in temps if problem.recordings[b[0]].role == "fit"] or temps
+        probe = fit_temperature_probe(
+            [(t, d, p) for _i, t, d, p in fitted if np.all(np.isfinite(p))]
+        )
+        lag_source = "estimated" if probe is not None else "none"
 
     replays = []
     for i, rec in enumerate(problem.recordings):
@@ -316,15 +329,15 @@ def replay(
             if j != i:
                 continue
             rows, pred = at(i, c, t)
-            if QUANTITIES[c] == "temperature" and lag and np.all(np.isfinite(pred)):
-                pred = first_order_lag(pred, t, lag)
+            if QUANTITIES[c] == "temperature" and probe and np.all(np.isfinite(pred)):
+                pred = probe.read(pred, t)
             compared[c] = Compared(c, QUANTITIES[c], rows, t, np.asarray(d), np.asarray(pred))
         simulated = {c: out[0, slices[i], col[c]].copy() for c in names}
         replays.append(
             RecordingReplay(rec.file, rec.kind, rec.role, rec.time, simulated,
                             int(status[0, i]), compared)
         )  # fmt: skip
-    return Replay(structure, tuple(replays), lag, lag_source)
+    return Replay(structure, tuple(replays), probe, lag_source)
 
 
 def with_recorded_commands(recording: Recording) -> Recording | None:

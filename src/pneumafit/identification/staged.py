@@ -811,7 +811,10 @@ class FitResult:
     metrics : dict
         ``rmse`` (``fit`` and ``validate``: channel -> SI RMSE),
         ``log_likelihood``, ``aic``, ``bic``, ``n_data``, ``n_parameters``
-        and ``temperature_sensor_lag`` (s) used for the temperature RMSE.
+        ``temperature_probe`` (the probe through which the temperatures are
+        compared: ``time_constant``, ``second_time_constant`` in s, ``offset``
+        in K; :class:`~pneumafit.simulation.sensor.TemperatureProbe`) and
+        ``temperature_sensor_lag`` (s, the probe's total lag).
     warnings : list of str
     seconds : float
         Wall time.
@@ -2091,6 +2094,7 @@ def _metrics(
         "n_data": n_data,
         "n_parameters": k,
         "temperature_sensor_lag": rep.lag,
+        "temperature_probe": rep.probe.as_dict() if rep.probe is not None else None,
     }
     return metrics, rep
 

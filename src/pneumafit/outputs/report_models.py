@@ -9,8 +9,8 @@ hold): the fit's parameters, structure and fitted initial states, the
 reference solver, every sample. The channels compared are :data:`COMPARED`
 (a charge/discharge test on its own chamber's pressure, a flow test on its
 flow only), plus a measured temperature, which is compared with the
-simulated gas temperature seen through the fitted first-order sensor lag
-(``metrics.temperature_sensor_lag``).
+simulated gas temperature seen through the fitted temperature probe (two
+lags and an offset, ``metrics.temperature_probe``).
 
 The report's RMSE is on every sample and keeps each pressure sensor's
 offset; fit.json's is on the compared samples.
@@ -110,7 +110,8 @@ def render_measurement(campaign: Any, replays: list[ModelReplay]) -> str:
         "Each recording is simulated from its measured initial state with each fit's "
         "parameters (the fits used fitted initial states and sensor offsets, so their own "
         "RMSE in fit.json is a little smaller). Measured temperatures are compared with the "
-        "simulated gas temperature seen through the fitted sensor lag."
+        "simulated gas temperature seen through the fitted temperature probe (two lags and "
+        "an offset)."
     )]  # fmt: skip
     for rp in replays:
         if rp.failed:

@@ -1,7 +1,9 @@
-"""A first-order sensor: the one lag of the models' side (the fit, the replay, the report).
+"""Sensors of the models' side (the fit, the replay, the report).
 
-tau dy/dt = x - y, settled at the start (y_0 = x_0), discretised exactly for
-an input linear between samples, so uneven grids are fine. The virtual rig,
+A first-order sensor, tau dy/dt = x - y, settled at the start (y_0 = x_0),
+discretised exactly for an input linear between samples, so uneven grids
+are fine; and a temperature probe (:class:`TemperatureProbe`): two such lags
+in series and a constant offset. The virtual rig,
 the truth's side, keeps its own sensor laws on purpose
 (``virtual_rig.held_input_lag``, ``virtual_rig.truth.probe``): the data must
 not be made with the fitted models' code.
@@ -10,13 +12,16 @@ not be made with the fitted models' code.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pneumafit.numba_stamp import njit
 
-__all__ = ["first_order_lag"]
+__all__ = ["TemperatureProbe", "first_order_lag"]
 
 
 @njit(cache=True)
@@ -64,3 +69,95 @@ def first_order_lag(
     y = np.empty_like(x2)
     _lag_kernel(np.ascontiguousarray(x2), np.asarray(time, dtype=float), tau, y)
     return y.reshape(x.shape)
+
+
+@dataclass(frozen=True)
+class TemperatureProbe:
+    """A gas-temperature probe: two first-order lags in series and an offset.
+
+    A sheathed thermocouple or RTD reads the gas through its own heat
+    capacity (the first lag) and, in a well or a fitting, through the well's
+    (the second); its calibration leaves a constant offset. The reading of a
+    gas temperature x(t) is
+
+        tau_1 dy_1/dt = x - y_1,   tau_2 dy_2/dt = y_1 - y_2,   reading = y_2 + offset,
+
+    settled at the start (y_1 = y_2 = x_0). The two lags commute, so they are
+    stored largest first. One lag is ``second_time_constant = 0``; the bare
+    gas temperature is ``TemperatureProbe(0.0)``.
+
+    Attributes
+    ----------
+    time_constant : float
+        The larger lag tau_1 (s, >= 0).
+    second_time_constant : float
+        The smaller lag tau_2 (s, 0 <= tau_2 <= tau_1).
+    offset : float
+        Reading minus the settled gas temperature (K).
+    """
+
+    time_constant: float
+    second_time_constant: float = 0.0
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        lags = sorted((float(self.time_constant), float(self.second_time_constant)), reverse=True)
+        if not (all(math.isfinite(v) and v >= 0.0 for v in lags) and math.isfinite(self.offset)):
+            raise ValueError(
+                f"temperature probe: expected finite time constants >= 0 s and a finite "
+                f"offset, found {self.time_constant!r}, {self.second_time_constant!r}, "
+                f"{self.offset!r}"
+            )
+        object.__setattr__(self, "time_constant", lags[0])
+        object.__setattr__(self, "second_time_constant", lags[1])
+        object.__setattr__(self, "offset", float(self.offset))
+
+    @property
+    def total_lag(self) -> float:
+        """tau_1 + tau_2 (s): the probe's mean delay, its one-lag equivalent."""
+        return self.time_constant + self.second_time_constant
+
+    def read(self, signal: ArrayLike, time: ArrayLike) -> NDArray[np.float64]:
+        """The probe's reading (K) of a gas temperature ``signal`` (K) at ``time`` (s).
+
+        ``signal`` has shape (n,) or (n_sets, n); the result has its shape.
+        """
+        y = first_order_lag(signal, time, self.time_constant)
+        if self.second_time_constant > 0.0:
+            y = first_order_lag(y, time, self.second_time_constant)
+        return y + self.offset
+
+    def as_dict(self) -> dict[str, float]:
+        """``time_constant``, ``second_time_constant`` (s) and ``offset`` (K), for fit.json."""
+        return {
+            "time_constant": self.time_constant,
+            "second_time_constant": self.second_time_constant,
+            "offset": self.offset,
+        }
+
+    @classmethod
+    def from_metrics(cls, metrics: Mapping[str, Any] | None) -> TemperatureProbe | None:
+        """The probe a fit's ``metrics`` name, or None.
+
+        ``metrics.temperature_probe`` (a mapping as :meth:`as_dict` writes),
+        else the one lag ``metrics.temperature_sensor_lag`` (s; fits written
+        before the probe had an offset and a second lag). Unusable entries
+        count as none.
+        """
+        metrics = metrics or {}
+        entry = metrics.get("temperature_probe")
+        if isinstance(entry, Mapping):
+            try:
+                probe = cls(
+                    float(entry["time_constant"]),
+                    float(entry.get("second_time_constant", 0.0)),
+                    float(entry.get("offset", 0.0)),
+                )
+            except (KeyError, TypeError, ValueError):
+                probe = None
+            if probe is not None and probe.total_lag > 0.0:
+                return probe
+        lag = metrics.get("temperature_sensor_lag")
+        if isinstance(lag, int | float) and not isinstance(lag, bool) and math.isfinite(lag):
+            return cls(float(lag)) if lag > 0 else None
+        return None

@@ -1,0 +1,198 @@
+"""The temperature probe of the replay: two lags in series and an offset.
+
+Kinds of test (docs/identification.md, "The temperature probe"):
+- analytic: the probe's reading of a ramp against the closed-form response
+  of two first-order lags in series;
+- plumbing: fit.json's two spellings of the probe, bad values;
+- recovery with the probe's own structure (an identity for the probe, not
+  for the gas): readings made by an independent integrator (scipy's LSODA on
+  the probe's ODE, not the replay's exact-for-linear recursion) with noise;
+- mismatched: a probe whose structure is not the fitted one (a time
+  constant that shrinks with the gas density, and stem conduction that
+  pulls the reading toward the wall), which no (tau_1, tau_2, offset)
+  reproduces.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from pneumafit.identification.problem import fit_sensor_lag, fit_temperature_probe
+from pneumafit.simulation.sensor import TemperatureProbe
+
+#: The probe noise of the virtual rig's presets (K).
+NOISE = 0.05
+
+
+def _gas(t: np.ndarray) -> np.ndarray:
+    """A charge test's gas temperature (K): up 60 K in 0.25 s, back to the wall."""
+    wall = 293.15
+    rise = 60.0 * (1.0 - np.exp(-t / 0.08))
+    return wall + np.where(t < 0.25, rise, 60.0 * (1.0 - math.exp(-0.25 / 0.08)) *
+                           np.exp(-(t - 0.25) / 0.9))  # fmt: skip
+
+
+def _pressure(t: np.ndarray) -> np.ndarray:
+    """Its pressure (Pa): 1 to 6 bar over the filling."""
+    return 1e5 + 5e5 * (1.0 - np.exp(-np.maximum(t, 0.0) / 0.12))
+
+
+def _lsoda_probe(
+    t: np.ndarray, tau1: float, tau2: float, offset: float,
+    density_exponent: float = 0.0, stem: float = 0.0,
+) -> np.ndarray:  # fmt: skip
+    """Readings of a probe integrated by LSODA on its own ODE.
+
+    tau_1 scales with (p_ref / p)^density_exponent (a bead's film coefficient
+    grows with the gas density); the bead sees (1 - stem) T_gas + stem T_wall
+    (heat conducted along the stem to the wall).
+    """
+    wall = 293.15
+
+    def rhs(tt: float, y: np.ndarray) -> list[float]:
+        gas = float(_gas(np.array([tt]))[0])
+        p = float(_pressure(np.array([tt]))[0])
+        t1 = tau1 * (5e5 / p) ** density_exponent
+        seen = (1.0 - stem) * gas + stem * wall
+        return [(seen - y[0]) / t1, (y[0] - y[1]) / tau2]
+
+    sol = solve_ivp(rhs, (t[0], t[-1]), [wall, wall], method="LSODA", t_eval=t,
+                    rtol=1e-10, atol=1e-10, max_step=1e-3)  # fmt: skip
+    return sol.y[1] + offset
+
+
+def test_two_lags_in_series_read_a_ramp_as_the_closed_form() -> None:
+    """x = t through tau_1 then tau_2, both settled at 0:
+    y = t - (tau_1 + tau_2) + (tau_1^2 e^(-t/tau_1) - tau_2^2 e^(-t/tau_2)) / (tau_1 - tau_2).
+    The first lag is exact for a linear input; the second sees a curved one,
+    so the recursion is off by O(dt^2 / tau_2) (measured 1.4e-7 K on this
+    1-K/s ramp at 1-ms samples: held to 1e-6)."""
+    t = np.linspace(0.0, 3.0, 3001)
+    t1, t2 = 0.4, 0.08
+    exact = t - (t1 + t2) + (t1**2 * np.exp(-t / t1) - t2**2 * np.exp(-t / t2)) / (t1 - t2)
+    probe = TemperatureProbe(t2, t1, offset=0.3)  # given in either order
+    assert (probe.time_constant, probe.second_time_constant) == (t1, t2)
+    assert probe.total_lag == pytest.approx(0.48)
+    got = probe.read(t, t) - 0.3
+    assert np.max(np.abs(got - exact)) < 1e-6
+    # one lag is the plain first-order sensor; no lag is the gas itself
+    assert np.allclose(TemperatureProbe(t1).read(t, t), t - t1 * (1 - np.exp(-t / t1)),
+                       atol=1e-12)  # fmt: skip
+    assert np.array_equal(TemperatureProbe(0.0).read(t, t), t)
+
+
+def test_fit_json_spellings_of_the_probe() -> None:
+    """``metrics.temperature_probe`` first, else the one lag of older files;
+    an unusable entry counts as none."""
+    probe = TemperatureProbe(0.4, 0.08, -0.2)
+    assert TemperatureProbe.from_metrics({"temperature_probe": probe.as_dict()}) == probe
+    assert TemperatureProbe.from_metrics({"temperature_sensor_lag": 0.35}) == TemperatureProbe(0.35)
+    both = {"temperature_probe": probe.as_dict(), "temperature_sensor_lag": 0.48}
+    assert TemperatureProbe.from_metrics(both) == probe
+    for metrics in (None, {}, {"temperature_sensor_lag": 0.0}, {"temperature_probe": None},
+                    {"temperature_sensor_lag": float("nan")}, {"temperature_sensor_lag": True},
+                    {"temperature_probe": {"offset": 1.0}}):  # fmt: skip
+        assert TemperatureProbe.from_metrics(metrics) is None, metrics
+    with pytest.raises(ValueError, match="temperature probe"):
+        TemperatureProbe(-0.1)
+
+
+def test_fit_recovers_a_probe_of_its_own_structure() -> None:
+    """Two lags and an offset, integrated by LSODA, 0.05 K of noise, 1 kHz over
+    3 s (a charge test's probe channel): the fit finds them. Measured over
+    seeds 1, 2, 3 and 7: errors up to 0.02 % (tau_1), 0.04 % (tau_2) and
+    0.0015 K (offset); held to 1 %, 5 % and 0.01 K, which a fit stopped
+    early or caught in the one-lag start would miss. The residual is at the
+    noise (measured 0.99-1.01; held to [0.9, 1.1], the chi distribution's
+    spread for 3000 samples being 0.013)."""
+    rng = np.random.default_rng(7)
+    t = np.linspace(0.0, 3.0, 3001)
+    truth = _lsoda_probe(t, 0.4, 0.08, 0.3)
+    data = truth + NOISE * rng.standard_normal(t.size)
+    probe = fit_temperature_probe([(t, data, _gas(t))])
+    assert probe is not None
+    assert probe.time_constant == pytest.approx(0.4, rel=0.01)
+    assert probe.second_time_constant == pytest.approx(0.08, rel=0.05)
+    assert probe.offset == pytest.approx(0.3, abs=0.01)
+    ratio = np.sqrt(np.mean((data - probe.read(_gas(t), t)) ** 2)) / NOISE
+    assert 0.9 < ratio < 1.1
+    # the one lag the replay used before misses it by 32x the noise (measured)
+    one = TemperatureProbe(fit_sensor_lag([(t, data, _gas(t))]))
+    assert np.sqrt(np.mean((data - one.read(_gas(t), t)) ** 2)) / NOISE > 10.0
+
+
+def test_a_one_lag_probe_is_not_given_a_second() -> None:
+    """The virtual rig's own sensor (one lag, no offset): the second lag stays
+    below 5 % of the first and the offset within 0.02 K of zero (both are
+    free, so they take a little of the noise)."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 3.0, 3001)
+    data = TemperatureProbe(0.4).read(_gas(t), t) + NOISE * rng.standard_normal(t.size)
+    probe = fit_temperature_probe([(t, data, _gas(t))])
+    assert probe is not None
+    assert probe.time_constant == pytest.approx(0.4, rel=0.02)
+    assert probe.second_time_constant < 0.02
+    assert abs(probe.offset) < 0.02
+    assert fit_temperature_probe([]) is None
+
+
+def test_fit_of_a_probe_of_another_structure() -> None:
+    """Mismatched: tau_1 = 0.35 s (5 bar / p)^0.5 (the bead's film coefficient
+    grows with the density) and 2 % of stem conduction to the wall, then a
+    0.06-s well and +0.4 K. No (tau_1, tau_2, offset) is that probe, so the
+    residual stays above the noise (measured 5.5x). What is asked: that the
+    fit takes what its structure can, measured 5.2x less residual than the
+    one lag (5.21-5.24 over seeds 11-13; held to 3x), and that the fitted
+    probe's mean delay lies between the truth's at the test's lowest and
+    highest pressures (1 and 6 bar: 0.84 and 0.38 s; measured 0.414 s)."""
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 3.0, 3001)
+    data = _lsoda_probe(t, 0.35, 0.06, 0.4, density_exponent=0.5, stem=0.02)
+    data = data + NOISE * rng.standard_normal(t.size)
+    gas = _gas(t)
+    probe = fit_temperature_probe([(t, data, gas)])
+    one = TemperatureProbe(fit_sensor_lag([(t, data, gas)]))
+    rms_probe = np.sqrt(np.mean((data - probe.read(gas, t)) ** 2))
+    rms_one = np.sqrt(np.mean((data - one.read(gas, t)) ** 2))
+    assert rms_one / rms_probe > 3.0
+    lo = 0.35 * (5e5 / 6e5) ** 0.5 + 0.06
+    hi = 0.35 * (5e5 / 1e5) ** 0.5 + 0.06
+    assert lo < probe.total_lag < hi
+
+
+def test_the_replay_reads_the_rig_sensor_as_one_lag(small: tuple) -> None:
+    """The small campaign replayed at its truth (the rig's own laws: an
+    inverse crime on purpose, the case that must pass): the virtual rig's
+    temperature sensor is one 0.4-s lag with its input held over each sample
+    (``held_input_lag``, half a sample from the replay's), no offset. The
+    replay's probe is that lag (measured 0.3993 s, no second lag, no offset:
+    the three-parameter fit gains nothing over the lag alone; held to 1 %,
+    5 % of it and 0.02 K) and the temperature residual is at the noise
+    (measured 0.058 K against the sensor's 0.05 K; held to 1.5x, as the
+    pressures in test_quality)."""
+    import json
+
+    from pneumafit.identification import fit_structure
+    from pneumafit.identification.replay import replay
+
+    folder, campaign, truth = small
+    doc = json.loads((folder / "truth.json").read_text())
+    initial = {
+        f"initial:{rec['file']}:{state}": value
+        for rec in doc["recordings"]
+        for state, value in (rec.get("initial_state") or {}).items()
+        if state != "v" and (rec["kind"] == "step" or state == f"p_{rec.get('chamber')}")
+    }
+    rep = replay(campaign, fit_structure("convection"), {**truth, **initial})
+    assert rep.lag_source == "estimated" and rep.probe is not None
+    assert rep.probe.time_constant == pytest.approx(0.4, rel=0.01)
+    assert rep.probe.second_time_constant < 0.02
+    assert abs(rep.probe.offset) < 0.02
+    compared = [c for r in rep.recordings for n, c in r.compared.items() if n.startswith("T_")]
+    assert compared
+    for c in compared:
+        assert np.sqrt(np.mean(c.residual**2)) < 1.5 * NOISE

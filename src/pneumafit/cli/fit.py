@@ -285,8 +285,8 @@ def _quality_table(result: FitResult, console: Console) -> None:
     if probe is not None and any(QUANTITIES.get(c.channel) == "temperature" for c in rows):
         console.print(
             "temperatures compared through the fit's temperature probe: lags "
-            f"{probe.time_constant:.3g} s and {probe.second_time_constant:.3g} s in series, "
-            f"offset {probe.offset:+.2f} K"
+            f"{probe.time_constant:.3g} s and {probe.second_time_constant:.3g} s in series"
+            + (f", offset {probe.offset:+.2f} K" if probe.offset else "")
         )
 
 

@@ -5,7 +5,7 @@ structure (heat law, air properties) and the fitted initial states of the
 ``fit`` recordings. :func:`evaluate_fit` replays every recording of the
 campaign with them through :func:`pneumafit.identification.replay.replay`,
 the same replay that gives ``fit.json: metrics.rmse`` (compared samples,
-initial states, reference solver and sensor lag are described there), and
+initial states, reference solver and temperature probe are described there), and
 scores every compared channel (RMSE, normalised fit, largest error).
 
 Unlike the identification's metrics, the temperature is compared for the
@@ -159,7 +159,7 @@ class ModelEvaluation:
         ``"fit"`` (from fit.json) or ``"estimated"`` (fitted here).
     warnings : list of str
     temperature_probe : TemperatureProbe or None
-        The probe itself (two lags and an offset).
+        The probe itself (two lags in series).
     """
 
     model: str

@@ -20,7 +20,7 @@ Keys (version 1; keys are only ever added):
     same points, ``waic``/``loo`` also hold ``best``, ``elpd_diff`` (best
     minus this model) and ``se_diff`` (its standard error);
   - ``temperature``: ``sensor_lag`` (s, the probe's total lag), ``probe``
-    (two lags in s and an offset in K) and ``lag_source``, ``rmse`` /
+    (two lags in s; its offset, K, 0 as fitted) and ``lag_source``, ``rmse`` /
     ``max_abs_error`` (``{role: K}``) where a temperature is measured, and
     ``predicted`` (``{recording: {T_P|T_N: {initial, min, max, final}}}``,
     K, the gas temperature without sensor lag in every chamber);
@@ -232,7 +232,7 @@ def print_table(document: Mapping[str, Any], console: Console) -> None:
     models = list(document["models"])
     best = document["best"]
     table = Table(title=Text(f"{document['campaign']['name']}: RMSE by role and channel "
-                             "(* best; temperatures after the sensor lag)"))  # fmt: skip
+                             "(* best; temperatures through each fit's probe)"))  # fmt: skip
     table.add_column("role", no_wrap=True)
     table.add_column("channel", no_wrap=True)
     table.add_column("unit", no_wrap=True)

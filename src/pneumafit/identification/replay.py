@@ -252,7 +252,7 @@ def replay(
         ``values["temperature_sensor_lag"]`` (a fit that had the temperatures
         in its likelihood, with that lag).
     estimate_lag : bool
-        Without a probe, fit one (two lags and an offset,
+        Without a probe, fit one (two lags in series,
         :func:`~pneumafit.identification.problem.fit_temperature_probe`) to
         the replay's temperatures (the ``fit`` recordings' if they have any),
         except for the polytropic structure.

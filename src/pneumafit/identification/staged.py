@@ -144,7 +144,7 @@ FRICTION_PARAMETERS: tuple[str, ...] = STRUCTURE_FRICTION["switch"]
 #: likelihood: their sensors' dynamics decide them as much as the gas does
 #: (on the virtual rig a half-sample difference in how the 0.4-s sensor lag
 #: is discretised moved xi by 1 %, ten times its interval), so they are used
-#: for validation (RMSE with a fitted sensor lag) only. Name them in
+#: for validation (RMSE through a fitted probe, two lags in series) only. Name them in
 #: ``FitOptions.channels`` to fit them (with a ``temperature_sensor_lag``
 #: nuisance parameter).
 DEFAULT_CHANNELS: tuple[str, ...] = ("p_P", "p_N", "y", "qm_P", "qm_N")

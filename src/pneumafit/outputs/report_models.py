@@ -10,7 +10,7 @@ reference solver, every sample. The channels compared are :data:`COMPARED`
 (a charge/discharge test on its own chamber's pressure, a flow test on its
 flow only), plus a measured temperature, which is compared with the
 simulated gas temperature seen through the fitted temperature probe (two
-lags and an offset, ``metrics.temperature_probe``).
+lags in series, ``metrics.temperature_probe``).
 
 The report's RMSE is on every sample and keeps each pressure sensor's
 offset; fit.json's is on the compared samples.

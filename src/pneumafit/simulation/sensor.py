@@ -3,7 +3,7 @@
 A first-order sensor, tau dy/dt = x - y, settled at the start (y_0 = x_0),
 discretised exactly for an input linear between samples, so uneven grids
 are fine; and a temperature probe (:class:`TemperatureProbe`): two such lags
-in series and a constant offset. The virtual rig,
+in series and a constant offset (the replay fits the lags). The virtual rig,
 the truth's side, keeps its own sensor laws on purpose
 (``virtual_rig.held_input_lag``, ``virtual_rig.truth.probe``): the data must
 not be made with the fitted models' code.
@@ -83,7 +83,10 @@ class TemperatureProbe:
         tau_1 dy_1/dt = x - y_1,   tau_2 dy_2/dt = y_1 - y_2,   reading = y_2 + offset,
 
     settled at the start (y_1 = y_2 = x_0). The two lags commute, so they are
-    stored largest first. One lag is ``second_time_constant = 0``; the bare
+    stored largest first. The replay fits the lags
+    (:func:`~pneumafit.identification.problem.fit_temperature_probe`) and
+    leaves the offset at 0: fitted, it takes up a model's error in the gas
+    temperature as readily as a calibration error. One lag is ``second_time_constant = 0``; the bare
     gas temperature is ``TemperatureProbe(0.0)``.
 
     Attributes

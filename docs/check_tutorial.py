@@ -173,8 +173,8 @@ def render_compare_units() -> str:
 
     return (f"Held-out RMSE on the practice campaign, as `pneumafit compare` prints it "
             f"(pressures in {display_unit('p_P')[1]}, position in {display_unit('y')[1]}, "
-            f"temperatures in {display_unit('T_P')[1]} after the sensor lag; the best in bold, "
-            f"starred on the console):\n")  # fmt: skip
+            f"temperatures in {display_unit('T_P')[1]} through each fit's probe; the best in "
+            f"bold, starred on the console):\n")  # fmt: skip
 
 
 # --------------------------------------------------------------------------- full run

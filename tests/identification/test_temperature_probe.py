@@ -211,3 +211,28 @@ def test_the_replay_reads_the_rig_sensor_as_one_lag(small: tuple) -> None:
     assert compared
     for c in compared:
         assert np.sqrt(np.mean(c.residual**2)) < 1.5 * NOISE
+
+
+def test_discovery_reads_each_model_through_its_own_probe(small: tuple) -> None:
+    """Plumbing: discovery's RMSE of a model takes the probe fitted to that
+    model's gas temperatures, not the base fit's. On the demo campaign the
+    base's probe, reused, made the refit with the external leakage 0.20 ->
+    0.31 K on the held-out T_P, and discovery rejected the leak it had kept
+    before the probe had two lags; with each model's own probe it is 0.20 ->
+    0.21 K, and the leak is kept (12147 -> 2535 Pa held out, as before).
+    Here: the heat law 5x too weak, whose probe differs from the truth's, so
+    that the two readings give different figures (the control)."""
+    from pneumafit.discovery.refit import rmse
+    from pneumafit.identification import fit_structure
+    from pneumafit.identification.replay import replay
+
+    _folder, campaign, truth = small
+    structure = fit_structure("convection")
+    wrong = {**truth, "xi": truth["xi"] / 5}
+    own = replay(campaign, structure, wrong, channels=("T_P",))
+    base = replay(campaign, structure, truth, channels=("T_P",))
+    assert own.probe != base.probe
+    got = rmse(campaign, structure, wrong)["fit"]["T_P"]
+    assert got == own.rmse()["fit"]["T_P"]
+    through_base = replay(campaign, structure, wrong, channels=("T_P",), lag=base.probe)
+    assert through_base.rmse()["fit"]["T_P"] != pytest.approx(got, rel=1e-3)

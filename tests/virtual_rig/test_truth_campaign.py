@@ -241,3 +241,42 @@ def test_a_short_cylinder_records_the_sparse_plan(tmp_path: Path, console: Conso
         if "y" in rec.channels:
             y = rec.channels["y"]
             assert 0.0 <= float(np.min(y)) and float(np.max(y)) <= 0.1
+
+
+#: The truth files of docs/examples and the figures docs/identification.md
+#: quotes for them ("A rig of another size and mounting"): lambda_ref
+#: (W/m^2/K), static and Coulomb friction at mid pressure (N), and the rig.
+EXAMPLES = {
+    "truth-big-inclined.toml": ((17.70, 71.50, 47.00), {"bore": 0.05, "stroke": 0.3,
+                                                         "mounting_angle": 0.35}),
+    "truth-small-steep.toml": ((20.45, 17.00, 11.50), {"bore": 0.02, "stroke": 0.1,
+                                                        "mounting_angle": 1.22}),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_the_example_truth_files_record_the_rigs_the_docs_describe(
+    name: str, tmp_path: Path
+) -> None:
+    """Each example file records a valid sparse campaign of its own rig (the
+    geometry and mounting in campaign.toml, the protocol scaled to its
+    stroke), whose reference quantities are the ones the docs quote (to the
+    quoted digits)."""
+    path = Path(__file__).resolve().parents[2] / "docs" / "examples" / name
+    quiet = Console(file=io.StringIO(), width=200, color_system=None)
+    out = tmp_path / "camp"
+    assert run_rig(out, seed=4, console=quiet, protocol="sparse", truth=str(path)) == 0
+    campaign = read_campaign(out)
+    assert validate_campaign(out) == []
+    (lam, f_s, f_c), rig = EXAMPLES[name]
+    declared = campaign.rig.as_parameters()
+    for key, value in rig.items():
+        assert declared[key] == pytest.approx(value), key
+    ref = json.loads((out / TRUTH_FILE).read_text())["truth_model"]["reference_quantities"]
+    assert round(ref["lambda_reference"], 2) == lam
+    assert round(ref["friction_static"], 2) == f_s
+    assert round(ref["friction_coulomb"], 2) == f_c
+    stroke = rig["stroke"]
+    for rec in campaign.recordings:
+        if "y" in rec.channels:
+            assert np.nanmax(rec.channels["y"]) <= stroke + 1e-3, rec.file

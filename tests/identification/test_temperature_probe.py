@@ -222,7 +222,7 @@ def test_discovery_reads_each_model_through_its_own_probe(small: tuple) -> None:
     0.21 K, and the leak is kept (12147 -> 2535 Pa held out, as before).
     Here: the heat law 5x too weak, whose probe differs from the truth's, so
     that the two readings give different figures (the control)."""
-    from pneumafit.discovery.refit import rmse
+    from pneumafit.discovery.refit import scores
     from pneumafit.identification import fit_structure
     from pneumafit.identification.replay import replay
 
@@ -232,7 +232,7 @@ def test_discovery_reads_each_model_through_its_own_probe(small: tuple) -> None:
     own = replay(campaign, structure, wrong, channels=("T_P",))
     base = replay(campaign, structure, truth, channels=("T_P",))
     assert own.probe != base.probe
-    got = rmse(campaign, structure, wrong)["fit"]["T_P"]
+    got = scores(campaign, structure, wrong)[0]["fit"]["T_P"]
     assert got == own.rmse()["fit"]["T_P"]
     through_base = replay(campaign, structure, wrong, channels=("T_P",), lag=base.probe)
     assert through_base.rmse()["fit"]["T_P"] != pytest.approx(got, rel=1e-3)

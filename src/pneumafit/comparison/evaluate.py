@@ -153,22 +153,25 @@ class ModelEvaluation:
     structure : ModelStructure
     traces : list of RecordingTrace
         One per simulated recording, campaign order.
-    temperature_sensor_lag : float or None
-        Total lag (s) of the temperature probe applied to temperatures.
+    temperature_probe : TemperatureProbe or None
+        The probe through which temperatures are compared (two lags in series).
     lag_source : str
         ``"fit"`` (from fit.json) or ``"estimated"`` (fitted here).
     warnings : list of str
-    temperature_probe : TemperatureProbe or None
-        The probe itself (two lags in series).
     """
 
     model: str
     structure: ModelStructure
     traces: list[RecordingTrace]
-    temperature_sensor_lag: float | None
+    temperature_probe: TemperatureProbe | None
     lag_source: str
     warnings: list[str] = field(default_factory=list)
-    temperature_probe: TemperatureProbe | None = None
+
+    @property
+    def temperature_sensor_lag(self) -> float | None:
+        """The probe's total lag (s), None without a probe."""
+        probe = self.temperature_probe
+        return probe.total_lag if probe is not None else None
 
     def pooled(self, role: str, by: str = "channel") -> dict[str, ChannelError]:
         """Errors pooled over the ``role`` recordings, per channel or per quantity.
@@ -287,4 +290,4 @@ def evaluate_fit(
             if r.ok and np.all(np.isfinite(cmp.predicted)):
                 trace.errors[c] = channel_error(cmp.measured, cmp.predicted)
         traces.append(trace)
-    return ModelEvaluation(model, structure, traces, rep.lag, rep.lag_source, warnings, rep.probe)
+    return ModelEvaluation(model, structure, traces, rep.probe, rep.lag_source, warnings)

@@ -189,7 +189,6 @@ def replay_model(
 
     _name, structure, values = fit_values(document, where)  # the one fit.json reader
     probe = temperature_probe(document)
-    lag = probe.total_lag if probe is not None else 0.0
     params = parameter_vector({k: v for k, v in values.items() if ":" not in k})
     # the one replay: the comparison's and the fit metrics' traces, every sample
     rep = replay_campaign(
@@ -197,7 +196,7 @@ def replay_model(
         estimate_lag=False,
     )  # fmt: skip
     out = ModelReplay(
-        model=model, structure=structure.name, sensor_lag=lag,
+        model=model, structure=structure.name, sensor_lag=rep.lag or 0.0,
         fingerprint=replay_fingerprint(document),
     )  # fmt: skip
     by_file = {r.file: r for r in campaign.recordings}

@@ -91,7 +91,7 @@ __all__ = [
     "discover",
     "evaluate_model",
     "refit",
-    "rmse",
+    "scores",
 ]
 
 #: Channels whose validation RMSE decides (and the tests check).
@@ -407,16 +407,26 @@ def _parameter_set(
     return with_initial_states(ps, problem, values, free=True)
 
 
-def rmse(
+def scores(
     campaign: Campaign,
     structure: ModelStructure,
     values: Mapping[str, float],
     *,
     max_step: float | None = MAX_STEP,
-) -> dict[str, dict[str, float]]:
-    """RMSE per role and channel (SI), as fit.json's ``metrics.rmse``
-    (:func:`pneumafit.identification.replay.replay`).
+) -> tuple[dict[str, dict[str, float]], dict[str, float]]:
+    """A model's RMSEs from one replay (:func:`pneumafit.identification.replay.replay`).
 
+    Returns
+    -------
+    rmse : dict
+        RMSE per role and channel (SI), as fit.json's ``metrics.rmse``.
+    offset_free : dict
+        Pressure RMSE (Pa) per channel on the fit recordings, each
+        recording's mean residual (its sensor offset, which the fit
+        profiles) removed.
+
+    Notes
+    -----
     Temperatures are read through the probe that best fits this model's own
     gas temperatures (as the fit's metrics are), so that every model
     discovery compares gets the same freedom in the sensor. The base fit's
@@ -429,24 +439,8 @@ def rmse(
         campaign, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
         estimate_lag=True,
     )  # fmt: skip
-    return rep.rmse()
-
-
-def offset_free_rmse(
-    campaign: Campaign,
-    structure: ModelStructure,
-    values: Mapping[str, float],
-    *,
-    max_step: float | None = MAX_STEP,
-) -> dict[str, float]:
-    """Pressure RMSE (Pa) per channel on the fit recordings, each recording's
-    mean residual (its sensor offset, which the fit profiles) removed."""
-    rep = replay(
-        campaign, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
-        estimate_lag=False,
-    )  # fmt: skip
-    out = rep.rmse(remove_offsets=True)
-    return {c: v for c, v in out.get("fit", {}).items() if c in PRESSURES}
+    fit = rep.rmse(remove_offsets=True).get("fit", {})
+    return rep.rmse(), {c: v for c, v in fit.items() if c in PRESSURES}
 
 
 def _n_parameters(problem: Problem, ps: ParameterSet) -> int:
@@ -468,13 +462,11 @@ def evaluate_model(
         prob.correct_solver({k: v for k, v in values.items() if not k.startswith("initial:")})
     like = LogLikelihood(prob, ps)
     ll = like.at_values(ps.values())
+    rmse, offset_free = scores(campaign, structure, values, max_step=base.max_step)
     return Model(
         effects=tuple(effects), structure=structure, values=dict(values), parameters=None,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
-        rmse=rmse(
-            campaign, structure, values, max_step=base.max_step,
-        ),
-        offset_free=offset_free_rmse(campaign, structure, values, max_step=base.max_step),
+        rmse=rmse, offset_free=offset_free,
         seconds=time.perf_counter() - t0, evaluations=prob.n_evaluations,
     )  # fmt: skip
 
@@ -567,25 +559,15 @@ def refit(
         # as the base model's is evaluated
         final_ps = ps.with_values({k: v for k, v in new_values.items() if k in ps})
         ll = LogLikelihood(prob, final_ps).at_values(final_ps.values())
-    scores = (
-        rmse(
-            campaign,
-            structure,
-            new_values,
-            max_step=base.max_step,
-        )
+    rmse, offset_free = (
+        scores(campaign, structure, new_values, max_step=base.max_step)
         if math.isfinite(ll)
-        else {"fit": {}, "validate": {}}
+        else ({"fit": {}, "validate": {}}, {})
     )
     return Model(
         effects=effects, structure=structure, values=new_values, parameters=est.parameters,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
-        rmse=scores,
-        offset_free=(
-            offset_free_rmse(campaign, structure, new_values, max_step=base.max_step)
-            if math.isfinite(ll)
-            else {}
-        ),
+        rmse=rmse, offset_free=offset_free,
         seconds=time.perf_counter() - t0, evaluations=evaluations,
     )  # fmt: skip
 

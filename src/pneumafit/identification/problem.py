@@ -174,6 +174,11 @@ _STATE_SLOT = {"y": X_Y, "p_P": X_PP, "p_N": X_PN, "T_P": X_TP, "T_N": X_TN}
 INITIAL_PREFIX = "initial:"
 
 
+#: Bounds of a fitted sensor lag (s): :func:`fit_sensor_lag`, and each lag
+#: of :func:`fit_temperature_probe`.
+PROBE_LAG_BOUNDS = (1e-3, 10.0)
+
+
 def fit_sensor_lag(
     blocks: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
 ) -> float | None:
@@ -201,12 +206,9 @@ def fit_sensor_lag(
             float(np.sum((np.asarray(d) - first_order_lag(x, t, tau)) ** 2)) for t, d, x in blocks
         )
 
-    sol = minimize_scalar(cost, bounds=(math.log(1e-3), math.log(10.0)), method="bounded")
+    bounds = (math.log(PROBE_LAG_BOUNDS[0]), math.log(PROBE_LAG_BOUNDS[1]))
+    sol = minimize_scalar(cost, bounds=bounds, method="bounded")
     return float(math.exp(sol.x))
-
-
-#: Bounds of each lag of a fitted temperature probe (s), as :func:`fit_sensor_lag`.
-PROBE_LAG_BOUNDS = (1e-3, 10.0)
 
 
 def fit_temperature_probe(

@@ -17,8 +17,8 @@ read the same :class:`Replay`, made here and nowhere else:
   fit's defect-corrected predictions reproduce), so the traces serve the
   figures and attribution's rates as they are, and the compared samples are
   read off them;
-- temperatures are compared through the temperature probe (two lags and an
-  offset, :class:`~pneumafit.simulation.sensor.TemperatureProbe`): the fit's,
+- temperatures are compared through the temperature probe (two lags in
+  series, :class:`~pneumafit.simulation.sensor.TemperatureProbe`): the fit's,
   or the one that best fits the replay's own temperatures, or none.
 """
 
@@ -329,7 +329,7 @@ def replay(
             if j != i:
                 continue
             rows, pred = at(i, c, t)
-            if QUANTITIES[c] == "temperature" and probe and np.all(np.isfinite(pred)):
+            if QUANTITIES[c] == "temperature" and probe is not None and np.all(np.isfinite(pred)):
                 pred = probe.read(pred, t)
             compared[c] = Compared(c, QUANTITIES[c], rows, t, np.asarray(d), np.asarray(pred))
         simulated = {c: out[0, slices[i], col[c]].copy() for c in names}

@@ -1672,6 +1672,9 @@ def identify(
     stages.append(stage)
 
     # ------------------------------------------------------------- (d) joint
+    # each fit recording's residual here, fitted by its own stage, is what
+    # the quality compares the joint optimum's with (FitQuality.staged)
+    staged_values = dict(values)
     # the map's centre knots, held out of stage (a) for want of a 0-V flow
     # level and fitted in stage (b), are free again with everything else
     map_leak = (
@@ -1917,7 +1920,8 @@ def identify(
     runs = [s.mcmc for s in stages if s.mcmc is not None]
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels,
                      one_recording=one_recording, values=values,
-                     max_step=opts.max_step)  # fmt: skip
+                     max_step=opts.max_step, staged_values=staged_values,
+                     fit_recordings=all_fit)  # fmt: skip
     quality.unconverged = [
         f"{s.name} ({s.estimate.message})"
         for s in stages
@@ -2243,13 +2247,17 @@ def assess(
     one_recording: Mapping[str, str] | None = None,
     values: Mapping[str, float] | None = None,
     max_step: float | None = MAX_STEP,
+    staged_values: Mapping[str, float] | None = None,
+    fit_recordings: Sequence[Recording] = (),
 ) -> FitQuality:
     """Everything that says whether a fit can be trusted (:mod:`.quality`);
     ``one_recording``: parameter -> the one recording its interval rests on
     (:func:`_one_recording`); ``values`` (the replay's, with the fitted
     initial states) and ``max_step``: replay the closed-loop step tests whose
     piston rests elsewhere with the recorded commands too
-    (:attr:`FitQuality.recorded_commands`; not without ``values``)."""
+    (:attr:`FitQuality.recorded_commands`; not without ``values``);
+    ``staged_values`` (the estimate before the joint refinement): replay
+    ``fit_recordings`` with it (:attr:`FitQuality.staged`)."""
     recs = {r.file: r for r in campaign.recordings}
     rest = [
         offset
@@ -2265,12 +2273,37 @@ def assess(
         one_recording=dict(one_recording or {}),
         rest_positions=rest,
     )
+    if staged_values is not None and fit_recordings:
+        quality.staged = _staged_ratios(
+            campaign, fit_recordings, rep.structure, staged_values, channels, max_step
+        )
     if values is not None:
         named = [recs[r.recording] for r in quality.stops_elsewhere()]
         quality.recorded_commands = _recorded_commands(
             campaign, named, rep.structure, values, max_step
         )
     return quality
+
+
+def _staged_ratios(
+    campaign: Campaign,
+    recordings: Sequence[Recording],
+    structure: ModelStructure,
+    values: Mapping[str, float],
+    channels: Sequence[str],
+    max_step: float | None,
+) -> dict[str, float]:
+    """Largest RMS over noise of the fitted ``channels`` of each of
+    ``recordings`` replayed with ``values`` (:attr:`FitQuality.staged`); no
+    entry for a recording whose replay fails."""
+    rep = replay(list(recordings), structure, values, channels=tuple(channels),
+                 estimate_lag=False, max_step=max_step)  # fmt: skip
+    ok = {r.file for r in rep.recordings if r.ok}
+    out: dict[str, float] = {}
+    for c in assess_residuals(campaign, rep.offset_free(), channels):
+        if c.fitted and c.ratio is not None and c.recording in ok:
+            out[c.recording] = max(out.get(c.recording, 0.0), c.ratio)
+    return out
 
 
 def _recorded_commands(

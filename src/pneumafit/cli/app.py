@@ -501,7 +501,7 @@ def rig(
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of every random draw (sensor noise).")] = 2026,
     protocol: Annotated[
-        str, typer.Option(help="Test protocol: demo, quick, tutorial or sparse.")
+        str, typer.Option(help="Test protocol: demo, quick, tutorial, sparse or sparse-long.")
     ] = "demo",
     truth: Annotated[
         str | None,

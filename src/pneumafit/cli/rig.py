@@ -66,7 +66,8 @@ def run_rig(
     console : rich.console.Console, optional
         Where to print; default standard output.
     protocol : str or Protocol
-        ``"demo"`` (default), ``"quick"``, ``"tutorial"``, ``"sparse"`` or a protocol.
+        ``"demo"`` (default), ``"quick"``, ``"tutorial"``, ``"sparse"``,
+        ``"sparse-long"`` or a protocol.
     truth : str or None
         ``--truth``: an independently simulated truth, a preset name of
         :data:`pneumafit.virtual_rig.truth.PRESETS` or a TOML/JSON configuration file

@@ -35,6 +35,7 @@ __all__ = [
     "demo_protocol",
     "get_protocol",
     "quick_protocol",
+    "sparse_long_protocol",
     "sparse_protocol",
 ]
 
@@ -572,12 +573,53 @@ def sparse_protocol() -> Protocol:
     )
 
 
+def sparse_long_protocol() -> Protocol:
+    """The sparse plan with long tests: what a rig's first short session records.
+
+    As :func:`sparse_protocol` (one flow test of valve P without a 0-V level,
+    chamber P's charge/discharge tests only) but each charge/discharge test
+    rests 3 s after its valve closes (the centre leak and the wall's heat
+    alone act then), and the two closed-loop step tests last 8 s with four
+    set-point changes each, the held-out one with other gains. The rests
+    weigh the leak and the heat law more than the short plan's; the long
+    steps give the friction more breakaways.
+    """
+    cmds = (-10.0, -4.0, -1.5, -0.6, 0.6, 1.5, 4.0, 10.0)
+    u = _BLOCKED_UNITS
+    tests: tuple[Test, ...] = (
+        FlowTest(file="flow_P.h5", chamber="P", commands=cmds,
+                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.3, units=_FLOW_UNITS),
+        BlockedTest(file="charge_P_1.h5", kind="charge", chamber="P", position=0.12,
+                    amplitude=10.0, opening_time=0.3, duration=3.5, temperature=True, units=u),
+        BlockedTest(file="discharge_P_1.h5", kind="discharge", chamber="P", position=0.12,
+                    amplitude=10.0, opening_time=0.4, duration=3.5, units=u),
+        BlockedTest(file="charge_P_2.h5", kind="charge", chamber="P", position=0.35,
+                    amplitude=6.0, opening_time=0.6, duration=3.5, role="validate", units=u),
+        BlockedTest(file="discharge_P_2.h5", kind="discharge", chamber="P", position=0.35,
+                    amplitude=7.0, opening_time=0.6, duration=3.5, role="validate", units=u),
+        StepTest(file="step_1.h5", start=0.25,
+                 steps=((0.5, 0.34), (2.5, 0.19), (4.5, 0.30), (6.5, 0.22)), duration=8.0,
+                 preroll=1.0),
+        StepTest(file="step_2.h5", start=0.30,
+                 steps=((0.5, 0.22), (2.5, 0.31), (4.5, 0.17), (6.5, 0.27)), duration=8.0,
+                 preroll=1.0, kp=45.0, kd=3.0, temperature=True, role="validate"),
+    )  # fmt: skip
+    return Protocol(
+        name="sparse-long",
+        description="Virtual rig sparse campaign with long tests: one flow test (valve P, no "
+        "0 V), chamber P charge/discharge with 3-s rests, two 8-s closed-loop step tests",
+        tests=tests,
+        design_stroke=DESIGN_STROKE,
+    )
+
+
 #: Protocols by name.
 PROTOCOLS = {
     "demo": demo_protocol,
     "quick": quick_protocol,
     "tutorial": tutorial_protocol,
     "sparse": sparse_protocol,
+    "sparse-long": sparse_long_protocol,
 }
 
 

@@ -537,6 +537,28 @@ def tutorial_protocol() -> Protocol:
     )
 
 
+def _sparse_flow_and_blocked(duration: float) -> tuple[Test, ...]:
+    """The sparse plans' flow test of valve P (no 0-V level) and chamber P's
+    charge/discharge tests (two to fit, two held out), each ``duration`` s."""
+    cmds = (-10.0, -4.0, -1.5, -0.6, 0.6, 1.5, 4.0, 10.0)
+    u = _BLOCKED_UNITS
+    return (
+        FlowTest(file="flow_P.h5", chamber="P", commands=cmds,
+                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.3, units=_FLOW_UNITS),
+        BlockedTest(file="charge_P_1.h5", kind="charge", chamber="P", position=0.12,
+                    amplitude=10.0, opening_time=0.3, duration=duration, temperature=True,
+                    units=u),
+        BlockedTest(file="discharge_P_1.h5", kind="discharge", chamber="P", position=0.12,
+                    amplitude=10.0, opening_time=0.4, duration=duration, units=u),
+        BlockedTest(file="charge_P_2.h5", kind="charge", chamber="P", position=0.35,
+                    amplitude=6.0, opening_time=0.6, duration=duration, role="validate",
+                    units=u),
+        BlockedTest(file="discharge_P_2.h5", kind="discharge", chamber="P", position=0.35,
+                    amplitude=7.0, opening_time=0.6, duration=duration, role="validate",
+                    units=u),
+    )  # fmt: skip
+
+
 def sparse_protocol() -> Protocol:
     """A deliberately thin campaign, to test what identification can do with little.
 
@@ -546,19 +568,8 @@ def sparse_protocol() -> Protocol:
     out); two short closed-loop step tests (one to fit, one held out).
     Chamber N's valve and heat exchange are seen only through the steps.
     """
-    cmds = (-10.0, -4.0, -1.5, -0.6, 0.6, 1.5, 4.0, 10.0)
-    u = _BLOCKED_UNITS
     tests: tuple[Test, ...] = (
-        FlowTest(file="flow_P.h5", chamber="P", commands=cmds,
-                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.3, units=_FLOW_UNITS),
-        BlockedTest(file="charge_P_1.h5", kind="charge", chamber="P", position=0.12,
-                    amplitude=10.0, opening_time=0.3, duration=2.0, temperature=True, units=u),
-        BlockedTest(file="discharge_P_1.h5", kind="discharge", chamber="P", position=0.12,
-                    amplitude=10.0, opening_time=0.4, duration=2.0, units=u),
-        BlockedTest(file="charge_P_2.h5", kind="charge", chamber="P", position=0.35,
-                    amplitude=6.0, opening_time=0.6, duration=2.0, role="validate", units=u),
-        BlockedTest(file="discharge_P_2.h5", kind="discharge", chamber="P", position=0.35,
-                    amplitude=7.0, opening_time=0.6, duration=2.0, role="validate", units=u),
+        *_sparse_flow_and_blocked(2.0),
         StepTest(file="step_1.h5", start=0.25, steps=((0.3, 0.34), (1.2, 0.19)), duration=2.0,
                  preroll=1.0),
         StepTest(file="step_2.h5", start=0.30, steps=((0.3, 0.22), (1.2, 0.31)), duration=2.0,
@@ -584,19 +595,8 @@ def sparse_long_protocol() -> Protocol:
     weigh the leak and the heat law more than the short plan's; the long
     steps give the friction more breakaways.
     """
-    cmds = (-10.0, -4.0, -1.5, -0.6, 0.6, 1.5, 4.0, 10.0)
-    u = _BLOCKED_UNITS
     tests: tuple[Test, ...] = (
-        FlowTest(file="flow_P.h5", chamber="P", commands=cmds,
-                 pressures=(2.0 * _BAR, 4.0 * _BAR, 6.0 * _BAR), dwell=0.3, units=_FLOW_UNITS),
-        BlockedTest(file="charge_P_1.h5", kind="charge", chamber="P", position=0.12,
-                    amplitude=10.0, opening_time=0.3, duration=3.5, temperature=True, units=u),
-        BlockedTest(file="discharge_P_1.h5", kind="discharge", chamber="P", position=0.12,
-                    amplitude=10.0, opening_time=0.4, duration=3.5, units=u),
-        BlockedTest(file="charge_P_2.h5", kind="charge", chamber="P", position=0.35,
-                    amplitude=6.0, opening_time=0.6, duration=3.5, role="validate", units=u),
-        BlockedTest(file="discharge_P_2.h5", kind="discharge", chamber="P", position=0.35,
-                    amplitude=7.0, opening_time=0.6, duration=3.5, role="validate", units=u),
+        *_sparse_flow_and_blocked(3.5),
         StepTest(file="step_1.h5", start=0.25,
                  steps=((0.5, 0.34), (2.5, 0.19), (4.5, 0.30), (6.5, 0.22)), duration=8.0,
                  preroll=1.0),

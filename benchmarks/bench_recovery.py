@@ -45,8 +45,9 @@ import numpy as np
 
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify
+from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.models.structure import INPUT_MODE, INPUT_MODES
-from pneumafit.virtual_rig import VirtualRig
+from pneumafit.virtual_rig import VirtualRig, get_protocol
 
 #: (truth preset, protocol) pairs of the matrix.
 #: Every case fits step tests (the friction figures need them), so the quick
@@ -101,6 +102,7 @@ def run_case(
     noise_pooling: str = "recording",
     inputs: str = INPUT_MODE,
     robust: bool = True,
+    segments: str = "auto",
 ) -> dict[str, Any]:
     """Record, fit and score one case."""
     from pneumafit.virtual_rig.truth import reference_quantities
@@ -121,6 +123,7 @@ def run_case(
             noise_pooling=noise_pooling,
             inputs=inputs,
             robust=robust,
+            segments=segments,
         )
         result = identify(camp, "convection", options=options, seed=seed)
     p = result.parameters
@@ -247,6 +250,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--inputs", default=INPUT_MODE, choices=INPUT_MODES)
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument(
+        "--segments",
+        default="auto",
+        choices=SEGMENT_MODES,
+        help="long closed-loop step tests fitted in segments (FitOptions.segments)",
+    )
+    ap.add_argument(
         "--no-robust",
         action="store_true",
         help="intervals without the robust widening (FitOptions.robust=False)",
@@ -256,6 +265,13 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     cases = [c for c in CASES if args.cases is None or c[0] in args.cases
              or f"{c[0]}/{c[1]}" in args.cases]  # fmt: skip
+    # a PRESET/PROTOCOL outside the matrix (e.g. power-valve/sparse-long) is
+    # recorded and fitted like the matrix's own cases
+    for name in args.cases or ():
+        preset, _, protocol = name.partition("/")
+        if protocol and (preset, protocol) not in cases:
+            get_protocol(protocol)  # an unknown protocol is named before any fit
+            cases.append((preset, protocol))
     rows = []
     t0 = time.perf_counter()
     for preset, protocol in cases:
@@ -264,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
                            friction=args.friction, seal=args.seal,
                            noise_pooling=args.noise_pooling, inputs=args.inputs,
-                           robust=not args.no_robust)  # fmt: skip
+                           robust=not args.no_robust, segments=args.segments)  # fmt: skip
             rows.append(row)
             if args.json is not None:  # every finished case kept, also if interrupted
                 _write_atomic(args.json, json.dumps(rows, indent=1, default=float))
@@ -285,7 +301,8 @@ def main(argv: list[str] | None = None) -> int:
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
         "friction": args.friction, "seal": args.seal, "noise_pooling": args.noise_pooling,
-        "inputs": args.inputs, "mcmc": args.mcmc, "robust": not args.no_robust,
+        "inputs": args.inputs,
+        "segments": args.segments, "mcmc": args.mcmc, "robust": not args.no_robust,
         "worst_pressure_ratio": max(ratios, default=math.nan),
         "median_pressure_ratio": float(np.median(ratios)) if ratios else math.nan,
         "pressure_within_3x": float(np.mean([x <= RATIO_TARGET for x in ratios])) if ratios

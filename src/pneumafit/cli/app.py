@@ -326,6 +326,15 @@ def fit(
             "(interpolated, an analog signal).",
         ),
     ] = INPUT_MODE,
+    segments: Annotated[
+        str,
+        typer.Option(
+            "--segments",
+            help="Fit long closed-loop step tests in segments between their set-point "
+            "changes, each from its own initial state (multiple shooting): auto (tests of "
+            "6 s or more), on (every fit step test) or off. Held-out tests are replayed whole.",
+        ),
+    ] = "auto",
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -337,7 +346,7 @@ def fit(
 
     code = fit_command(
         campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve,
-        friction, seal_friction, noise_pooling, inputs,
+        friction, seal_friction, noise_pooling, inputs, segments,
     )  # fmt: skip
     raise typer.Exit(code)
 

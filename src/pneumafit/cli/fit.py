@@ -51,6 +51,7 @@ from pneumafit.cli.console import (
 )
 from pneumafit.identification.fitfile import widening_label
 from pneumafit.identification.problem import NOISE_POOLINGS, QUANTITIES
+from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
     FitOptions,
@@ -116,6 +117,7 @@ def fit_command(
     seal: str = "off",
     noise_pooling: str = "recording",
     inputs: str = INPUT_MODE,
+    segments: str = "auto",
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -148,6 +150,9 @@ def fit_command(
         (:class:`FitOptions`).
     inputs : {"hold", "linear"}
         ``--inputs``: the recorded commands and set-points between samples.
+    segments : {"auto", "on", "off"}
+        ``--segments``: long closed-loop step tests fitted in segments
+        (:class:`FitOptions`).
 
     Returns
     -------
@@ -183,6 +188,10 @@ def fit_command(
         problems.append(
             f"option --inputs: expected one of {', '.join(INPUT_MODES)}, found {inputs!r}"
         )
+    if segments not in SEGMENT_MODES:
+        problems.append(
+            f"option --segments: expected one of {', '.join(SEGMENT_MODES)}, found {segments!r}"
+        )
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -192,10 +201,12 @@ def fit_command(
         return EXIT_BAD_INPUT
     command = fit_command_line(campaign, model, out, walkers, steps, seed, mcmc, strict=strict,
                                valve=valve, friction=friction, seal=seal,
-                               noise_pooling=noise_pooling, inputs=inputs)  # fmt: skip
+                               noise_pooling=noise_pooling, inputs=inputs,
+                               segments=segments)  # fmt: skip
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
         friction=friction, seal=seal, noise_pooling=noise_pooling, inputs=inputs,
+        segments=segments,
     )  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)

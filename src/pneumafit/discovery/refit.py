@@ -71,6 +71,7 @@ from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import MAX_STEP, NOISE_POOLING, Problem
 from pneumafit.identification.quality import campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
+from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.staged import (
     DEFAULT_CHANNELS,
     RMSE_CHANNELS,
@@ -185,6 +186,11 @@ class BaseFit:
     noise_pooling : str
         How the base fit profiled the noise (``FitOptions.noise_pooling``;
         ``recording`` for a fit.json written before the option existed).
+    segments : str
+        How the base fit cut its long closed-loop step tests
+        (``FitOptions.segments``, :mod:`~pneumafit.identification.segments`);
+        ``off`` for a fit.json written before the option existed (those were
+        fitted whole). Discovery's refits cut them the same way.
     """
 
     structure: ModelStructure
@@ -195,6 +201,7 @@ class BaseFit:
     max_step: float | None = MAX_STEP
     correct_solver: bool = True
     noise_pooling: str = NOISE_POOLING
+    segments: str = "off"
 
     @classmethod
     def from_document(cls, doc: Mapping[str, Any] | SavedFit) -> BaseFit:
@@ -216,6 +223,7 @@ class BaseFit:
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
             noise_pooling=fit.noise_pooling,
+            segments=str(opts.get("segments", "off")),
         )
 
 
@@ -776,6 +784,8 @@ def discover(
     say = log or (lambda _m: None)
     reporter = progress if progress is not None else Reporter(say)
     t0 = time.perf_counter()
+    # the recordings as the base fit cut them (its initial states are named so)
+    campaign = segment_step_tests(campaign, base.segments)[0]
     streams = np.random.SeedSequence(seed).spawn(rounds * (2 * per_round + 1) + 1)
     stream = iter(np.random.default_rng(s) for s in streams)
     noise = pressure_noise(campaign)

@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.parameters import ParameterSet
+from pneumafit.identification.segments import source_recording
 from pneumafit.progress import Progress
 
 __all__ = [
@@ -607,7 +608,8 @@ def recording_robust_covariance(
         rows = slice(start, start + size)
         block_grad[j] = jac[rows].T @ res[rows]
         block_info[j] = np.einsum("ij,ij->j", jac[rows], jac[rows])
-        cluster[j] = names.setdefault(o.recording, len(names))
+        # a long step test's segments are one cluster: one test (segments)
+        cluster[j] = names.setdefault(source_recording(o.recording), len(names))
         start += size
     g = len(names)
     if g < 2:

@@ -90,6 +90,7 @@ from pneumafit.identification.reference import (
 )
 from pneumafit.identification.replay import Replay, replay, with_recorded_commands
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
+from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.starts import (
     friction_starts,
     heat_starts,
@@ -685,6 +686,13 @@ class FitOptions:
         Limit of the joint least squares (function evaluations per start,
         :data:`JOINT_NFEV`); a joint stage stopped by it is reported as
         unconverged (``quality.unconverged``).
+    segments : {"auto", "on", "off"}
+        Fit long closed-loop step tests in segments between their set-point
+        changes, each from its own fitted initial state (multiple shooting,
+        :mod:`~pneumafit.identification.segments`): ``auto`` those of at
+        least :data:`~pneumafit.identification.segments.AUTO_DURATION`,
+        ``on`` every fit step test, ``off`` none. Held-out recordings are
+        always replayed whole.
     """
 
     mcmc: bool = True
@@ -710,6 +718,7 @@ class FitOptions:
     robust: bool = True
     noise_pooling: str = NOISE_POOLING
     inputs: str = INPUT_MODE
+    segments: str = "auto"
 
 
 @dataclass
@@ -1144,6 +1153,12 @@ def identify(
         raise PneumafitInputError(f"seal: expected one of auto, on, off, found {opts.seal!r}")
     law = "switch" if opts.friction == "auto" else opts.friction
     structure = fit_structure(model, opts.air_properties, opts.valve, law, opts.inputs)
+    # long closed-loop step tests in segments (multiple shooting); the fit's
+    # campaign identity stays the campaign's as read
+    identity = campaign_identity(campaign)
+    campaign, segment_lines = segment_step_tests(campaign, opts.segments)
+    for line in segment_lines:
+        say(line)
     heat_names = tuple(HEAT_PARAMETERS[structure.heat])
     friction_names = tuple(structure.friction_parameter_names)
     rig = campaign.rig.as_parameters()
@@ -1933,7 +1948,7 @@ def identify(
         model=name, structure=structure, parameters=final, laplace=laplace, stages=stages,
         metrics=metrics, warnings=warns, seconds=time.perf_counter() - t_start,
         evaluations=evaluations, blocks=joint_problem.describe(), quality=quality,
-        seed=seed, options=opts, campaign=campaign_identity(campaign),
+        seed=seed, options=opts, campaign=identity,
         widening=widening,
     )  # fmt: skip
 

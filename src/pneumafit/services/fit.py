@@ -30,6 +30,7 @@ from pneumafit.campaign.model import Campaign
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
 from pneumafit.identification.replay import replay, with_recorded_commands
+from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.staged import FitOptions, FitResult, identify
 from pneumafit.models.structure import INPUT_MODE
 from pneumafit.outputs.rest_figure import REST_FIGURE, rest_position_figure
@@ -182,7 +183,7 @@ def fit_command_line(
     campaign: str | os.PathLike[str], model: str, out: str | os.PathLike[str],
     walkers: int | None, steps: int | None, seed: int, mcmc: bool, *, strict: bool = False,
     valve: str = "iso6358", friction: str = "auto", seal: str = "off",
-    noise_pooling: str = "recording", inputs: str = INPUT_MODE,
+    noise_pooling: str = "recording", inputs: str = INPUT_MODE, segments: str = "auto",
 ) -> str:  # fmt: skip
     """The ``pneumafit fit`` command line of these options (fit.json's
     ``provenance.command``): the defaults are left out."""
@@ -198,6 +199,7 @@ def fit_command_line(
         + (f" --seal-friction {seal}" if seal != "off" else "")
         + (f" --noise-pooling {noise_pooling}" if noise_pooling != "recording" else "")
         + (f" --inputs {inputs}" if inputs != INPUT_MODE else "")
+        + (f" --segments {segments}" if segments != "auto" else "")
     )
 
 
@@ -292,13 +294,14 @@ def _rest_figure(campaign: Campaign, result: FitResult, path: Path) -> None:
     (:func:`~pneumafit.outputs.rest_figure.rest_position_figure`) at ``path``;
     a figure of an earlier fit there is removed when none is named."""
     stops = result.quality.stops_elsewhere() if result.quality is not None else []
-    recs = {r.file: r for r in campaign.recordings}
+    opts = result.options if isinstance(result.options, FitOptions) else FitOptions()
+    # the recordings as fitted: a long step test's segments by their names
+    recs = {r.file: r for r in segment_step_tests(campaign, opts.segments)[0].recordings}
     if not stops or stops[0].recording not in recs:
         path.unlink(missing_ok=True)  # no stale figure beside a new fit
         return
     stop, rec = stops[0], recs[stops[0].recording]
     values = result.parameters.values()
-    opts = result.options if isinstance(result.options, FitOptions) else FitOptions()
     closed = replay([rec], result.structure, values, max_step=opts.max_step).recordings[0]
     looped = with_recorded_commands(rec)
     opened = (

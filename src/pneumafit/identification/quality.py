@@ -536,9 +536,10 @@ class FitQuality:
             )
         given_up, gained = self.given_up()
         if given_up:
+            final = self.worst_fitted()
 
             def item(file: str) -> str:
-                return f"{file} ({self.staged[file]:.1f}x -> {self._worst_fitted()[file]:.1f}x)"
+                return f"{file} ({self.staged[file]:.1f}x -> {final[file]:.1f}x)"
 
             out.append(
                 "the joint refinement gave up "
@@ -574,8 +575,9 @@ class FitQuality:
             )
         return out
 
-    def _worst_fitted(self) -> dict[str, float]:
-        """Largest ratio of the fitted channels per fit recording (final estimate)."""
+    def worst_fitted(self) -> dict[str, float]:
+        """Largest RMS over noise of the fitted channels per fit recording
+        (of the estimate these channels were assessed at)."""
         worst: dict[str, float] = {}
         for c in self.channels:
             if c.role == "fit" and c.fitted and c.ratio is not None:
@@ -591,7 +593,7 @@ class FitQuality:
         recording whose ratio fell, most improved first. Both empty when
         none was given up or :attr:`staged` is empty.
         """
-        final = self._worst_fitted()
+        final = self.worst_fitted()
         both = [f for f in final if f in self.staged and self.staged[f] > 0.0]
         given_up = [
             f for f in both

@@ -2314,11 +2314,8 @@ def _staged_ratios(
     rep = replay(list(recordings), structure, values, channels=tuple(channels),
                  estimate_lag=False, max_step=max_step)  # fmt: skip
     ok = {r.file for r in rep.recordings if r.ok}
-    out: dict[str, float] = {}
-    for c in assess_residuals(campaign, rep.offset_free(), channels):
-        if c.fitted and c.ratio is not None and c.recording in ok:
-            out[c.recording] = max(out.get(c.recording, 0.0), c.ratio)
-    return out
+    worst = FitQuality(assess_residuals(campaign, rep.offset_free(), channels)).worst_fitted()
+    return {f: v for f, v in worst.items() if f in ok}
 
 
 def _recorded_commands(

@@ -93,3 +93,42 @@ def test_a_friction_law_without_a_static_level_quotes_what_it_has() -> None:
     assert _reference_lines({"friction_reference": fr}) == [
         "friction at mid pressure: Coulomb 37 N"
     ]
+
+
+def test_laplace_draws_keep_each_coordinates_spread() -> None:
+    """The joint Laplace draws behind the reference figures' intervals keep
+    every coordinate's standard deviation, however far apart the scales.
+
+    A fit's internal coordinates span ~13 decades of standard deviation
+    (initial pressures ~1e3 Pa, log levels ~1e-3, a seal coefficient
+    ~1e-9 N/Pa) with near-collinear pairs. numpy's eigendecomposition of such
+    a raw covariance resolves its eigenvalues only to ~1e-16 of the largest,
+    and the rounding leaks into the small coordinates: on a fit with the
+    seal friction (lugre-pressure truth, sparse-long plan) the coefficient
+    was drawn 5400 times too wide, and the friction at mid pressure got a
+    90 % interval of +-7.4 N for +-0.2 N (until 2026-11-30). Here 20
+    coordinates with scales 1e-9..3e3 and one pair correlated to 1 - 5e-6
+    (the raw draws come out 2.4 times too wide). Tolerance: 4000 draws
+    estimate a standard deviation to 1.1 % (1 / sqrt(2 n)); 6 % is five of
+    those."""
+    from types import SimpleNamespace
+
+    from pneumafit.identification.parameters import Parameter, ParameterSet
+    from pneumafit.identification.staged import _laplace_draws
+
+    rng = np.random.default_rng(3)
+    n = 20
+    a = rng.normal(size=(60, n))
+    a[:, 5] = a[:, 4] + 0.003 * a[:, 5]
+    corr = np.corrcoef(a.T)
+    s = np.logspace(3.5, -9.0, n)
+    rng.shuffle(s)
+    cov = corr * np.outer(s, s)
+    assert np.linalg.eigvalsh(cov)[0] < 0.0  # a rounding eigenvalue below zero, as in a fit
+    ps = ParameterSet([
+        Parameter(f"x{j}", 0.0, "-", -np.inf, np.inf, "linear") for j in range(n)
+    ])  # fmt: skip
+    draws = _laplace_draws(ps, SimpleNamespace(covariance=cov, z=np.zeros(n)), seed=1)
+    assert draws is not None
+    spread = np.array([np.std(draws[f"x{j}"]) for j in range(n)])
+    assert spread / s == pytest.approx(np.ones(n), abs=0.06)

@@ -94,7 +94,7 @@ from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.starts import (
     friction_starts,
     heat_starts,
-    seal_start,
+    seal_starts,
     stribeck_candidates,
     valve_starts,
 )
@@ -1651,10 +1651,8 @@ def identify(
         params = _with_law(params, structure, rig, nuisance)
         names = (*friction_names, SEAL)
         trial = StageResult("friction", [r.file for r in steps], names)
-        c0 = seal_start(steps, rig)
-        prob = run_stage(
-            trial, steps, names, [{**values, SEAL: c0}], seeds[2], label="friction (seal)"
-        )
+        starts = seal_starts(steps, rig, values, SEAL)
+        prob = run_stage(trial, steps, names, starts, seeds[2], label="friction (seal)")
         gain = trial.estimate.log_likelihood - stage.estimate.log_likelihood
         over = _overcount(prob, trial.estimate)
         penalty = 0.5 * math.log(max(prob.n_data / over, 2.0))

@@ -542,6 +542,7 @@ def test_an_outside_friction_law_matches_the_reference_solver(
     assert np.max(np.abs(fixed["y"] - ref["y"])) < 10e-6
 
 
+@pytest.mark.slow  # slow job (50 s)
 def test_the_step_bound_keeps_a_steep_outside_friction_law_stable(
     registered: None, step_experiment: Experiment
 ) -> None:

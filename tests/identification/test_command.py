@@ -178,6 +178,9 @@ def _numbers(doc: dict) -> dict:
     return doc
 
 
+# slow job (77 s): the chains' seeding is also checked at lower cost in
+# tests/identification/test_mcmc.py (early phase end seeded and resumable)
+@pytest.mark.slow
 def test_same_seed_same_numbers(fitted: tuple[Path, dict], small: tuple, tmp_path: Path,
                                 console: Console) -> None:  # fmt: skip
     folder, _, _ = small
@@ -190,6 +193,9 @@ def test_same_seed_same_numbers(fitted: tuple[Path, dict], small: tuple, tmp_pat
     assert other["parameters"]["xi"]["std"] != doc["parameters"]["xi"]["std"]
 
 
+# slow job (74 s): resuming a chain to the uninterrupted one is also checked
+# on the sampler alone in tests/identification/test_mcmc.py
+@pytest.mark.slow
 def test_interrupted_fit_resumes_to_the_same_chains(
     fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console,
     monkeypatch: pytest.MonkeyPatch,

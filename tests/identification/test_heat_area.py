@@ -78,6 +78,8 @@ def _full_area_lambda(result: object) -> float:
     return float(result.metrics["lambda_reference"]["full_area_equivalent"]["value"])
 
 
+# slow job (44 s); its twin on a full-area rig stays in the default suite
+@pytest.mark.slow
 def test_a_bore_wall_only_rig_gets_its_area() -> None:
     """Truth ``mixed``: heat over the bore wall only (c = 0). The heat stage
     keeps the extension and c ends below 0.15 (measured 0.000-0.000 on seeds

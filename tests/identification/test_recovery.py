@@ -155,6 +155,7 @@ def test_intervals_are_calibrated_across_seeds(
         assert total[block] < limit, (block, total[block], limit, per_seed)
 
 
+@pytest.mark.slow  # slow job (59 s)
 def test_mcmc_intervals_agree_with_the_laplace_ones(small: tuple) -> None:
     """Default MCMC on the shared campaign (seed 3, ~45 s): the sampled 90 %
     intervals of heat and friction have the width of the calibrated Laplace

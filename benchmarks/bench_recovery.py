@@ -245,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--valve", default="iso6358", choices=("iso6358", "map"))
     ap.add_argument("--friction", default="auto", choices=("auto", "switch", "lugre"))
-    ap.add_argument("--seal", default="off", choices=("off", "auto", "on"))
+    ap.add_argument("--seal", default="long", choices=("long", "off", "auto", "on"))
     ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
     ap.add_argument("--inputs", default=INPUT_MODE, choices=INPUT_MODES)
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")

@@ -153,7 +153,7 @@ def test_bad_input_exits_2(tmp_path: Path) -> None:
     [
         (3, "auto", "off", "option --walkers: expected an integer >= 16, found 3"),
         (None, "karnopp", "off", "option --friction: expected one of auto, switch, lugre"),
-        (None, "auto", "maybe", "option --seal-friction: expected one of auto, on, off"),
+        (None, "auto", "maybe", "option --seal-friction: expected one of long, auto, on, off"),
     ],
 )
 def test_bad_options_exit_2(

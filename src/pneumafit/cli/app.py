@@ -303,11 +303,13 @@ def fit(
         str,
         typer.Option(
             "--seal-friction",
-            help="Friction that grows with the chamber pressures (seal preload): off, auto "
-            "(fitted after the friction law, kept when BIC in effective samples prefers it) or "
-            "on.",
+            help="Friction that grows with the chamber pressures (seal preload): long "
+            "(default: auto where the fit step tests are fitted in segments, off otherwise), "
+            "auto (fitted after the friction law, kept when BIC in effective samples prefers it "
+            "and the held-out step tests do not worsen), on or off. With --model friction, long "
+            "is off.",
         ),
-    ] = "off",
+    ] = "long",
     noise_pooling: Annotated[
         str,
         typer.Option(

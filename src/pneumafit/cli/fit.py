@@ -54,6 +54,7 @@ from pneumafit.identification.problem import NOISE_POOLINGS, QUANTITIES
 from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
+    SEAL_MODES,
     FitOptions,
     FitResult,
 )
@@ -114,7 +115,7 @@ def fit_command(
     strict: bool = False,
     valve: str = "iso6358",
     friction: str = "auto",
-    seal: str = "off",
+    seal: str = "long",
     noise_pooling: str = "recording",
     inputs: str = INPUT_MODE,
     segments: str = "auto",
@@ -143,7 +144,7 @@ def fit_command(
         Valve law (:class:`FitOptions`).
     friction : {"auto", "switch", "lugre"}
         Friction law (:class:`FitOptions`).
-    seal : {"auto", "on", "off"}
+    seal : {"long", "auto", "on", "off"}
         Pressure-dependent seal friction (:class:`FitOptions`).
     noise_pooling : {"recording", "sensor"}
         Noise level per recording and channel, or per sensor
@@ -177,8 +178,10 @@ def fit_command(
             "(a heat law of your own: load its file first, pneumafit --parts FILE.py fit ...)"
         )
     problems += law_problems(valve, friction)
-    if seal not in ("auto", "on", "off"):
-        problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
+    if seal not in SEAL_MODES:
+        problems.append(
+            f"option --seal-friction: expected one of {', '.join(SEAL_MODES)}, found {seal!r}"
+        )
     if noise_pooling not in NOISE_POOLINGS:
         problems.append(
             f"option --noise-pooling: expected one of {', '.join(NOISE_POOLINGS)}, "

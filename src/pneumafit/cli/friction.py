@@ -12,7 +12,9 @@ here: ``--friction auto|switch|lugre`` picks the law (``switch``: the static
 Stribeck law without pre-sliding; ``auto``: by BIC among Coulomb-viscous,
 Stribeck and LuGre); ``--seal-friction off|auto|on`` the optional terms
 (pressure-dependent friction, direction asymmetry, effective area): none,
-BIC-selected, or all. ``--valve`` has no meaning for a friction test.
+BIC-selected, or all; ``long``, the fit command's default, is ``off`` here
+(a friction test has no closed-loop step tests to fit in segments).
+``--valve`` has no meaning for a friction test.
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ MIN_FRICTION_WALKERS = 16
 #: --friction value -> law of the friction-test fit
 _LAW = {"auto": "auto", "switch": "stribeck", "lugre": "lugre"}
 #: --seal-friction value -> effects of the friction-test fit
-_EFFECTS = {"off": "off", "auto": "auto", "on": "on"}
+_EFFECTS = {"long": "off", "auto": "auto", "on": "on", "off": "off"}
 
 
 def friction_fit_command(
@@ -58,7 +60,7 @@ def friction_fit_command(
     console: Console,
     strict: bool = False,
     friction: str = "auto",
-    seal: str = "off",
+    seal: str = "long",
 ) -> int:
     """Fit the friction law to a campaign's friction tests; see the module docstring."""
     problems = [
@@ -72,7 +74,9 @@ def friction_fit_command(
             f"option --friction: expected one of auto, switch, lugre, found {friction!r}"
         )
     if seal not in _EFFECTS:
-        problems.append(f"option --seal-friction: expected one of auto, on, off, found {seal!r}")
+        problems.append(
+            f"option --seal-friction: expected one of {', '.join(_EFFECTS)}, found {seal!r}"
+        )
     if report_problems(console, problems):
         return EXIT_BAD_INPUT
     camp = read_campaign_or_report(campaign, console)

@@ -90,7 +90,7 @@ from pneumafit.identification.reference import (
 )
 from pneumafit.identification.replay import Replay, replay, with_recorded_commands
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
-from pneumafit.identification.segments import segment_step_tests
+from pneumafit.identification.segments import segment_step_tests, source_recording
 from pneumafit.identification.starts import (
     friction_starts,
     heat_starts,
@@ -186,6 +186,10 @@ DEFAULT_SAMPLE = ("heat", "friction")
 
 #: Centre-leakage parameters, fitted with the heat law in stage (b).
 LEAK_PARAMETERS: tuple[str, ...] = ("valve_C_leak",)
+#: Choices of :attr:`FitOptions.seal`; ``long``, the default, is ``auto`` for
+#: fit step tests fitted in segments and ``off`` otherwise.
+SEAL_MODES = ("long", "auto", "on", "off")
+
 #: The seal-friction coefficient (N/Pa) of the ``seal_friction`` effect.
 SEAL = EFFECT_SLOTS["seal_friction"][1][0]
 #: Starts of the joint stage: stage (b)'s best heat-law optimum and up to
@@ -672,18 +676,20 @@ class FitOptions:
         Chains shorter than 50 tau or with R-hat > 1.01 are extended up to
         this many times their default length (:data:`DEFAULT_STEPS`); with
         ``steps`` given, chains are exactly that long (and flagged when short).
-    seal : {"auto", "on", "off"}
+    seal : {"long", "auto", "on", "off"}
         Friction that grows with the chamber pressures (the
         ``seal_friction`` effect: c (P_P + P_N - 2 P_atm) added to the
-        friction levels). ``off`` (default) never tries it; ``auto`` fits c
-        in stage (c) after the friction law and keeps it when its
-        log-likelihood gain on the step tests, counted in effective samples,
-        exceeds ln(n_eff) / 2 (BIC for one parameter); ``on`` always keeps
-        it. Off by default: on a sparse plan with one fit step test the
-        coefficient trades with the static friction (docs/identification.md);
-        ``pneumafit discover`` validates an effect on held-out recordings
-        before it keeps one. A structure passed as ``model`` keeps its own
-        effects.
+        friction levels). ``off`` never tries it; ``auto`` fits c in stage
+        (c) after the friction law and keeps it when its log-likelihood gain
+        on the step tests, counted in effective samples, exceeds
+        ln(n_eff) / 2 (BIC for one parameter) and the held-out step tests'
+        pressures do not worsen; ``on`` always keeps it. ``long`` (default)
+        is ``auto`` where the fit step tests are long enough to be fitted in
+        segments (``segments``; rests at several pressure sums tell c from
+        the static friction), ``off`` otherwise: on a sparse plan with one
+        short fit step test the coefficient trades with the static friction
+        (docs/identification.md). A structure passed as ``model`` keeps its
+        own effects.
     early_stop : bool
         Stop a chain at the first check (every 1 / :data:`MCMC_CHECKS` of its
         default length, also while extended) where it is at least 50 tau
@@ -732,7 +738,7 @@ class FitOptions:
     correct_solver: bool = True
     progress: bool = False
     extend: float = 2.0
-    seal: str = "off"
+    seal: str = "long"
     temper: bool = True
     early_stop: bool = True
     joint_iterations: int = JOINT_NFEV
@@ -1170,8 +1176,10 @@ def identify(
             f"friction: expected one of {', '.join((*FRICTION_LAWS, 'auto'))}, "
             f"found {opts.friction!r}"
         )
-    if opts.seal not in ("auto", "on", "off"):
-        raise PneumafitInputError(f"seal: expected one of auto, on, off, found {opts.seal!r}")
+    if opts.seal not in SEAL_MODES:
+        raise PneumafitInputError(
+            f"seal: expected one of {', '.join(SEAL_MODES)}, found {opts.seal!r}"
+        )
     law = "switch" if opts.friction == "auto" else opts.friction
     structure = fit_structure(model, opts.air_properties, opts.valve, law, opts.inputs)
     # long closed-loop step tests in segments (multiple shooting); the fit's
@@ -1656,9 +1664,10 @@ def identify(
         stage.note = "no fit step test: friction parameters held at their defaults"
         warns.append(f"friction: {stage.note}")
         unidentified.append(f"friction ({', '.join(friction_names)}; no fit step test)")
+    segmented = any(source_recording(r.file) != r.file for r in steps)
     if (
-        steps and opts.seal != "off" and stage.estimate is not None
-        and not isinstance(model, ModelStructure)
+        steps and (opts.seal in ("auto", "on") or (opts.seal == "long" and segmented))
+        and stage.estimate is not None and not isinstance(model, ModelStructure)
     ):  # fmt: skip
         # friction that grows with the chamber pressures (seal preload):
         # kept when its one parameter buys more than ln(n) / 2 (BIC) in the

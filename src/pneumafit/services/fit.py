@@ -182,7 +182,7 @@ def written_line(out: Path) -> str:
 def fit_command_line(
     campaign: str | os.PathLike[str], model: str, out: str | os.PathLike[str],
     walkers: int | None, steps: int | None, seed: int, mcmc: bool, *, strict: bool = False,
-    valve: str = "iso6358", friction: str = "auto", seal: str = "off",
+    valve: str = "iso6358", friction: str = "auto", seal: str = "long",
     noise_pooling: str = "recording", inputs: str = INPUT_MODE, segments: str = "auto",
 ) -> str:  # fmt: skip
     """The ``pneumafit fit`` command line of these options (fit.json's
@@ -196,7 +196,7 @@ def fit_command_line(
         + (" --strict" if strict else "")
         + (f" --valve {valve}" if valve != "iso6358" else "")
         + (f" --friction {friction}" if friction != "auto" else "")
-        + (f" --seal-friction {seal}" if seal != "off" else "")
+        + (f" --seal-friction {seal}" if seal != "long" else "")
         + (f" --noise-pooling {noise_pooling}" if noise_pooling != "recording" else "")
         + (f" --inputs {inputs}" if inputs != INPUT_MODE else "")
         + (f" --segments {segments}" if segments != "auto" else "")
@@ -260,7 +260,7 @@ def fit_folder(
         variant = (
             ("" if options.valve == "iso6358" else "+" + options.valve)
             + ("" if options.friction == "auto" else "+friction-" + options.friction)
-            + ("" if options.seal == "auto" else "+seal-" + options.seal)
+            + ("" if options.seal == "long" else "+seal-" + options.seal)
         )
         fingerprint = _fingerprint(
             dict(campaign.sha256), model + variant, seed, options.walkers, options.steps

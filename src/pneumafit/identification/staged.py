@@ -90,7 +90,7 @@ from pneumafit.identification.reference import (
 )
 from pneumafit.identification.replay import Replay, replay, with_recorded_commands
 from pneumafit.identification.sampling import MCMCResult, propagate, run_mcmc
-from pneumafit.identification.segments import segment_step_tests, source_recording
+from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.starts import (
     friction_starts,
     heat_starts,
@@ -1664,9 +1664,9 @@ def identify(
         stage.note = "no fit step test: friction parameters held at their defaults"
         warns.append(f"friction: {stage.note}")
         unidentified.append(f"friction ({', '.join(friction_names)}; no fit step test)")
-    segmented = any(source_recording(r.file) != r.file for r in steps)
+    # segment_lines: one per fit step test cut into segments (none: none cut)
     if (
-        steps and (opts.seal in ("auto", "on") or (opts.seal == "long" and segmented))
+        steps and (opts.seal in ("auto", "on") or (opts.seal == "long" and segment_lines))
         and stage.estimate is not None and not isinstance(model, ModelStructure)
     ):  # fmt: skip
         # friction that grows with the chamber pressures (seal preload):

@@ -102,8 +102,10 @@ def test_the_initial_velocity_is_read_from_the_first_samples() -> None:
     settles) with 3 um of Gaussian noise and a 10 um resolution (the virtual
     rig's position sensor). The velocity comes back within 2 %: its standard
     error here is ~0.6 mm/s (1 %), so 2 % is two of them. At rest (noise and
-    resolution only) and on a creep of one count over the window (0.2 mm/s,
-    below MIN_MOVING) it is None: the simulation starts at rest, as before."""
+    resolution only), on a creep of one count over the window and on a
+    stick-slip creep of 5 mm/s (below MIN_MOVING, 20 mm/s; the mismatched
+    truths' segments start so) it is None: the simulation starts at rest,
+    as before."""
     rng = np.random.default_rng(7)
     t = np.arange(50) * 1e-3
     window = np.ones(t.size, bool)
@@ -116,7 +118,8 @@ def test_the_initial_velocity_is_read_from_the_first_samples() -> None:
     assert initial_velocity(t, sensed(np.full(t.size, 0.25)), window) is None
     creep = 0.25 + 1e-5 * (t > 0.025)
     assert initial_velocity(t, creep, window) is None
-    assert MOVING_AT_START >= 5.0 and MIN_MOVING == pytest.approx(1e-3)
+    assert initial_velocity(t, sensed(0.25 - 0.005 * t), window) is None
+    assert MOVING_AT_START >= 5.0 and MIN_MOVING == pytest.approx(0.02)
     assert initial_velocity(t[:5], sensed(0.3 + 0.065 * t[:5]), window[:5]) is None
 
 

@@ -25,7 +25,10 @@ Ribeiro, Tiels, Umenberger, Schön and Aguirre 2020, "On the smoothness of
 nonlinear system identification", Automatica 121): each segment starts from
 its own initial state, fitted like a recording's (the measured position and
 pressures, the gas temperatures; nuisance parameters with the sensors'
-priors), so a model error cannot carry from one segment into the next. The
+priors), so a model error cannot carry from one segment into the next.
+A segment whose first 50 ms show the piston still moving starts at that
+velocity (:func:`~pneumafit.identification.problem.initial_velocity`),
+not at rest. The
 segments are the step test's stretches between set-point changes, each
 starting :data:`LEAD` before its change (the piston then rests or creeps
 near its set-point), the first with the recording's start; no segment is

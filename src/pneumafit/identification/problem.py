@@ -494,14 +494,9 @@ def initial_velocity(
     yy = np.asarray(position, dtype=float)[window]
     if tt.size < 8 or np.ptp(tt) <= 0.0:
         return None
-    a = np.vander(tt / np.ptp(tt), 3, increasing=True)
-    coef, *_ = np.linalg.lstsq(a, yy, rcond=None)
-    resid = yy - a @ coef
-    dof = tt.size - 3
-    s2 = float(resid @ resid) / dof
-    cov = s2 * np.linalg.inv(a.T @ a)
-    slope = float(coef[1]) / float(np.ptp(tt))
-    se = math.sqrt(max(float(cov[1, 1]), 0.0)) / float(np.ptp(tt))
+    # coefficients highest degree first: [a / 2, v, y0]; cov scaled by the residuals
+    coef, cov = np.polyfit(tt, yy, 2, cov=True)
+    slope, se = float(coef[1]), math.sqrt(max(float(cov[1, 1]), 0.0))
     if not math.isfinite(slope) or abs(slope) <= max(MOVING_AT_START * se, MIN_MOVING):
         return None
     return slope

@@ -184,8 +184,16 @@ class IsoLinearConductance(_Path):
     u_sat : float
         Command of full opening (V), > overlap.
     corner : float
-        Half-width (V) of a quadratic rounding of the ramp's foot (C1); 0 for
-        the sharp corner.
+        Half-width e (V) of the rounding of the ramp's foot; 0 for the sharp
+        corner.
+    corner_shape : {"quadratic", "smoothstep"}
+        How the foot rounds over |z| < e, z = s - overlap: ``quadratic``
+        (C1), ramp = (z + e)^2 / (4 e); ``smoothstep`` (C2), the integral
+        of the smoothstep 3 t^2 - 2 t^3 with t = (z + e) / (2 e), ramp =
+        2 e (t^3 - t^4 / 2), which is how the fitted ISO law rounds its
+        dead-band edge (``physics.valve``, 0.05 V there): the ``fit-laws``
+        control takes it, so that the control's valve is the fit's. Both
+        are 0 at z = -e and equal z, with slope 1, at z = +e.
     b, b_small : float
         See :class:`_Path`.
     """
@@ -195,6 +203,7 @@ class IsoLinearConductance(_Path):
     overlap: float = 0.3
     u_sat: float = 10.0
     corner: float = 0.0
+    corner_shape: str = "quadratic"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -204,6 +213,8 @@ class IsoLinearConductance(_Path):
         _need(f"{w}: u_sat", self.u_sat > self.overlap + self.corner,
               "a command > overlap + corner (V)", self.u_sat)  # fmt: skip
         _need(f"{w}: corner", self.corner >= 0.0, "a width >= 0 V", self.corner)
+        _need(f"{w}: corner_shape", self.corner_shape in ("quadratic", "smoothstep"),
+              '"quadratic" or "smoothstep"', self.corner_shape)  # fmt: skip
 
     @property
     def c_max(self) -> float:
@@ -214,7 +225,13 @@ class IsoLinearConductance(_Path):
         e = self.corner
         if z <= -e:
             return 0.0
-        ramp = (z + e) ** 2 / (4.0 * e) if z < e else z
+        if z >= e:
+            ramp = z
+        elif self.corner_shape == "smoothstep":
+            t = (z + e) / (2.0 * e)
+            ramp = 2.0 * e * t**3 * (1.0 - 0.5 * t)
+        else:
+            ramp = (z + e) ** 2 / (4.0 * e)
         return self.C_max * min(ramp / (self.u_sat - self.overlap), 1.0)
 
 

@@ -486,14 +486,15 @@ _PRESET_DATA: dict[str, dict[str, Any]] = {
         "external_leak": {"model": "orifice", "C_P": 1.41e-11, "C_N": 2.63e-11, "b": 0.47},
     },
     "fit-laws": {
-        "description": "the fitted laws where the truth can express them (linear ramps, the "
-        "fit's leak shape, full area); a control, not a mismatch",
+        "description": "the fitted laws where the truth can express them (linear ramps with "
+        "the fit's rounded dead-band edge, the fit's leak shape, full area); a control, not a "
+        "mismatch",
         "valve": {
             "m": 0.5, "x_laminar": 0.995,
             "supply": {"family": "iso_linear", "C_max": 1.0e-8, "overlap": 0.3, "u_sat": 10.0,
-                       "b": 0.3},
+                       "b": 0.3, "corner": 0.05, "corner_shape": "smoothstep"},
             "exhaust": {"family": "iso_linear", "C_max": 1.1e-8, "overlap": 0.3,
-                        "u_sat": 10.0, "b": 0.3},
+                        "u_sat": 10.0, "b": 0.3, "corner": 0.05, "corner_shape": "smoothstep"},
             "leak": {"shape": "sigmoid", "C0": 2.0e-11, "width": 0.3},
         },
         "friction": {**_LUGRE, "F_c": 30.0, "F_s": 50.0, "v_s": 0.02, "sigma2": 60.0},

@@ -31,6 +31,7 @@ from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.problem import (
     INITIAL_PREFIX,
     MAX_STEP,
+    OFFSET_PREFIX,
     QUANTITIES,
 )
 from pneumafit.identification.replay import replay
@@ -221,7 +222,8 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
     structure : ModelStructure
     values : dict of str to float
         SI values by canonical name, plus ``initial:<file>:<state>`` for the
-        fitted initial states.
+        fitted initial states and ``offset:<channel>`` for the pressure
+        sensors' offsets (Pa).
 
     Raises
     ------
@@ -238,6 +240,8 @@ def fit_values(document: Mapping[str, Any], where: str) -> tuple[str, ModelStruc
         )
     for key, value in fit.initial_states.items():
         values[f"{INITIAL_PREFIX}{key}"] = value
+    # the pressure sensors' offsets, which held-out recordings start without
+    values.update({k: v for k, v in fit.nuisance.items() if k.startswith(OFFSET_PREFIX)})
     return model, fit.structure, values
 
 

@@ -302,8 +302,9 @@ def _initial(rec: Recording, values: Mapping[str, float]) -> dict[str, float]:
 
 
 def model_values(values: Mapping[str, float]) -> dict[str, float]:
-    """The model parameters among fitted values (initial states dropped)."""
-    return {k: float(v) for k, v in values.items() if not k.startswith("initial:")}
+    """The model parameters among fitted values (initial states and
+    measurement parameters, e.g. sensor lags and offsets, dropped)."""
+    return {k: float(v) for k, v in values.items() if k in layout.P}
 
 
 def simulate_recording(

@@ -71,7 +71,9 @@ from pneumafit.identification.parameters import (
 from pneumafit.identification.problem import (
     MAX_STEP,
     NOISE_POOLING,
+    OFFSET_PREFIX,
     Problem,
+    pressure_offsets,
 )
 from pneumafit.identification.quality import (
     FitQuality,
@@ -1950,6 +1952,26 @@ def identify(
                 f"mcmc {stage_name}: {res.seconds:.1f} s, acceptance {res.acceptance:.2f}, "
                 f"chain {res.tau_multiple:.0f} tau"
             )
+
+    # ------------------------------------------- the pressure sensors' offsets
+    # from the fit recordings' fitted initial pressures; a held-out recording
+    # starts from its readings less them (problem.pressure_offsets)
+    offsets = pressure_offsets(joint_problem, values)
+    for channel, (offset, n) in offsets.items():
+        values[f"{OFFSET_PREFIX}{channel}"] = offset
+        final = final.add(
+            Parameter(
+                f"{OFFSET_PREFIX}{channel}", offset, "Pa", fixed=True, group="sensor",
+                description=f"{channel} sensor's offset: median over {n} fit recordings of "
+                "the initial reading less the fitted initial pressure",
+            )
+        )  # fmt: skip
+    if offsets:
+        say(
+            "pressure sensors' offsets (initial readings less the fitted initial pressures, "
+            "median over the fit recordings; taken off the held-out recordings' initial "
+            "readings): " + ", ".join(f"{c} {o:+.0f} Pa ({n})" for c, (o, n) in offsets.items())
+        )
 
     # ------------------------------------------------------------ metrics
     say("replaying the fit on every recording")

@@ -18,8 +18,11 @@ Keys (version 1; keys are only ever added):
   :func:`~pneumafit.identification.optimise.recording_robust_covariance`);
   only model parameters, so :func:`pneumafit.parameters_io.read_parameter_file`
   reads the file as a parameter file;
-- ``nuisance``: measurement parameters (sensor lags) and ``initial_states``
-  (the fitted initial pressures, temperatures and positions by recording);
+- ``nuisance``: measurement parameters (sensor lags; since 2026-12-01 the
+  pressure sensors' offsets ``offset:p_P`` and ``offset:p_N`` in Pa,
+  :func:`~pneumafit.identification.problem.pressure_offsets`) and
+  ``initial_states`` (the fitted initial pressures, temperatures and
+  positions by recording);
 - ``correlation``: posterior correlation matrices by stage (``names``,
   ``matrix``), from MCMC or else the joint Laplace approximation;
 - ``metrics``: ``rmse`` (``fit``, ``validate``: channel -> SI), ``log_likelihood``,

@@ -147,6 +147,25 @@ def test_a_segment_that_starts_on_a_moving_piston_starts_moving(long_campaign: P
     assert set(v0) == {"step_1.h5@0.000s", "step_1.h5@4.450s", "step_1.h5@6.450s", "step_2.h5"}
 
 
+def test_segment_names_and_the_line_read_the_files_time_axis(long_campaign: Path) -> None:
+    """Plumbing, exact: a recording whose time axis starts at 12.345 s (a
+    logger's clock) is cut at the same samples; the segments' names and the
+    console line give the cuts on the file's axis, the same numbers (the
+    line gave them from the recording's start before 2026-12-01, so a user
+    read 2.45 s there and 14.795 s in the names)."""
+    import dataclasses
+
+    camp = read_campaign(long_campaign)
+    shifted = dataclasses.replace(
+        camp,
+        recordings=[dataclasses.replace(r, time=r.time + 12.345) for r in camp.recordings],
+    )
+    cut, lines = segment_step_tests(shifted, "auto")
+    names = [r.file for r in cut.recordings if r.file.startswith("step_1.h5@")]
+    assert names == [segment_name("step_1.h5", 12.345 + t) for t in (0.0, 2.45, 4.45, 6.45)]
+    assert lines and "from 12.345, 14.795, 16.795, 18.795 s" in lines[0], lines
+
+
 def test_held_out_recordings_start_from_readings_less_the_sensor_offsets(
     long_campaign: Path,
 ) -> None:

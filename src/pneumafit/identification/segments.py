@@ -170,7 +170,8 @@ def segment_step_tests(campaign: Campaign, mode: str = "auto") -> tuple[Campaign
         out.extend(_segment(rec, a, b) for a, b in zip(starts, ends, strict=True))
         lines.append(
             f"{rec.file} ({duration:.1f} s, closed loop) fitted in {len(starts)} segments from "
-            + ", ".join(f"{rec.time[a] - rec.time[0]:.2f}" for a in starts)
+            # on the file's time axis, as the segments' names (segment_name)
+            + ", ".join(f"{rec.time[a]:.3f}" for a in starts)
             + " s, each from its own initial state (multiple shooting)"
         )
     if not lines:

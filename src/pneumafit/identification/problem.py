@@ -535,7 +535,7 @@ def pressure_offsets(problem: Problem, values: Mapping[str, float]) -> dict[str,
     held-out recording, whose initial state is not fitted, then starts from
     its reading less that offset (:data:`OFFSET_PREFIX`). On the fitted
     laws' own truth (sparse-long plan, seed 1; offsets -960 and +589 Pa)
-    the estimates were -963 and +552 Pa, and started from its readings the
+    the estimates were -961 and +543 Pa, and started from its readings the
     held-out 8-s step test's piston was up to 0.7 mm off in its first two
     seconds (29x the position noise), from the offset-free pressures 0.07
     mm.

@@ -572,8 +572,7 @@ def test_auto_friction_keeps_the_switch_model_on_a_stick_slip_rig(tmp_path: Path
     """The control of the friction-law choice (an inverse-crime case by design:
     the rig is the kernel's own switch model, on the sparse plan): ``auto``
     must not take LuGre's two extra parameters where they buy nothing.
-    Measured with seed 5: LuGre's gain -52.1 against a threshold of 7.2 (each
-    law read at its own optimum; -84.2 against 8.0 read at the starts), the
+    Measured with seed 5: LuGre's gain -84.2 against a threshold of 8.0, the
     four friction parameters within 0.2 % of the truth."""
     from pneumafit.campaign import read_campaign
     from pneumafit.identification import FitOptions, identify

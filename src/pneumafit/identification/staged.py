@@ -1570,20 +1570,17 @@ def identify(
             label: str,
             random_starts: int = 0,
             candidates: Sequence[Mapping[str, float]] = (),
-        ) -> tuple[StageResult, dict[str, float], Problem, float]:
-            # one law's solve and its log-likelihood read in its problem
-            # linearised at its optimum (_read_at_optimum); the values are put
-            # back for the next one
+        ) -> tuple[StageResult, dict[str, float], Problem]:
+            # one law's solve; the values are put back for the next one
             nonlocal seconds
             trial = StageResult("friction", [r.file for r in steps], names)
             prob = run_stage(trial, steps, names, starts, seeds[2], random_starts, label=label,
                              candidates=candidates)  # fmt: skip
             solved = dict(values)
-            read = _read_at_optimum(prob, trial.estimate, solved)
             values.clear()
             values.update(before)
             seconds += trial.seconds
-            return trial, solved, prob, read
+            return trial, solved, prob
 
         # the kernel's own laws first; the laws registered from outside with
         # kernel code are compared with the better of the two after
@@ -1597,7 +1594,7 @@ def identify(
             if cand == "switch" and "lugre" in tried:
                 levels = {n: tried["lugre"][1][n] for n in names}
                 screen = solve(names, [levels], "friction (switch, from LuGre's levels)")
-                gain = tried["lugre"][4] - screen[3]
+                gain = tried["lugre"][0].estimate.log_likelihood - screen[0].estimate.log_likelihood
                 if math.isfinite(gain) and gain / over > FRICTION_DECISIVE * penalty:
                     run = screen
                     say(
@@ -1614,15 +1611,16 @@ def identify(
                             stribeck_candidates(starts[0]))  # fmt: skip
                 if screen is not None:
                     say(
-                        f"friction ({cand}): log-likelihood {screen[3]:.1f} from LuGre's "
-                        f"levels, {run[3]:.1f} from its own starts"
+                        f"friction ({cand}): log-likelihood "
+                        f"{screen[0].estimate.log_likelihood:.1f} from LuGre's levels, "
+                        f"{run[0].estimate.log_likelihood:.1f} from its own starts"
                     )
-            trial, chosen, prob, read = run
-            tried[cand] = (trial, chosen, prob.n_data, prob, read)
+            trial, chosen, prob = run
+            tried[cand] = (trial, chosen, prob.n_data, prob)
             say(
                 f"friction ({cand}): {seconds - at_start:.1f} s, "
-                f"log-likelihood {read:.1f} (linearised at the start: "
-                f"{_ll(trial):.1f}), " + _brief(trial.estimate, names)
+                f"log-likelihood {trial.estimate.log_likelihood:.1f}, "
+                + _brief(trial.estimate, names)
             )
             if cand == "lugre":
                 # BIC in effective samples, as for the seal friction and the
@@ -1631,9 +1629,10 @@ def identify(
                 # model that is not the rig's count each sample many times over)
                 over = _overcount(prob, trial.estimate)
                 penalty = math.log(max(prob.n_data / over, 2.0))
-        gain = tried["lugre"][4] - tried["switch"][4]
+        lls = {k: t[0].estimate.log_likelihood for k, t in tried.items()}
+        gain = lls["lugre"] - lls["switch"]
         law = "lugre" if math.isfinite(gain) and gain / over > penalty else "switch"
-        stage, chosen, _, _, kept_read = tried[law]
+        stage, chosen, _, _ = tried[law]
         stage.seconds = seconds
         stage.note = (
             f"friction law {law}: LuGre log-likelihood gain {gain:.1f} / {over:.3g} (residual "
@@ -1648,10 +1647,10 @@ def identify(
             structure = replace(structure, friction=cand)
             params = _with_law(params, structure, rig, nuisance)
             names = tuple(structure.friction_parameter_names)
-            trial, solved, _, read = solve(names, friction_starts(steps, rig, cand),
-                                           f"friction ({cand})", opts.random_starts)  # fmt: skip
-            law, stage, chosen, kept_read = _lower_bic(
-                (law, stage, chosen, kept_read), (cand, trial, solved, read), over, penalty, say
+            trial, solved, _ = solve(names, friction_starts(steps, rig, cand),
+                                     f"friction ({cand})", opts.random_starts)  # fmt: skip
+            law, stage, chosen = _lower_bic(
+                (law, stage, chosen), (cand, trial, solved), over, penalty, say
             )
         stage.seconds = seconds
         values.update(chosen)
@@ -2102,15 +2101,14 @@ def _tempering_line(problem: Problem, taus: NDArray[np.float64]) -> str:
 
 
 def _lower_bic(
-    kept: tuple[str, StageResult, dict[str, float], float],
-    other: tuple[str, StageResult, dict[str, float], float],
+    kept: tuple[str, StageResult, dict[str, float]],
+    other: tuple[str, StageResult, dict[str, float]],
     over: float,
     penalty: float,
     say: Callable[[str], None],
-) -> tuple[str, StageResult, dict[str, float], float]:
+) -> tuple[str, StageResult, dict[str, float]]:
     """``--friction auto``: a friction law registered from outside the package
-    against the law kept so far, each given as (name, stage, estimates,
-    log-likelihood read at the optimum, :func:`_read_at_optimum`).
+    against the law kept so far, each given as (name, stage, estimates).
 
     The one with the lower BIC in effective samples, -2 ll / over + k ln
     n_eff (``over`` the residuals' overcount at the LuGre optimum, ``penalty``
@@ -2118,10 +2116,11 @@ def _lower_bic(
     is this one for their pair (two more parameters against a gain).
     """
 
-    def bic(name: str, ll: float) -> float:
+    def bic(name: str, trial: StageResult) -> float:
+        ll = trial.estimate.log_likelihood if trial.estimate is not None else -math.inf
         return -2.0 * ll / over + len(FRICTION_PARTS[name].parameters) * penalty
 
-    best, score = bic(kept[0], kept[3]), bic(other[0], other[3])
+    best, score = bic(kept[0], kept[1]), bic(other[0], other[1])
     better = math.isfinite(score) and score < best
     say(
         f"friction ({other[0]}): BIC in effective samples {score:.1f} against {best:.1f} "
@@ -2134,33 +2133,6 @@ def _lower_bic(
         f"for {kept[0]} ({kept[1].note})"
     )
     return other
-
-
-def _ll(stage: StageResult) -> float:
-    """A stage's log-likelihood at its optimum as its solve read it (-inf: none)."""
-    return stage.estimate.log_likelihood if stage.estimate is not None else -math.inf
-
-
-def _read_at_optimum(
-    problem: Problem, estimate: PointEstimate | None, values: Mapping[str, float]
-) -> float:
-    """Log-likelihood at ``estimate`` in ``problem`` linearised there (-inf: no
-    estimate, or it does not simulate).
-
-    A stage's problem profiles the initial-state errors with sensitivities
-    computed once at its first start (:meth:`Problem.linearize`), so the
-    optimum's log-likelihood as the solve read it depends on where that start
-    was: two friction laws solved from different starts were compared with an
-    offset of their starts' making (the seal friction's gain read 864 off in
-    the same way; :func:`_without_seal`). Read at the optimum, with the
-    sensitivities of the point itself, it is the profile log-likelihood to
-    first order for either law. ``problem`` is left linearised at the optimum.
-    """
-    if estimate is None:
-        return -math.inf
-    point = {**values, **estimate.parameters.values()}
-    problem.linearize(point)
-    return LogLikelihood(problem, estimate.parameters).at_values(point)
 
 
 def _brief(est: PointEstimate, names: Sequence[str]) -> str:

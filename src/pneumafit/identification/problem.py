@@ -681,8 +681,8 @@ class Problem:
         self.initial_nuisance = bool(initial_nuisance)
         # the pressure sensors' offsets a fit estimated (OFFSET_PREFIX), taken
         # off the initial pressures read from the data; the readings
-        # themselves, by experiment name, for pressure_offsets
-        self.pressure_offsets = {
+        # themselves, by experiment name, for the function pressure_offsets
+        self.given_offsets = {
             c: float(v)
             for c in OFFSET_CHANNELS
             if (v := dict(base or {}).get(f"{OFFSET_PREFIX}{c}")) is not None
@@ -812,7 +812,7 @@ class Problem:
                 else:
                     continue
                 self.measured_initial.setdefault(exp.name, {})[name] = initial[name]
-                initial[name] -= self.pressure_offsets.get(name, 0.0)
+                initial[name] -= self.given_offsets.get(name, 0.0)
         if rec.kind in ("step", "free") and "y" in rec.channels and "v" not in rec.channels:
             at_start = window & rec.mask.get("y", np.ones(n, bool))
             v0 = initial_velocity(t, rec.channels["y"], at_start)

@@ -156,6 +156,13 @@ REST_SPACING = 0.02
 REST_AFTER = 0.2
 #: Window (s) at the start of a recording averaged for the initial state.
 INITIAL_WINDOW = 0.05
+#: Window (s, before the first change of an input) of the line through a
+#: temperature reading's start (:func:`reading_start`). Its rate is the
+#: probe's lag away from the gas (gas = reading + lag x rate): over 50 ms of
+#: a 1-kHz reading with 0.05 K of noise the rate's sd is ~0.5 K/s, 0.2 K of
+#: gas behind a 0.4-s probe; over 0.3 s, ~0.03 K/s. The gas relaxes towards
+#: the wall in seconds, so the line still holds over 0.3 s.
+READING_START_WINDOW = 0.3
 #: Static error band (SI) of a sensor whose offset the likelihood profiles
 #: (``offsets``), added in quadrature to its noise in the prior of a measured
 #: initial state (:meth:`Problem.initial_priors`): 0.25 % of a 10-bar span for
@@ -230,8 +237,29 @@ def fit_sensor_lag(
     return float(math.exp(sol.x))
 
 
+def reading_start(
+    time: NDArray[np.float64], reading: NDArray[np.float64], window: NDArray[np.bool_]
+) -> tuple[float, float]:
+    """A temperature reading's value (K) and rate (K/s) at the first sample.
+
+    The least-squares line through the samples in ``window`` (those of the
+    first :data:`READING_START_WINDOW` seconds before an input changes);
+    with fewer than 3 finite samples, the first finite one and rate 0 (a
+    settled probe), or NaN and 0 without any.
+    """
+    m = window & np.isfinite(reading)
+    if m.sum() >= 3:
+        rate, value = np.polyfit(time[m] - time[0], reading[m], 1)
+        return float(value), float(rate)
+    finite = np.flatnonzero(np.isfinite(reading))
+    return (float(reading[finite[0]]) if finite.size else math.nan), 0.0
+
+
 def fit_temperature_probe(
-    blocks: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
+    blocks: Sequence[
+        tuple[ArrayLike, ArrayLike, ArrayLike]
+        | tuple[ArrayLike, ArrayLike, ArrayLike, tuple[float, float] | None]
+    ],
 ) -> TemperatureProbe | None:
     """The temperature probe (two lags in series) that best fits its readings.
 
@@ -250,9 +278,12 @@ def fit_temperature_probe(
 
     Parameters
     ----------
-    blocks : sequence of (time, measured, simulated)
+    blocks : sequence of (time, measured, simulated[, start])
         Sample times (s), readings (K) and the simulated gas temperature (K),
-        per block (recording and channel). Non-finite samples are left out.
+        per block (recording and channel), and optionally the reading's
+        value and rate at the block's first time (K, K/s; a probe not
+        settled on the gas, :meth:`TemperatureProbe.read`). Non-finite
+        samples are left out.
 
     Returns
     -------
@@ -262,17 +293,21 @@ def fit_temperature_probe(
     from scipy.optimize import least_squares
 
     clean = []
-    for t, d, x in blocks:
-        t, d, x = (np.asarray(a, dtype=float) for a in (t, d, x))
+    for block in blocks:
+        t, d, x = (np.asarray(a, dtype=float) for a in block[:3])
+        start = block[3] if len(block) > 3 else None
         keep = np.isfinite(d) & np.isfinite(x) & np.isfinite(t)
         if keep.sum() >= 3:
-            clean.append((t[keep], d[keep], x[keep]))
-    tau0 = fit_sensor_lag(clean)
+            if start is not None and not keep[0]:
+                # the reading's line at the first kept sample
+                start = (start[0] + start[1] * (t[keep][0] - t[0]), start[1])
+            clean.append((t[keep], d[keep], x[keep], start))
+    tau0 = fit_sensor_lag([b[:3] for b in clean])
     if tau0 is None:
         return None
 
     def residual(probe: TemperatureProbe) -> NDArray[np.float64]:
-        return np.concatenate([d - probe.read(x, t) for t, d, x in clean])
+        return np.concatenate([d - probe.read(x, t, start) for t, d, x, start in clean])
 
     lo, hi = (math.log(b) for b in PROBE_LAG_BOUNDS)
     best = TemperatureProbe(tau0)
@@ -688,6 +723,10 @@ class Problem:
             if (v := dict(base or {}).get(f"{OFFSET_PREFIX}{c}")) is not None
         }
         self.measured_initial: dict[str, dict[str, float]] = {}
+        # the temperature readings' line at the start, (reading K, rate K/s),
+        # by experiment name: where the probe was and where it was going
+        # (replay.replay starts the probe there and the gas ahead of it)
+        self.reading_starts: dict[str, dict[str, tuple[float, float]]] = {}
 
         experiments: list[Experiment] = []
         steps: list[float] = []
@@ -797,8 +836,10 @@ class Problem:
         n = rec.n_samples
         t = rec.time
         first_change = int(np.argmax(change)) + 1 if change.any() else n
-        window = (t - t[0] <= self.initial_window) & (np.arange(n) < max(first_change, 1))
+        before = np.arange(n) < max(first_change, 1)
+        window = (t - t[0] <= self.initial_window) & before
         window[0] = True
+        still = (t - t[0] <= READING_START_WINDOW) & before
         initial = dict(exp.initial)
         for name in ("p_P", "p_N", "T_P", "T_N"):
             if name in rec.channels and (rec.kind in ("step", "free") or name[-1] == rec.chamber):
@@ -813,6 +854,11 @@ class Problem:
                     continue
                 self.measured_initial.setdefault(exp.name, {})[name] = initial[name]
                 initial[name] -= self.given_offsets.get(name, 0.0)
+                if name.startswith("T"):
+                    start = reading_start(
+                        t, rec.channels[name], still & rec.mask.get(name, np.ones(n, bool))
+                    )
+                    self.reading_starts.setdefault(exp.name, {})[name] = start
         if rec.kind in ("step", "free") and "y" in rec.channels and "v" not in rec.channels:
             at_start = window & rec.mask.get("y", np.ones(n, bool))
             v0 = initial_velocity(t, rec.channels["y"], at_start)

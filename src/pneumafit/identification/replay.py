@@ -10,8 +10,9 @@ read the same :class:`Replay`, made here and nowhere else:
   compared samples (every k-th sample with k dt <= ``COMPARE_SPACING``; flow tests on
   settled samples), the initial states (the fitted ones, ``initial:FILE:STATE``
   entries of the values, for ``fit`` recordings; estimated from the data, a
-  line intercept over the first 50 ms, for the others) and the parameter
-  vector;
+  line intercept over the first 50 ms, for the others, a step or free
+  test's gas temperatures ahead of the probe's reading,
+  :func:`_gas_ahead_of_probe`) and the parameter vector;
 - each recording is simulated once on **every sample** of the recording with
   the reference solver (DP5 at a quarter of the problem's step: what the
   fit's defect-corrected predictions reproduce), so the traces serve the
@@ -19,7 +20,9 @@ read the same :class:`Replay`, made here and nowhere else:
   read off them;
 - temperatures are compared through the temperature probe (two lags in
   series, :class:`~pneumafit.simulation.sensor.TemperatureProbe`): the fit's,
-  or the one that best fits the replay's own temperatures, or none.
+  or the one that best fits the replay's own temperatures, or none; the
+  probe starts where the recording's reading starts, not settled on the
+  simulated gas (:attr:`Problem.reading_starts`).
 """
 
 from __future__ import annotations
@@ -34,12 +37,13 @@ from numpy.typing import NDArray
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.identification.problem import (
     COMPARABLE_CHANNELS,
+    INITIAL_PREFIX,
     MAX_STEP,
     QUANTITIES,
     Problem,
     fit_temperature_probe,
 )
-from pneumafit.models.layout import CHANNELS
+from pneumafit.models.layout import CHANNELS, X_TN, X_TP
 from pneumafit.models.structure import ModelStructure
 from pneumafit.simulation import Experiment, Simulator
 from pneumafit.simulation.sensor import TemperatureProbe
@@ -305,6 +309,14 @@ def replay(
         rows = np.clip(np.searchsorted(rec_time, t - 1e-9), 0, rec_time.size - 1)
         return rows, out[0, slices[i], col[c]][rows]
 
+    def start(i: int, c: str, t: NDArray[np.float64]) -> tuple[float, float] | None:
+        # the reading's line (value, rate) at the block's first time: where
+        # the probe was at the start of the recording (Problem.reading_starts)
+        line = problem.reading_starts.get(problem.experiments[i].name, {}).get(c)
+        if line is None or not math.isfinite(line[0]):
+            return None
+        return line[0] + line[1] * (float(t[0]) - float(problem.recordings[i].time[0])), line[1]
+
     lag = values.get("temperature_sensor_lag", lag)
     probe = lag if isinstance(lag, TemperatureProbe) else None
     if probe is None and isinstance(lag, int | float) and lag > 0:
@@ -312,15 +324,17 @@ def replay(
     lag_source = "fit" if probe is not None else "none"
     if probe is None and estimate_lag and structure.heat != "polytropic":
         temps = [
-            (i, t, d, at(i, c, t)[1])
+            (i, t, d, at(i, c, t)[1], start(i, c, t))
             for i, c, t, d in blocks
             if QUANTITIES[c] == "temperature" and status[0, i] == 0
         ]
         fitted = [b for b in temps if problem.recordings[b[0]].role == "fit"] or temps
         probe = fit_temperature_probe(
-            [(t, d, p) for _i, t, d, p in fitted if np.all(np.isfinite(p))]
+            [(t, d, p, s) for _i, t, d, p, s in fitted if np.all(np.isfinite(p))]
         )
         lag_source = "estimated" if probe is not None else "none"
+    if probe is not None and _gas_ahead_of_probe(problem, values, probe, x0s):
+        out, status = sim.simulate_batch(vec, packed, initial_states=x0s)
 
     replays = []
     for i, rec in enumerate(problem.recordings):
@@ -330,7 +344,7 @@ def replay(
                 continue
             rows, pred = at(i, c, t)
             if QUANTITIES[c] == "temperature" and probe is not None and np.all(np.isfinite(pred)):
-                pred = probe.read(pred, t)
+                pred = probe.read(pred, t, start(i, c, t))
             compared[c] = Compared(c, QUANTITIES[c], rows, t, np.asarray(d), np.asarray(pred))
         simulated = {c: out[0, slices[i], col[c]].copy() for c in names}
         replays.append(
@@ -338,6 +352,42 @@ def replay(
                             int(status[0, i]), compared)
         )  # fmt: skip
     return Replay(structure, tuple(replays), probe, lag_source)
+
+
+def _gas_ahead_of_probe(
+    problem: Problem, values: Mapping[str, float], probe: TemperatureProbe, x0s: NDArray
+) -> bool:
+    """Start each gas temperature of a step or free test that the data set
+    (none fitted) ahead of its probe: gas = reading - offset + (tau_1 +
+    tau_2) x rate, with the reading's line at the start
+    (:attr:`Problem.reading_starts`). ``x0s`` (1, n_recordings, NX) is
+    changed in place; True when a state moved.
+
+    Why: a probe that lags the gas by tau reads, while the gas moves at rate
+    r, about tau r behind it, so the reading's intercept is the gas of tau
+    seconds before. The first-order inversion of the two lags, x = y_2 +
+    (tau_1 + tau_2) y_2' + tau_1 tau_2 y_2'', without the second derivative
+    (which a noisy line cannot give). A held-out step test whose recording
+    starts as the gas still relaxes from the run before (the rig's own laws,
+    sparse plan, seed 3: reading rising at 0.9 K/s, probe 0.40 s) began 0.35 K
+    below the gas, and its T_P then missed the reading by 0.19 K RMS, 3.9x
+    the probe's noise; from the gas ahead, and the probe started where it
+    read (:meth:`TemperatureProbe.read`), by 0.053 K, 1.1x.
+    """
+    lead = probe.total_lag
+    if lead <= 0.0:
+        return False
+    moved = False
+    for i, exp in enumerate(problem.experiments):
+        if exp.kind not in ("step", "free"):
+            continue  # a blocked test starts from rest, its probe settled
+        for c, (reading, rate) in problem.reading_starts.get(exp.name, {}).items():
+            if f"{INITIAL_PREFIX}{exp.name}:{c}" in values or not math.isfinite(reading):
+                continue
+            if rate != 0.0 and math.isfinite(rate):
+                x0s[:, i, X_TP if c == "T_P" else X_TN] = reading - probe.offset + lead * rate
+                moved = True
+    return moved
 
 
 def with_recorded_commands(recording: Recording) -> Recording | None:

@@ -120,15 +120,81 @@ class TemperatureProbe:
         """tau_1 + tau_2 (s): the probe's mean delay, its one-lag equivalent."""
         return self.time_constant + self.second_time_constant
 
-    def read(self, signal: ArrayLike, time: ArrayLike) -> NDArray[np.float64]:
+    def read(
+        self,
+        signal: ArrayLike,
+        time: ArrayLike,
+        start: tuple[float, float] | None = None,
+    ) -> NDArray[np.float64]:
         """The probe's reading (K) of a gas temperature ``signal`` (K) at ``time`` (s).
 
         ``signal`` has shape (n,) or (n_sets, n); the result has its shape.
+
+        Parameters
+        ----------
+        signal : array_like
+            Gas temperature (K).
+        time : array_like, shape (n,)
+            Sample times (s).
+        start : (float, float), optional
+            The measured reading at the first sample (K) and its rate there
+            (K/s): a probe that is not settled on the gas, as at the start of
+            a recording cut from a run in motion. Its states are then
+            y_2 = reading - offset and y_1 = y_2 + tau_2 rate (the second
+            lag's equation), and the reading is the settled one plus the
+            chain's free response to the difference (:meth:`release`).
+            Default: settled on the gas at the first sample.
         """
         y = first_order_lag(signal, time, self.time_constant)
         if self.second_time_constant > 0.0:
             y = first_order_lag(y, time, self.second_time_constant)
+        if start is not None:
+            x = np.asarray(signal, dtype=float)
+            y2 = float(start[0]) - self.offset
+            y1 = y2 + self.second_time_constant * float(start[1])
+            x0 = x[..., :1]
+            t = np.asarray(time, dtype=float)
+            y = y + self.release(y1 - x0, y2 - x0, t - t[0])
         return y + self.offset
+
+    def release(
+        self, first: ArrayLike, second: ArrayLike, elapsed: ArrayLike
+    ) -> NDArray[np.float64]:
+        """Free response of the two lags (K) to initial states off a constant gas.
+
+        With the gas held, the deviations d_1 = y_1 - x and d_2 = y_2 - x
+        obey tau_1 d_1' = -d_1, tau_2 d_2' = d_1 - d_2, whose solution is
+
+            d_2(t) = C e^(-t/tau_1) + (d_2(0) - C) e^(-t/tau_2),
+            C = d_1(0) tau_1 / (tau_1 - tau_2),
+
+        and, for tau_1 = tau_2 = tau, (d_2(0) + d_1(0) t / tau) e^(-t/tau);
+        d_1 itself with one lag (tau_2 = 0). By linearity the reading of any
+        gas signal from such states is the settled reading plus d_2 (or d_1).
+
+        Parameters
+        ----------
+        first, second : array_like
+            d_1(0) and d_2(0) (K), broadcast against ``elapsed``.
+        elapsed : array_like
+            Time since the start (s, >= 0).
+        """
+        d1 = np.asarray(first, dtype=float)
+        d2 = np.asarray(second, dtype=float)
+        t = np.asarray(elapsed, dtype=float)
+        t1, t2 = self.time_constant, self.second_time_constant
+        shape = np.broadcast_shapes(d1.shape, d2.shape, t.shape)
+        if t1 <= 0.0:
+            return np.zeros(shape)
+        if t2 <= 0.0:
+            return np.broadcast_to(d1 * np.exp(-t / t1), shape).copy()
+        if t1 - t2 <= 1e-3 * t1:
+            # equal lags (C's two terms cancel): the limit at their mean, off
+            # by O((tau_1 - tau_2) / tau_1) of d, 1e-3 at most
+            tau = 0.5 * (t1 + t2)
+            return (d2 + d1 * t / tau) * np.exp(-t / tau)
+        c = d1 * t1 / (t1 - t2)
+        return c * np.exp(-t / t1) + (d2 - c) * np.exp(-t / t2)
 
     def as_dict(self) -> dict[str, float]:
         """``time_constant``, ``second_time_constant`` (s) and ``offset`` (K), for fit.json."""

@@ -241,6 +241,57 @@ def test_discovery_reads_each_model_through_its_own_probe(small: tuple) -> None:
     assert through_base.rmse()["fit"]["T_P"] != pytest.approx(got, rel=1e-3)
 
 
+def test_a_given_lead_sets_how_far_the_gas_starts_ahead(tmp_path) -> None:
+    """Plumbing: ``replay(..., lead=probe)`` (discovery gives every model it
+    compares the base model's probe, ``BaseFit.lead``) sets how far a step
+    test's gas starts ahead of its reading, gas = reading + total lag x
+    rate, whatever probe then reads the temperatures; ``scores`` passes it
+    on. Two leads 1.5 s apart move each temperature of a step test that
+    starts 0.3 s after its preroll (its gas still relaxing) by 1.5 s times
+    its reading's rate (to 1e-9 K: the same arithmetic, so this holds the
+    plumbing, not the physics, which the tests around it check)."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.discovery.refit import scores
+    from pneumafit.identification import fit_structure
+    from pneumafit.identification.problem import Problem
+    from pneumafit.identification.replay import replay
+    from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
+
+    tests = (
+        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.1, amplitude=10.0,
+                    opening_time=0.3, duration=1.5, temperature=True),
+        StepTest(file="step.h5", start=0.25, steps=((0.3, 0.35),), duration=1.0, preroll=0.3,
+                 temperature=True, role="validate"),
+    )  # fmt: skip
+    run = VirtualRig(seed=3).write(tmp_path, Protocol(name="lead", description="", tests=tests))
+    campaign, truth = read_campaign(tmp_path), dict(run.truth["parameters"])
+    structure = fit_structure("convection")
+    short, long = TemperatureProbe(0.5), TemperatureProbe(2.0)
+    a = replay(campaign, structure, truth, lead=short)
+    b = replay(campaign, structure, truth, lead=long)
+    problem = Problem(
+        campaign.recordings, structure, truth, channels=("p_P", "p_N", "y", "T_P", "T_N"),
+        initial_nuisance=False, offsets=(), rest_spacing=None, flow_average=False,
+    )  # fmt: skip
+    lines = {
+        rec.file: problem.reading_starts.get(exp.name, {})
+        for exp, rec in zip(problem.experiments, problem.recordings, strict=True)
+    }
+    moved = 0
+    for ra, rb in zip(a.recordings, b.recordings, strict=True):
+        if ra.kind != "step":
+            continue
+        for c, (_value, rate) in lines[ra.file].items():
+            assert abs(rate) > 0.05, (c, rate)  # the gas still relaxing
+            gap = rb.simulated[c][0] - ra.simulated[c][0]
+            assert gap == pytest.approx(1.5 * rate, abs=1e-9), (ra.file, c)
+            moved += 1
+    assert moved == 2
+    got = scores(campaign, structure, truth, lead=long)
+    assert got[0]["validate"]["T_P"] == pytest.approx(b.rmse()["validate"]["T_P"], rel=1e-12)
+    assert got[2] == b.probe
+
+
 @pytest.mark.parametrize(("tau_1", "tau_2"), [(0.4, 0.0), (0.5, 0.12), (0.3, 0.3), (0.3, 0.2999)])
 def test_a_probe_that_is_not_settled_reads_as_its_ode(tau_1: float, tau_2: float) -> None:
     """Analytic/independent solver: a probe whose states at the start are off

@@ -46,6 +46,7 @@ which a chance improvement on a misspecified model easily gives.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -79,6 +80,7 @@ from pneumafit.identification.staged import (
 )
 from pneumafit.models.structure import ModelStructure
 from pneumafit.progress import Progress, Reporter
+from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
     "MAX_CHANNEL_LOSS",
@@ -191,6 +193,13 @@ class BaseFit:
         (``FitOptions.segments``, :mod:`~pneumafit.identification.segments`);
         ``off`` for a fit.json written before the option existed (those were
         fitted whole). Discovery's refits cut them the same way.
+    lead : TemperatureProbe or None
+        The probe that sets how far a held-out step or free test's gas starts
+        ahead of its reading (:func:`~pneumafit.identification.replay.replay`'s
+        ``lead``): the base model's own probe, set by :func:`discover` after
+        its replay, so that every model compared starts from the same gas
+        (each reads its temperatures through its own probe). None: each
+        model's own.
     """
 
     structure: ModelStructure
@@ -202,6 +211,7 @@ class BaseFit:
     correct_solver: bool = True
     noise_pooling: str = NOISE_POOLING
     segments: str = "off"
+    lead: TemperatureProbe | None = None
 
     @classmethod
     def from_document(cls, doc: Mapping[str, Any] | SavedFit) -> BaseFit:
@@ -276,6 +286,7 @@ class Model:
     offset_free: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
     evaluations: int = 0
+    probe: TemperatureProbe | None = None
 
     @property
     def aic(self) -> float:
@@ -429,7 +440,8 @@ def scores(
     values: Mapping[str, float],
     *,
     max_step: float | None = MAX_STEP,
-) -> tuple[dict[str, dict[str, float]], dict[str, float]]:
+    lead: TemperatureProbe | None = None,
+) -> tuple[dict[str, dict[str, float]], dict[str, float], TemperatureProbe | None]:
     """A model's RMSEs from one replay (:func:`pneumafit.identification.replay.replay`).
 
     Returns
@@ -440,6 +452,8 @@ def scores(
         Pressure RMSE (Pa) per channel on the fit recordings, each
         recording's mean residual (its sensor offset, which the fit
         profiles) removed.
+    probe : TemperatureProbe or None
+        The probe the temperatures were read through.
 
     Notes
     -----
@@ -453,10 +467,10 @@ def scores(
     """
     rep = replay(
         campaign, structure, values, channels=RMSE_CHANNELS, max_step=max_step,
-        estimate_lag=True,
+        estimate_lag=True, lead=lead,
     )  # fmt: skip
     fit = rep.rmse(remove_offsets=True).get("fit", {})
-    return rep.rmse(), {c: v for c, v in fit.items() if c in PRESSURES}
+    return rep.rmse(), {c: v for c, v in fit.items() if c in PRESSURES}, rep.probe
 
 
 def _n_parameters(problem: Problem, ps: ParameterSet) -> int:
@@ -478,12 +492,14 @@ def evaluate_model(
         prob.correct_solver({k: v for k, v in values.items() if not k.startswith("initial:")})
     like = LogLikelihood(prob, ps)
     ll = like.at_values(ps.values())
-    rmse, offset_free = scores(campaign, structure, values, max_step=base.max_step)
+    rmse, offset_free, probe = scores(
+        campaign, structure, values, max_step=base.max_step, lead=base.lead
+    )
     return Model(
         effects=tuple(effects), structure=structure, values=dict(values), parameters=None,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
         rmse=rmse, offset_free=offset_free,
-        seconds=time.perf_counter() - t0, evaluations=prob.n_evaluations,
+        seconds=time.perf_counter() - t0, evaluations=prob.n_evaluations, probe=probe,
     )  # fmt: skip
 
 
@@ -575,16 +591,16 @@ def refit(
         # as the base model's is evaluated
         final_ps = ps.with_values({k: v for k, v in new_values.items() if k in ps})
         ll = LogLikelihood(prob, final_ps).at_values(final_ps.values())
-    rmse, offset_free = (
-        scores(campaign, structure, new_values, max_step=base.max_step)
+    rmse, offset_free, probe = (
+        scores(campaign, structure, new_values, max_step=base.max_step, lead=base.lead)
         if math.isfinite(ll)
-        else ({"fit": {}, "validate": {}}, {})
+        else ({"fit": {}, "validate": {}}, {}, None)
     )
     return Model(
         effects=effects, structure=structure, values=new_values, parameters=est.parameters,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
         rmse=rmse, offset_free=offset_free,
-        seconds=time.perf_counter() - t0, evaluations=evaluations,
+        seconds=time.perf_counter() - t0, evaluations=evaluations, probe=probe,
     )  # fmt: skip
 
 
@@ -801,6 +817,9 @@ def discover(
     say("base model on the refit problem ...")
     current = evaluate_model(campaign, base, base.structure, base.values, ())
     base_model = current
+    # every model compared starts a held-out test's gas ahead of its reading
+    # by the base's probe (BaseFit.lead)
+    base = dataclasses.replace(base, lead=current.probe)
     say(
         f"base: log-likelihood {current.log_likelihood:.1f}, BIC {current.bic:.1f}; pressure "
         f"RMSE fit {current.pressure_rmse('fit'):.0f} Pa, validate "

@@ -237,6 +237,7 @@ def replay(
     estimate_lag: bool = True,
     gas_temperatures: bool = False,
     max_step: float | None = MAX_STEP,
+    lead: TemperatureProbe | None = None,
 ) -> Replay:
     """Simulate recordings with a fit and compare them (the module doc).
 
@@ -267,6 +268,11 @@ def replay(
     max_step : float or None
         The identification's largest step (s): sets the compared samples and
         the reference solver's step (a quarter of it).
+    lead : TemperatureProbe, optional
+        The probe whose lags set how far a step or free test's gas starts
+        ahead of its reading (:func:`_gas_ahead_of_probe`); default the
+        replay's own probe. Discovery gives every model it compares the base
+        model's, so that they start each held-out test from the same gas.
 
     Returns
     -------
@@ -333,7 +339,8 @@ def replay(
             [(t, d, p, s) for _i, t, d, p, s in fitted if np.all(np.isfinite(p))]
         )
         lag_source = "estimated" if probe is not None else "none"
-    if probe is not None and _gas_ahead_of_probe(problem, values, probe, x0s):
+    ahead = lead if lead is not None else probe
+    if ahead is not None and _gas_ahead_of_probe(problem, values, ahead, x0s):
         out, status = sim.simulate_batch(vec, packed, initial_states=x0s)
 
     replays = []

@@ -4,7 +4,9 @@ Kinds of test (docs/identification.md, "The temperature probe"):
 - analytic: the probe's reading of a ramp against the closed-form response
   of two first-order lags in series; a probe not settled at the start
   against LSODA on its ODE; the gas put ahead of a lagging reading;
-- plumbing: fit.json's two spellings of the probe, bad values;
+- plumbing: fit.json's two spellings of the probe, bad values; a moved
+  gas simulated again for its own recordings only, to the bit the same as
+  the whole campaign simulated again;
 - recovery with the probe's own structure (an identity for the probe, not
   for the gas): readings made by an independent integrator (scipy's LSODA on
   the probe's ODE, not the replay's exact-for-linear recursion) with noise;
@@ -18,6 +20,7 @@ Kinds of test (docs/identification.md, "The temperature probe"):
 
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -290,6 +293,64 @@ def test_a_given_lead_sets_how_far_the_gas_starts_ahead(tmp_path) -> None:
     got = scores(campaign, structure, truth, lead=long)
     assert got[0]["validate"]["T_P"] == pytest.approx(b.rmse()["validate"]["T_P"], rel=1e-12)
     assert got[2] == b.probe
+
+
+def test_only_the_recordings_whose_gas_moved_are_simulated_again(tmp_path, monkeypatch) -> None:
+    """Plumbing and cost: when a step test's gas starts ahead of its probe,
+    ``replay`` simulates that recording again, not the whole campaign
+    (replay._simulate_again); every recording's traces and status are then
+    those of simulating the whole campaign again (the previous code), to the
+    bit: the kernel simulates each recording on its own, so a recording
+    whose start did not move comes out the same. Fails if the second
+    simulation packs more recordings than moved, or splices a trace into
+    the wrong rows."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.identification import fit_structure
+    from pneumafit.simulation import Simulator
+    from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
+
+    tests = (
+        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.1, amplitude=10.0,
+                    opening_time=0.3, duration=1.5, temperature=True),
+        StepTest(file="step_1.h5", start=0.25, steps=((0.3, 0.35),), duration=1.0, preroll=0.3,
+                 temperature=True, role="validate"),
+        BlockedTest(file="discharge_P.h5", kind="discharge", chamber="P", position=0.1,
+                    amplitude=10.0, opening_time=0.3, duration=1.5, temperature=True),
+        StepTest(file="step_2.h5", start=0.3, steps=((0.3, 0.25),), duration=1.0, preroll=0.3,
+                 temperature=True, role="validate"),
+    )  # fmt: skip
+    run = VirtualRig(seed=4).write(tmp_path, Protocol(name="again", description="", tests=tests))
+    campaign, truth = read_campaign(tmp_path), dict(run.truth["parameters"])
+    structure = fit_structure("convection")
+    # the module (the package's ``replay`` is the function)
+    replay_module = importlib.import_module("pneumafit.identification.replay")
+    packed_sizes: list[int] = []
+    batch = Simulator.simulate_batch
+
+    def counted(self, parameter_sets, experiments, **kwargs):  # type: ignore[no-untyped-def]
+        packed_sizes.append(len(experiments.experiments))
+        return batch(self, parameter_sets, experiments, **kwargs)
+
+    monkeypatch.setattr(Simulator, "simulate_batch", counted)
+    lead = TemperatureProbe(1.0)
+    got = replay_module.replay(campaign, structure, truth, lead=lead, lag=TemperatureProbe(0.4))
+    assert packed_sizes == [4, 2]  # all four, then the two step tests
+
+    def everything(sim, vec, problem, x0s, moved, slices, out, status):  # type: ignore[no-untyped-def]
+        packed = sim.pack(
+            [replay_module.Experiment.from_recording(r) for r in problem.recordings],
+            [s / replay_module.REFERENCE_REFINE for s in problem.steps],
+        )
+        out[...], status[...] = batch(sim, vec, packed, initial_states=x0s)
+
+    monkeypatch.setattr(replay_module, "_simulate_again", everything)
+    whole = replay_module.replay(campaign, structure, truth, lead=lead, lag=TemperatureProbe(0.4))
+    assert [r.file for r in got.recordings] == [r.file for r in whole.recordings]
+    for a, b in zip(got.recordings, whole.recordings, strict=True):
+        assert a.status == b.status == 0, a.file
+        for c in a.simulated:
+            np.testing.assert_array_equal(a.simulated[c], b.simulated[c], err_msg=f"{a.file} {c}")
+    assert got.rmse() == whole.rmse()
 
 
 @pytest.mark.parametrize(("tau_1", "tau_2"), [(0.4, 0.0), (0.5, 0.12), (0.3, 0.3), (0.3, 0.2999)])

@@ -340,8 +340,9 @@ def replay(
         )
         lag_source = "estimated" if probe is not None else "none"
     ahead = lead if lead is not None else probe
-    if ahead is not None and _gas_ahead_of_probe(problem, values, ahead, x0s):
-        out, status = sim.simulate_batch(vec, packed, initial_states=x0s)
+    moved = _gas_ahead_of_probe(problem, values, ahead, x0s) if ahead is not None else []
+    if moved:
+        _simulate_again(sim, vec, problem, x0s, moved, slices, out, status)
 
     replays = []
     for i, rec in enumerate(problem.recordings):
@@ -361,14 +362,41 @@ def replay(
     return Replay(structure, tuple(replays), probe, lag_source)
 
 
+def _simulate_again(
+    sim: Simulator,
+    vec: NDArray[np.float64],
+    problem: Problem,
+    x0s: NDArray[np.float64],
+    moved: Sequence[int],
+    slices: Sequence[slice],
+    out: NDArray[np.float64],
+    status: NDArray[np.int64],
+) -> None:
+    """Simulate again only the recordings ``moved`` (indices into
+    ``problem.recordings``), from their new initial states ``x0s``, and write
+    their rows of ``out`` and their ``status`` in place (the others keep the
+    first simulation: each recording is simulated on its own, so theirs would
+    come out the same). On a campaign of many recordings with one or two
+    step tests held out, this is one or two simulations instead of all."""
+    idx = list(moved)
+    packed = sim.pack(
+        [Experiment.from_recording(problem.recordings[i]) for i in idx],
+        [problem.steps[i] / REFERENCE_REFINE for i in idx],
+    )
+    again, again_status = sim.simulate_batch(vec, packed, initial_states=x0s[:, idx])
+    for k, (i, rows) in enumerate(zip(idx, packed.slices(), strict=True)):
+        out[:, slices[i]] = again[:, rows]
+        status[:, i] = again_status[:, k]
+
+
 def _gas_ahead_of_probe(
     problem: Problem, values: Mapping[str, float], probe: TemperatureProbe, x0s: NDArray
-) -> bool:
+) -> list[int]:
     """Start each gas temperature of a step or free test that the data set
     (none fitted) ahead of its probe: gas = reading - offset + (tau_1 +
     tau_2) x rate, with the reading's line at the start
     (:attr:`Problem.reading_starts`). ``x0s`` (1, n_recordings, NX) is
-    changed in place; True when a state moved.
+    changed in place; returns the indices of the recordings whose state moved.
 
     Why: a probe that lags the gas by tau reads, while the gas moves at rate
     r, about tau r behind it, so the reading's intercept is the gas of tau
@@ -383,8 +411,8 @@ def _gas_ahead_of_probe(
     """
     lead = probe.total_lag
     if lead <= 0.0:
-        return False
-    moved = False
+        return []
+    moved: list[int] = []
     for i, exp in enumerate(problem.experiments):
         if exp.kind not in ("step", "free"):
             continue  # a blocked test starts from rest, its probe settled
@@ -393,7 +421,8 @@ def _gas_ahead_of_probe(
                 continue
             if rate != 0.0 and math.isfinite(rate):
                 x0s[:, i, X_TP if c == "T_P" else X_TN] = reading - probe.offset + lead * rate
-                moved = True
+                if not moved or moved[-1] != i:
+                    moved.append(i)
     return moved
 
 

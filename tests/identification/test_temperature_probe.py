@@ -244,6 +244,33 @@ def test_discovery_reads_each_model_through_its_own_probe(small: tuple) -> None:
     assert through_base.rmse()["fit"]["T_P"] != pytest.approx(got, rel=1e-3)
 
 
+def _blocked(file: str, kind: str) -> object:
+    """A 1.5-s charge or discharge test of chamber P with its gas probe."""
+    from pneumafit.virtual_rig import BlockedTest
+
+    return BlockedTest(file=file, kind=kind, chamber="P", position=0.1, amplitude=10.0,
+                       opening_time=0.3, duration=1.5, temperature=True)  # fmt: skip
+
+
+def _held_out_step(file: str, start: float, to: float) -> object:
+    """A held-out 1-s step test from ``start`` to ``to`` (m) at 0.3 s, recorded
+    0.3 s after its preroll began: its gas still relaxes when the reading starts."""
+    from pneumafit.virtual_rig import StepTest
+
+    return StepTest(file=file, start=start, steps=((0.3, to),), duration=1.0, preroll=0.3,
+                    temperature=True, role="validate")  # fmt: skip
+
+
+def _relaxing_campaign(tmp_path, seed: int, *tests: object) -> tuple[object, dict[str, float]]:  # type: ignore[no-untyped-def]
+    """The campaign of ``tests`` written by the virtual rig (``seed``), and its truth."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.virtual_rig import Protocol, VirtualRig
+
+    protocol = Protocol(name="relaxing", description="", tests=tests)
+    run = VirtualRig(seed=seed).write(tmp_path, protocol)
+    return read_campaign(tmp_path), dict(run.truth["parameters"])
+
+
 def test_a_given_lead_sets_how_far_the_gas_starts_ahead(tmp_path) -> None:
     """Plumbing: ``replay(..., lead=probe)`` (discovery gives every model it
     compares the base model's probe, ``BaseFit.lead``) sets how far a step
@@ -253,21 +280,14 @@ def test_a_given_lead_sets_how_far_the_gas_starts_ahead(tmp_path) -> None:
     starts 0.3 s after its preroll (its gas still relaxing) by 1.5 s times
     its reading's rate (to 1e-9 K: the same arithmetic, so this holds the
     plumbing, not the physics, which the tests around it check)."""
-    from pneumafit.campaign import read_campaign
     from pneumafit.discovery.refit import scores
     from pneumafit.identification import fit_structure
     from pneumafit.identification.problem import Problem
     from pneumafit.identification.replay import replay
-    from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
 
-    tests = (
-        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.1, amplitude=10.0,
-                    opening_time=0.3, duration=1.5, temperature=True),
-        StepTest(file="step.h5", start=0.25, steps=((0.3, 0.35),), duration=1.0, preroll=0.3,
-                 temperature=True, role="validate"),
-    )  # fmt: skip
-    run = VirtualRig(seed=3).write(tmp_path, Protocol(name="lead", description="", tests=tests))
-    campaign, truth = read_campaign(tmp_path), dict(run.truth["parameters"])
+    campaign, truth = _relaxing_campaign(
+        tmp_path, 3, _blocked("charge_P.h5", "charge"), _held_out_step("step.h5", 0.25, 0.35)
+    )
     structure = fit_structure("convection")
     short, long = TemperatureProbe(0.5), TemperatureProbe(2.0)
     a = replay(campaign, structure, truth, lead=short)
@@ -304,23 +324,14 @@ def test_only_the_recordings_whose_gas_moved_are_simulated_again(tmp_path, monke
     whose start did not move comes out the same. Fails if the second
     simulation packs more recordings than moved, or splices a trace into
     the wrong rows."""
-    from pneumafit.campaign import read_campaign
     from pneumafit.identification import fit_structure
     from pneumafit.simulation import Simulator
-    from pneumafit.virtual_rig import BlockedTest, Protocol, StepTest, VirtualRig
 
-    tests = (
-        BlockedTest(file="charge_P.h5", kind="charge", chamber="P", position=0.1, amplitude=10.0,
-                    opening_time=0.3, duration=1.5, temperature=True),
-        StepTest(file="step_1.h5", start=0.25, steps=((0.3, 0.35),), duration=1.0, preroll=0.3,
-                 temperature=True, role="validate"),
-        BlockedTest(file="discharge_P.h5", kind="discharge", chamber="P", position=0.1,
-                    amplitude=10.0, opening_time=0.3, duration=1.5, temperature=True),
-        StepTest(file="step_2.h5", start=0.3, steps=((0.3, 0.25),), duration=1.0, preroll=0.3,
-                 temperature=True, role="validate"),
+    campaign, truth = _relaxing_campaign(
+        tmp_path, 4,
+        _blocked("charge_P.h5", "charge"), _held_out_step("step_1.h5", 0.25, 0.35),
+        _blocked("discharge_P.h5", "discharge"), _held_out_step("step_2.h5", 0.3, 0.25),
     )  # fmt: skip
-    run = VirtualRig(seed=4).write(tmp_path, Protocol(name="again", description="", tests=tests))
-    campaign, truth = read_campaign(tmp_path), dict(run.truth["parameters"])
     structure = fit_structure("convection")
     # the module (the package's ``replay`` is the function)
     replay_module = importlib.import_module("pneumafit.identification.replay")

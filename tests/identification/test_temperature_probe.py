@@ -347,12 +347,8 @@ def test_only_the_recordings_whose_gas_moved_are_simulated_again(tmp_path, monke
     got = replay_module.replay(campaign, structure, truth, lead=lead, lag=TemperatureProbe(0.4))
     assert packed_sizes == [4, 2]  # all four, then the two step tests
 
-    def everything(sim, vec, problem, x0s, moved, slices, out, status):  # type: ignore[no-untyped-def]
-        packed = sim.pack(
-            [replay_module.Experiment.from_recording(r) for r in problem.recordings],
-            [s / replay_module.REFERENCE_REFINE for s in problem.steps],
-        )
-        out[...], status[...] = batch(sim, vec, packed, initial_states=x0s)
+    def everything(sim, vec, first, problem, x0s, moved, out, status):  # type: ignore[no-untyped-def]
+        out[...], status[...] = batch(sim, vec, first, initial_states=x0s)
 
     monkeypatch.setattr(replay_module, "_simulate_again", everything)
     whole = replay_module.replay(campaign, structure, truth, lead=lead, lag=TemperatureProbe(0.4))

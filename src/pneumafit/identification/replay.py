@@ -45,7 +45,7 @@ from pneumafit.identification.problem import (
 )
 from pneumafit.models.layout import CHANNELS, X_TN, X_TP
 from pneumafit.models.structure import ModelStructure
-from pneumafit.simulation import Experiment, Simulator
+from pneumafit.simulation import Experiment, PackedExperiments, Simulator
 from pneumafit.simulation.sensor import TemperatureProbe
 
 __all__ = [
@@ -342,7 +342,7 @@ def replay(
     ahead = lead if lead is not None else probe
     moved = _gas_ahead_of_probe(problem, values, ahead, x0s) if ahead is not None else []
     if moved:
-        _simulate_again(sim, vec, problem, x0s, moved, slices, out, status)
+        _simulate_again(sim, vec, packed, problem, x0s, moved, out, status)
 
     replays = []
     for i, rec in enumerate(problem.recordings):
@@ -365,24 +365,25 @@ def replay(
 def _simulate_again(
     sim: Simulator,
     vec: NDArray[np.float64],
+    first: PackedExperiments,
     problem: Problem,
     x0s: NDArray[np.float64],
     moved: Sequence[int],
-    slices: Sequence[slice],
     out: NDArray[np.float64],
     status: NDArray[np.int64],
 ) -> None:
     """Simulate again only the recordings ``moved`` (indices into
-    ``problem.recordings``), from their new initial states ``x0s``, and write
+    ``problem.recordings`` and the first simulation's pack ``first``), from
+    their new initial states ``x0s``, and write
     their rows of ``out`` and their ``status`` in place (the others keep the
     first simulation: each recording is simulated on its own, so theirs would
     come out the same). On a campaign of many recordings with one or two
     step tests held out, this is one or two simulations instead of all."""
     idx = list(moved)
     packed = sim.pack(
-        [Experiment.from_recording(problem.recordings[i]) for i in idx],
-        [problem.steps[i] / REFERENCE_REFINE for i in idx],
+        [first.experiments[i] for i in idx], [problem.steps[i] / REFERENCE_REFINE for i in idx]
     )
+    slices = first.slices()
     again, again_status = sim.simulate_batch(vec, packed, initial_states=x0s[:, idx])
     for k, (i, rows) in enumerate(zip(idx, packed.slices(), strict=True)):
         out[:, slices[i]] = again[:, rows]

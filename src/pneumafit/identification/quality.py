@@ -134,17 +134,35 @@ def _quiet_windows(rec: Recording) -> list[NDArray[np.int64]]:
 def _window_variances(
     time: NDArray[np.float64], values: NDArray[np.float64], windows: Iterable[NDArray[np.int64]]
 ) -> tuple[list[float], int]:
-    var, k = [], 0
-    for idx in windows:
+    """Residual variance of a quadratic in time fitted to each window (windows
+    with a non-finite value left out), and the residual's degrees of freedom
+    (window length - 3) of the last one.
+
+    Windows of one length are fitted together: the least squares of each is
+    solved through the stacked QR factorisation of its centred, scaled
+    Vandermonde matrix (the residual x - Q Q^T x is what ``np.polyfit``'s
+    would be, to rounding; tests/identification/test_quality.py checks
+    it against a loop of ``np.polyfit``).
+    """
+    wins = [np.asarray(w) for w in windows]
+    var = np.full(len(wins), np.nan)
+    for size in sorted({w.size for w in wins}):
+        rows = [i for i, w in enumerate(wins) if w.size == size]
+        idx = np.stack([wins[i] for i in rows])
         x = values[idx]
-        if not np.all(np.isfinite(x)):
+        ok = np.all(np.isfinite(x), axis=1)
+        if not ok.any():
             continue
-        t = time[idx] - time[idx].mean()
-        coef = np.polyfit(t, x, 2)
-        r = x - np.polyval(coef, t)
-        k = idx.size - 3
-        var.append(float(np.sum(r * r)) / k)
-    return var, k
+        x, t = x[ok], time[idx[ok]]
+        t = t - t.mean(axis=1, keepdims=True)
+        half = np.max(np.abs(t), axis=1, keepdims=True)
+        t = t / np.where(half > 0.0, half, 1.0)
+        q, _r = np.linalg.qr(np.stack([t * t, t, np.ones_like(t)], axis=2))
+        r = x - np.einsum("mij,mj->mi", q, np.einsum("mij,mi->mj", q, x))
+        var[np.asarray(rows)[ok]] = np.sum(r * r, axis=1) / (size - 3)
+    kept = [i for i in range(len(wins)) if np.isfinite(var[i])]
+    k = wins[kept[-1]].size - 3 if kept else 0
+    return [float(var[i]) for i in kept], k
 
 
 def estimate_noise(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import h5py
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
+from pneumafit.cli import fit as cli_fit
 from pneumafit.cli.fit import fit_command
 from pneumafit.identification import likelihood as likelihood_module
 from pneumafit.identification.fitfile import WIDENING_SHOWN, widening_label
@@ -55,13 +57,26 @@ def test_bad_campaign_and_out_exit_2(small: tuple, tmp_path: Path, console: Cons
     assert "expected a folder, found a file" in console.file.getvalue()
 
 
+#: The FitResult of :func:`fitted`'s run, as the fit service returned it.
+_FITTED: dict[str, object] = {}
+
+
 @pytest.fixture(scope="module")
 def fitted(small: tuple, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
-    """One short fit of the small campaign (shared by the contract tests)."""
+    """One short fit of the small campaign (shared by the contract tests); the
+    service's FitResult is kept in :data:`_FITTED`."""
     folder, _, _ = small
     out = tmp_path_factory.mktemp("fit") / "small"
     console = Console(file=__import__("io").StringIO(), width=160)
-    assert _run(folder, out, console) == 0, console.file.getvalue()
+    service = cli_fit.fit_folder
+
+    def keep(*args: object, **kw: object) -> object:
+        _FITTED["result"] = result = service(*args, **kw)
+        return result
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cli_fit, "fit_folder", keep)
+        assert _run(folder, out, console) == 0, console.file.getvalue()
     return out, json.loads((out / "fit.json").read_text())
 
 
@@ -254,12 +269,18 @@ def test_no_mcmc_writes_laplace_uncertainties_only(small: tuple, tmp_path: Path,
 
 
 def test_untrustworthy_fit_is_said_first_and_strict_exits_3(
-    fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console
-) -> None:
+    fitted: tuple[Path, dict], small: tuple, tmp_path: Path, console: Console,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
     """12-step chains are far below 50 tau: the fit is written, its quality
     says which parameters are unreliable, the console says it before the
-    parameter table, and --strict turns it into exit status 3."""
-    _, doc = fitted
+    parameter table, and --strict turns it into exit status 3.
+
+    The strict run is the fixture's command with ``--strict`` (the same
+    campaign, seed, walkers and steps), so its fit is the fixture's: the fit
+    service returns that result instead of fitting again (58 s), and the
+    command's own path (summary, status) runs on it."""
+    reference, doc = fitted
     quality = doc["quality"]
     assert quality["trustworthy"] is False
     assert any(u.startswith("xi ") for u in quality["unreliable"])
@@ -267,6 +288,13 @@ def test_untrustworthy_fit_is_said_first_and_strict_exits_3(
     for r in quality["recordings"]:
         assert set(r) >= {"channel", "role", "rms", "noise", "ratio", "phases", "reaches_noise"}
     folder, _, _ = small
+
+    def the_fixtures_fit(camp: object, model: str, out: Path, **kw: object) -> object:
+        assert model == "convection" and kw["seed"] == 7
+        shutil.copytree(reference, out, dirs_exist_ok=True)
+        return _FITTED["result"]
+
+    monkeypatch.setattr(cli_fit, "fit_folder", the_fixtures_fit)
     code = fit_command(folder, "convection", tmp_path / "strict2", WALKERS, STEPS, 7, True,
                        console, strict=True)  # fmt: skip
     assert code == 3

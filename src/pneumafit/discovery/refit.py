@@ -17,10 +17,10 @@
    the Bayesian information criterion of the joint profile likelihood
    (k ln n - 2 ln L, the effect's parameters counted) both improve (the
    held-out one by at least :data:`MIN_HELD_OUT_GAIN`), no measured
-   channel of the fit or validate recordings gets worse by more than
-   :data:`MAX_CHANNEL_LOSS` (unless it stays at its sensor noise: the
-   effect must not buy its gain from another channel, see
-   :func:`channel_losses`), and its
+   channel of the fit recordings gets worse by more than
+   :data:`MAX_CHANNEL_LOSS` and the held-out channels do not get worse
+   together (a channel at its sensor noise excused: the effect must not
+   buy its gain from another channel, see :func:`channel_losses`), and its
    parameter does not end at the bound where the effect vanishes. The
    candidates scoring at least :data:`CONTENDER_FRACTION` of the best are
    all refitted and the kept one with the lowest BIC wins the round (the
@@ -118,9 +118,10 @@ VANISHING = 0.1
 #: parameters alone moves the held-out error by that much. A hidden catalog
 #: effect lowered it by 50 to 97 % on the test campaigns.
 MIN_HELD_OUT_GAIN = 0.05
-#: Largest relative rise of any measured channel's RMSE (every role, every
-#: channel: pressures, temperatures, position, flow-meter flows) that a kept
-#: effect may cost. An effect that is really missing takes away the misfit
+#: Largest relative rise of a fit recording's measured channel RMSE
+#: (pressures, temperatures, position, flow-meter flows) that a kept effect
+#: may cost; the held-out channels are judged together
+#: (:func:`channel_losses`). An effect that is really missing takes away the misfit
 #: the base fit's bent parameters spread over the channels, so no channel
 #: needs to get worse; a *proxy* (a catalog effect that mimics a law
 #: mismatch, e.g. a supply-line drop standing in for a valve law of another
@@ -635,11 +636,30 @@ def channel_noise(campaign: Campaign) -> dict[str, float]:
 def channel_losses(
     candidate: Model, current: Model, noise: Mapping[str, float] | None = None
 ) -> list[str]:
-    """The measured channels a candidate makes worse beyond :data:`MAX_CHANNEL_LOSS`.
+    """The measured channels a candidate makes worse (the channel rule).
 
-    A (role, channel) RMSE counts as a loss when it rises by more than
-    ``MAX_CHANNEL_LOSS`` relative *and* ends above ``NOISE_FACTOR`` times the
-    channel's sensor noise (a channel still at its noise has nothing to lose).
+    A channel's rise is excused while its RMSE stays within ``NOISE_FACTOR``
+    times the channel's sensor noise (a channel at its noise has nothing to
+    lose). Otherwise:
+
+    - on the fit recordings (and any role but ``validate``), a channel's RMSE
+      rising by more than ``MAX_CHANNEL_LOSS`` relative is a loss: a proxy
+      buys its likelihood gain by bending a parameter that a directly
+      measured channel pins (the flow tests' mass flow), and the fit
+      likelihood, which sums the channels, would accept the trade;
+    - on the held-out recordings the channels are judged together: their
+      log RMSE ratios, summed over the channels (each rise within the noise
+      counted as none), must not be positive. That sum is the change of the
+      held-out Gaussian log-likelihood per sample, each channel's noise
+      level profiled on its own residual and each measured quantity counted
+      once. Where it is positive, every held-out channel that rose by more
+      than ``MAX_CHANNEL_LOSS`` is a loss (the largest riser when none
+      did). One held-out channel alone is a fragile judge: the position of a
+      closed-loop step test at rest is where the piston stuck, which a
+      small change of the pressures at rest moves by tenths of a millimetre
+      (discovery of the demo's leak with the friction read at its optimum:
+      held-out position 0.143 -> 0.261 mm while the held-out pressure fell
+      7596 -> 859 Pa; docs/identification.md).
 
     Parameters
     ----------
@@ -658,12 +678,21 @@ def channel_losses(
     noise = noise or {}
     losses: list[tuple[float, str]] = []
     for role, chans in current.rmse.items():
+        rises: list[tuple[float, str]] = []
+        log_sum = 0.0
         for ch, old in chans.items():
             new = candidate.rmse.get(role, {}).get(ch)
             if new is None or not (math.isfinite(old) and math.isfinite(new)) or old <= 0.0:
                 continue
-            if new > (1.0 + MAX_CHANNEL_LOSS) * old and new > NOISE_FACTOR * noise.get(ch, 0.0):
-                losses.append((new / old, f"{ch} ({role}) {old:.3g} -> {new:.3g}"))
+            at_noise = new <= NOISE_FACTOR * noise.get(ch, 0.0)
+            log_sum += min(0.0, math.log(new / old)) if at_noise else math.log(new / old)
+            if new > old and not at_noise:
+                rises.append((new / old, f"{ch} ({role}) {old:.3g} -> {new:.3g}"))
+        large = [r for r in rises if r[0] > 1.0 + MAX_CHANNEL_LOSS]
+        if role != "validate":
+            losses += large
+        elif log_sum > 0.0 and rises:
+            losses += large or [max(rises)]
     return [text for _r, text in sorted(losses, reverse=True)]
 
 
@@ -758,8 +787,8 @@ def _accept(
         why.append(f"the held-out error does not fall by {MIN_HELD_OUT_GAIN:.0%}")
     if losses:
         why.append(
-            f"it makes a measured channel more than {MAX_CHANNEL_LOSS:.0%} worse (a proxy: "
-            "its gain is bought from another channel)"
+            f"it makes a fit channel more than {MAX_CHANNEL_LOSS:.0%} worse, or the held-out "
+            "channels worse together (a proxy: its gain is bought from another channel)"
         )
     return False, "rejected (" + " and ".join(why) + "): " + text
 

@@ -1224,6 +1224,39 @@ def test_an_effect_s_states_are_checked_at_registration(registered: None) -> Non
     assert "other" not in parts.EFFECTS
 
 
+def test_c_code_for_the_fmu_is_checked_at_registration(registered: None) -> None:
+    """An outside part's C code (``c_code``, ``c_state_rate``: the FMU's
+    port of its kernel code, tests/test_fmu.py) is a non-empty string beside
+    kernel code, and an effect's state needs its rate in C too."""
+    _register_drain()
+    effect = parts.EFFECTS["drain"]
+    body = "out[0] = out[1] = out[2] = out[3] = out[4] = out[5] = 0.0;"
+    rate = "return 0.0;"
+    cases = [
+        (replace(effect, name="other", states=(), state_rate=None, c_code="  "),
+         "c_code: expected the body of a C function as a non-empty string"),
+        (replace(effect, name="other", kernel=None, states=(), state_rate=None, c_code=body),
+         "c_code: expected it only with kernel code"),
+        (replace(effect, name="other", states=(), state_rate=None, c_code=body,
+                 c_state_rate=rate), "c_state_rate: expected it only with states and c_code"),
+        # the drain's own state (slot X_E0) in C without its rate
+        (replace(effect, c_code=body), "c_code: expected a c_state_rate with it"),
+    ]  # fmt: skip
+    for bad, message in cases:
+        with pytest.raises(PneumafitInputError, match=message):
+            parts.register_effect(bad, replace=bad.name == "drain")
+    assert "other" not in parts.EFFECTS
+    assert parts.EFFECTS["drain"].c_code is None  # the refused one left the drain as it was
+    parts.register_effect(replace(effect, c_code=body, c_state_rate=rate), replace=True)
+    law = _heat_law("lambda-c", 7, constant_lambda_again(_LAM), "constant lambda")
+    with pytest.raises(PneumafitInputError, match="c_code: expected the body of a C function"):
+        parts.register_heat_law(replace(law, c_code=3))
+    with pytest.raises(PneumafitInputError, match="c_code: expected it only with kernel code"):
+        parts.register_heat_law(replace(law, kernel=None, c_code="return 1.0;"))
+    assert "lambda-c" not in parts.HEAT_LAWS
+    parts.register_heat_law(replace(law, c_code="return p[PF_P_lambda];"))
+
+
 def test_pneumafit_parts_names_the_states_of_one_s_own(registered: None) -> None:
     """``pneumafit parts`` says which state a law or an effect of one's own
     carries (the bristle slot, the effect slot)."""

@@ -179,6 +179,13 @@ class HeatLaw:
         (:mod:`pneumafit.models.part_kernel`). None: the kernel's branch
         (built-in laws), or a law known to the Python side only, whose
         structure cannot be simulated.
+    c_code : str or None
+        The same law in C, for the FMU (:mod:`pneumafit.outputs.fmu`): the
+        body of ``double law(const double *p, double pres, double temp,
+        double t_wall)``, which returns lambda (W/m^2/K) and reads the
+        parameters as ``p[PF_P_<name>]`` (``<math.h>`` is included). None:
+        an FMU of a structure with this law is refused. Only a law with
+        ``kernel`` code takes one.
     """
 
     name: str
@@ -191,6 +198,7 @@ class HeatLaw:
     starts: tuple[Mapping[str, float], ...] = ()
     extensions: tuple[str, ...] = ()
     kernel: Callable[..., float] | None = field(default=None, compare=False)
+    c_code: str | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -444,6 +452,18 @@ class Effect:
         state's time derivative (its unit per second). The state starts at
         0 (from the experiment's initial state when it gives it) and
         evolves in every test, blocked or not.
+    c_code : str or None
+        The same effect in C, for the FMU (:mod:`pneumafit.outputs.fmu`):
+        the body of ``void eff(const double *x, const double *p, double
+        *out)``, which sets ``out[0]`` ... ``out[5]`` to what ``kernel``
+        returns, in its order, and reads the state as ``x[PF_X_<name>]``
+        (``layout.STATE_NAMES``; the effect's own state is ``x[PF_X_e_0]``)
+        and the parameters as ``p[PF_P_<name>]``. None: an FMU of a
+        structure with this effect switched on is refused. Only an effect
+        with ``kernel`` code takes one.
+    c_state_rate : str or None
+        With ``states`` and ``c_code``: the body of ``double rate(const
+        double *x, const double *p)``, ``state_rate`` in C.
     """
 
     name: str
@@ -464,6 +484,8 @@ class Effect:
     kernel: Callable[..., tuple[float, ...]] | None = field(default=None, compare=False)
     states: tuple[int, ...] = ()
     state_rate: Callable[..., Any] | None = field(default=None, compare=False)
+    c_code: str | None = field(default=None, compare=False)
+    c_state_rate: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         options = {int(k): tuple(v) for k, v in self.options.items()} or {1: self.parameters}
@@ -623,6 +645,35 @@ def _check_effect_states(where: str, effect: Effect) -> None:
         )
 
 
+def _check_c_code(where: str, part: Any) -> None:
+    """A part's C code for the FMU (``c_code``, an effect's ``c_state_rate``):
+    a non-empty string, only beside kernel code (and a state rate only with
+    states and ``c_code``)."""
+    for key in ("c_code", "c_state_rate"):
+        code = getattr(part, key, None)
+        if code is None:
+            continue
+        if not isinstance(code, str) or not code.strip():
+            raise PneumafitInputError(
+                f"{where}: {key}: expected the body of a C function as a non-empty string "
+                f"or None, found {code!r}"
+            )
+        if part.kernel is None:
+            raise PneumafitInputError(
+                f"{where}: {key}: expected it only with kernel code (the C code is the "
+                "kernel code's port), found no kernel"
+            )
+    if getattr(part, "c_state_rate", None) is not None and (not part.states or part.c_code is None):
+        raise PneumafitInputError(
+            f"{where}: c_state_rate: expected it only with states and c_code, found "
+            f"states {tuple(part.states)} and c_code {'set' if part.c_code else 'None'}"
+        )
+    if getattr(part, "states", ()) and part.c_code is not None and part.c_state_rate is None:
+        raise PneumafitInputError(
+            f"{where}: c_code: expected a c_state_rate with it for the effect's state, found none"
+        )
+
+
 def _check_kernel(where: str, function: object, key: str = "kernel") -> None:
     """A part's kernel code (its field ``key``) is a numba njit function (or None)."""
     if function is not None and not (
@@ -742,6 +793,7 @@ def register_heat_law(law: HeatLaw, *, replace: bool = False) -> HeatLaw:
     """
     where = _check_law(_HEAT, law, "heat law", replace)
     _check_own_code(where, law, KERNEL_HEAT_CODES)
+    _check_c_code(where, law)
     if law.extensions:
         _check_parameters(f"{where}: extensions", (*law.parameters, *law.extensions))
     for start in law.starts:
@@ -831,6 +883,7 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
                 f"code of its own, found {sorted(effect.options)}"
             )
     _check_effect_states(where, effect)
+    _check_c_code(where, effect)
     if effect.slot is not None:
         if not isinstance(effect.slot, int) or not 0 <= effect.slot < NCFG:
             raise PneumafitInputError(

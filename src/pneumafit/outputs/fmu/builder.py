@@ -47,6 +47,9 @@ from pneumafit.models.layout import (
     STATE_UNITS,
     P,
 )
+from pneumafit.models.parts import EFFECTS as EFFECT_PARTS
+from pneumafit.models.parts import HEAT_LAWS as HEAT_LAW_PARTS
+from pneumafit.models.parts import KERNEL_HEAT_CODES, Effect, HeatLaw
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     FRICTION_PARAMETERS,
@@ -62,12 +65,17 @@ __all__ = [
     "check_structure",
     "find_compiler",
     "fmu_variables",
+    "outside_effects",
+    "outside_heat_law",
+    "parts_header",
     "write_fmu",
 ]
 
 #: C sources shipped in the package (``c/``) and copied into ``sources/``.
 C_SOURCES = ("pneumafit_model.c", "pneumafit_fmi2.c")
 C_HEADERS = ("pneumafit_model.h", "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+#: Generated per FMU besides them: ``pneumafit_config.h``, ``pneumafit_values.h``
+#: and ``pneumafit_parts.h`` (:func:`parts_header`).
 
 #: Value references: inputs, outputs (10 + i), start values (200 + state
 #: index), integration step, parameters (1000 + index in layout.PARAMETER_NAMES).
@@ -159,6 +167,25 @@ class FmuVariable:
     maximum: float | None = None
 
 
+def outside_heat_law(structure: ModelStructure) -> HeatLaw | None:
+    """The structure's heat law when it comes from outside the package with
+    kernel code (a code outside the kernel's own branches), else None."""
+    law = HEAT_LAW_PARTS.get(structure.heat)
+    if law is None or law.kernel is None or law.code in KERNEL_HEAT_CODES:
+        return None
+    return law
+
+
+def outside_effects(structure: ModelStructure) -> list[Effect]:
+    """The structure's effects switched on that come from outside the package
+    with kernel code, in registration order (the order in which the
+    simulator's hook adds them, :func:`pneumafit.models.part_kernel.hooked_effects`)."""
+    return [
+        e for e in EFFECT_PARTS.values()
+        if e.kernel is not None and e.slot is None and structure.effects.get(e.name)
+    ]  # fmt: skip
+
+
 def check_structure(structure: ModelStructure, where: str = "model") -> None:
     """Raise :class:`PneumafitInputError` unless the FMU supports ``structure``.
 
@@ -167,28 +194,125 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
     valve law and the measured valve map, the switch and LuGre friction laws,
     the polytropic, constant-lambda and convection heat laws (air properties
     constant or by Sutherland's law) and the optional effects of
-    :data:`SUPPORTED_EFFECTS`.
+    :data:`SUPPORTED_EFFECTS`; and a heat law or effects from outside the
+    package that bring their law in C (``HeatLaw.c_code``, ``Effect.c_code``
+    and, with a state, ``Effect.c_state_rate``; :func:`parts_header`). Valve
+    and friction laws from outside the package are refused.
     """
     problems = []
     if structure.valve not in SUPPORTED_VALVES:
         problems.append(f"valve law {structure.valve!r}")
+    outside_heat = outside_heat_law(structure)
     if structure.heat not in SUPPORTED_HEAT:
-        problems.append(f"heat law {structure.heat!r}")
+        if outside_heat is None:
+            problems.append(f"heat law {structure.heat!r}")
+        elif outside_heat.c_code is None:
+            problems.append(
+                f"heat law {structure.heat!r} (from outside the package, without its C code: "
+                "HeatLaw.c_code)"
+            )
     if structure.friction not in SUPPORTED_FRICTION:
         problems.append(f"friction law {structure.friction!r}")
     if structure.air_properties not in SUPPORTED_AIR:
         problems.append(f"air properties {structure.air_properties!r}")
-    unknown = sorted(set(structure.effects) - set(SUPPORTED_EFFECTS))
+    ported = {e.name for e in outside_effects(structure) if e.c_code is not None}
+    unknown = sorted(set(structure.effects) - set(SUPPORTED_EFFECTS) - ported)
     if unknown:
-        problems.append(f"effects {', '.join(unknown)}")
+        outside = {e.name for e in outside_effects(structure)}
+        problems.append(
+            "effects "
+            + ", ".join(
+                f"{n} (from outside the package, without its C code: Effect.c_code)"
+                if n in outside else n
+                for n in unknown
+            )
+        )  # fmt: skip
     if problems:
         raise PneumafitInputError(
             f"{where}: cannot export this structure as an FMU: unsupported "
             + "; ".join(problems)
             + f". Supported: valve {' or '.join(SUPPORTED_VALVES)}, friction "
             f"{' or '.join(SUPPORTED_FRICTION)}, heat {', '.join(SUPPORTED_HEAT)}, effects "
-            f"{', '.join(SUPPORTED_EFFECTS)}"
+            f"{', '.join(SUPPORTED_EFFECTS)}, and a heat law or effects from outside the "
+            "package that bring their C code"
         )
+
+
+def parts_header(structure: ModelStructure) -> str:
+    """``pneumafit_parts.h``: the C code of the structure's parts from outside the package.
+
+    ``pf_part_heat`` is the outside heat law's ``c_code`` (the C model calls
+    it for a heat code above the kernel's own, as the simulator's hook
+    ``kernel.part_heat`` does); ``pf_part_effects`` adds the outside effects'
+    six terms in registration order, as ``kernel.part_effects`` does, and
+    ``pf_part_effect_rate`` is the rate of their state (``X_E0``). Without
+    such parts the header defines both as nothing (``PF_PART_EFFECTS`` 0).
+    """
+    heat = outside_heat_law(structure)
+    effects = outside_effects(structure)
+    rate = next((e for e in effects if e.states), None)
+    lines = [
+        "/* Generated by pneumafit.outputs.fmu: the C code of the parts from outside the",
+        "   package (HeatLaw.c_code, Effect.c_code, Effect.c_state_rate). Do not edit. */",
+        "#ifndef PNEUMAFIT_PARTS_H",
+        "#define PNEUMAFIT_PARTS_H",
+        "",
+        "#include <math.h>",
+        '#include "pneumafit_config.h"',
+        "",
+        f"#define PF_PART_EFFECTS {len(effects)}",
+        "",
+        f"/* heat law {heat.name!r} */" if heat is not None else "/* no outside heat law */",
+        "static double pf_part_heat(const double *p, double pres, double temp, double t_wall)",
+        "{",
+        "    (void)p; (void)pres; (void)temp; (void)t_wall;",
+        *(_indented(heat.c_code) if heat is not None and heat.c_code else ["    return 0.0;"]),
+        "}",
+    ]
+    for i, e in enumerate(effects):
+        lines += [
+            "",
+            f"/* effect {e.name!r}: {e.description} */",
+            f"static void pf_part_effect_{i}(const double *x, const double *p, double *out)",
+            "{",
+            "    (void)x; (void)p;",
+            *_indented(e.c_code or ""),
+            "}",
+        ]
+    lines += [
+        "",
+        "static void pf_part_effects(const double *x, const double *p, double *sum)",
+        "{ /* kernel.part_effects: the outside effects' terms, added */",
+        "    int i;",
+        "    double out[6];",
+        "    (void)x; (void)p; (void)out;",
+        "    for (i = 0; i < 6; i++) sum[i] = 0.0;",
+    ]
+    for i, _ in enumerate(effects):
+        lines += [
+            "    for (i = 0; i < 6; i++) out[i] = 0.0;",
+            f"    pf_part_effect_{i}(x, p, out);",
+            "    for (i = 0; i < 6; i++) sum[i] += out[i];",
+        ]
+    lines += [
+        "}",
+        "",
+        f"/* the rate of the outside effect's state (X_E0): {rate.name!r} */"
+        if rate is not None else "/* no outside effect has a state */",
+        "static double pf_part_effect_rate(const double *x, const double *p)",
+        "{",
+        "    (void)x; (void)p;",
+        *(_indented(rate.c_state_rate or "") if rate is not None else ["    return 0.0;"]),
+        "}",
+        "",
+        "#endif",
+        "",
+    ]  # fmt: skip
+    return "\n".join(lines)
+
+
+def _indented(code: str) -> list[str]:
+    return ["    " + line if line.strip() else "" for line in code.strip("\n").splitlines()]
 
 
 def _exposed_parameters(structure: ModelStructure) -> list[str]:
@@ -634,13 +758,24 @@ def write_fmu(
         for name in (*C_SOURCES, *C_HEADERS):
             (sources / name).write_bytes((package / name).read_bytes())
         (sources / "pneumafit_config.h").write_text(config_header(structure), encoding="utf-8")
+        (sources / "pneumafit_parts.h").write_text(parts_header(structure), encoding="utf-8")
         (sources / "pneumafit_values.h").write_text(
             values_header(structure, vec, variables, guid, float(integration_step)),
             encoding="utf-8",
         )
         binaries = root / "binaries" / platform
         binaries.mkdir(parents=True)
-        _compile(compiler, sources, binaries / f"{identifier}{suffix}")
+        try:
+            _compile(compiler, sources, binaries / f"{identifier}{suffix}")
+        except FmuBuildError as exc:
+            ported = [f"heat law {h.name!r}" for h in [outside_heat_law(structure)] if h]
+            ported += [f"effect {e.name!r}" for e in outside_effects(structure)]
+            if not ported:
+                raise
+            raise FmuBuildError(
+                f"{exc}\n(pneumafit_parts.h holds the C code of the parts from outside the "
+                f"package, as given: {', '.join(ported)}; check their c_code)"
+            ) from None
         (root / "modelDescription.xml").write_bytes(
             model_description(structure, variables, identifier, guid, source)
         )

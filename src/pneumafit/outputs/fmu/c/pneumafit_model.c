@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "pneumafit_model.h"
+#include "pneumafit_parts.h"
 
 /* ------------------------------------------------------------------ air */
 
@@ -429,6 +430,7 @@ static double heat_coefficient(const pf_model *m, double pres, double temp, doub
     const double *p = m->p;
     double gr, len;
     if (m->heat == 1) return p[PF_P_lambda];
+    if (m->heat > 2) return pf_part_heat(p, pres, temp, t_wall); /* kernel.part_heat */
     if (m->heat != 2) return 0.0;
     if (m->sutherland) {
         double mu = viscosity(temp), k_air = conductivity(temp);
@@ -521,12 +523,12 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
     double v_p, v_n, dv_p, dv_n, inv_pp, inv_pn, rt_p, rt_n, p_s, inv_ps;
     double q_p, h_p, qs_p, q_n, h_n, qs_n, qe_total, q_draw, q_l, t_l, q_l2, t_l2;
     double tw_p, tw_n, lam_p, lam_n, a_p, a_n, qw_p, qw_n, c_w, h_o, t_0, k_poly;
-    double dp_p, dt_p, dp_n, dt_n, f_stop, f_drive, f_s, f_c, f_f, dz, extra;
+    double dp_p, dt_p, dp_n, dt_n, f_stop, f_drive, f_s, f_c, f_f, dz, extra, f_part = 0.0;
 
     if (!m->wall_mass && order == 0) {
         for (i = 8; i < PF_NX; i++) dx[i] = 0.0;
     }
-    dx[PF_X_e_0] = 0.0; /* the state of an effect from outside the package: none here */
+    dx[PF_X_e_0] = 0.0; /* the state of an effect from outside the package (below) */
 
     /* valve commands: static, or spool dynamics (effect valve_dynamics) */
     if (order < 2) {
@@ -605,6 +607,17 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         h_n -= q_l2 * t_l2;
         qe_total += q_l + q_l2;
     }
+    if (PF_PART_EFFECTS > 0) { /* effects from outside the package (kernel.part_effects) */
+        double e[6];
+        pf_part_effects(x, p, e);
+        q_p += e[0];
+        h_p += e[1];
+        q_n += e[2];
+        h_n += e[3];
+        qe_total += e[4];
+        f_part = e[5];
+        dx[PF_X_e_0] = pf_part_effect_rate(x, p);
+    }
 
     /* wall heat exchange (paper eqs. 6-8) */
     if (m->wall_mass) {
@@ -652,7 +665,7 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
 
     /* mechanics (eq. 1) and friction */
     f_stop = end_stop_force(y, v, stroke, p[PF_P_stop_stiffness], p[PF_P_stop_damping]);
-    f_drive = s_p * p_p - s_n * p_n - m->f_ext + f_stop;
+    f_drive = s_p * p_p - s_n * p_n - m->f_ext + f_stop + f_part;
     f_s = p[PF_P_friction_static];
     f_c = p[PF_P_friction_coulomb];
     if (m->seal) {
@@ -717,7 +730,7 @@ typedef struct {
 
 static int active_states(const pf_model *m)
 { /* kernel.active_states */
-    return (m->wall_mass || m->valve_order > 0 || m->lugre) ? PF_NX : 8;
+    return (m->wall_mass || m->valve_order > 0 || m->lugre || PF_PART_EFFECTS > 0) ? PF_NX : 8;
 }
 
 static void rk_step(const pf_model *m, const double *x, int mode, const pf_inputs *in, double w0,

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import zipfile
 
 import numpy as np
@@ -161,7 +162,7 @@ def _integration_step(fmu) -> float:
     return float(next(v.start for v in md.modelVariables if v.name == "integration_step"))
 
 
-def _run_fmu(fmu, output=("y", "v", "p_P", "p_N", "T_P", "T_N")) -> np.ndarray:
+def _run_fmu(fmu, output=("y", "v", "p_P", "p_N", "T_P", "T_N"), initial=None) -> np.ndarray:
     rows = []
     for i, (t, u) in enumerate(STEPS):
         if i > 0:  # a repeated time is an input event: the old value, then the new one
@@ -171,7 +172,7 @@ def _run_fmu(fmu, output=("y", "v", "p_P", "p_N", "T_P", "T_N")) -> np.ndarray:
     signal = np.array(rows, dtype=[("time", float), ("u_P", float), ("u_N", float)])
     return fmpy.simulate_fmu(
         str(fmu), stop_time=DURATION, output_interval=H, input=signal,
-        start_values={f"{k}_start": v for k, v in INITIAL.items()},
+        start_values={f"{k}_start": v for k, v in (initial or INITIAL).items()},
         output=list(output),
     )  # fmt: skip
 
@@ -446,13 +447,15 @@ def outside():
     """Register a test's outside parts; remove them afterwards."""
     from pneumafit.models import layout, parts
 
-    effects, heat = set(parts.EFFECTS), set(parts.HEAT_LAWS)
+    effects, heat, friction = set(parts.EFFECTS), set(parts.HEAT_LAWS), set(parts.FRICTION_LAWS)
     n = layout.n_parameters()
     yield parts, layout
     for name in set(parts.EFFECTS) - effects:
         parts.unregister_effect(name)
     for name in set(parts.HEAT_LAWS) - heat:
         parts.unregister_heat_law(name)
+    for name in set(parts.FRICTION_LAWS) - friction:
+        parts.unregister_friction_law(name)
     while layout.n_parameters() > n:
         parts.unregister_parameter(layout.PARAMETER_NAMES[-1])
 
@@ -500,7 +503,6 @@ def _constant_lambda(index):
 
 
 def _root_pressure_lambda(index):
-    import math
 
     from numba import njit
 
@@ -685,12 +687,23 @@ def test_outside_parts_without_c_code_are_refused(outside, tmp_path):
     _outside_effect(parts, "leak_again", "external_leak_conductance",
                     ("external_leak_conductance", "external_leak_split"),
                     _leak_again_kernel(), None)  # fmt: skip
+    force, rate = _lugre_again_kernels()
+    parts.register_friction_law(
+        parts.FrictionLaw(
+            name="lugre-again", code=7, parameters=parts.FRICTION_LAWS["lugre"].parameters,
+            description="LuGre written again", kernel=force, state_rate=rate,
+        )
+    )  # fmt: skip
     params = tmp_path / "plant.json"
-    params.write_text(json.dumps({"model": "lambda-again", "effects": {"leak_again": 1}}),
-                      encoding="utf-8")  # fmt: skip
+    params.write_text(
+        json.dumps({"model": "lambda-again", "friction": "lugre-again",
+                    "effects": {"leak_again": 1}}),
+        encoding="utf-8",
+    )  # fmt: skip
     with pytest.raises(PneumafitInputError) as err:
         build_fmu(params, tmp_path / "plant.fmu")
     message = str(err.value)
+    assert "friction law 'lugre-again' (from outside the package, without its C code: " in message
     assert (
         "heat law 'lambda-again' (from outside the package, without its C code: "
         "HeatLaw.c_code)" in message
@@ -706,3 +719,161 @@ def test_outside_parts_without_c_code_are_refused(outside, tmp_path):
         build_fmu(params, tmp_path / "plant.fmu")
     assert "as given: heat law 'lambda-again'; check their c_code" in str(err.value)
     assert not (tmp_path / "plant.fmu").exists()
+
+
+#: LuGre written again in C, as tests/test_part_kernel.py's lugre_again_force
+#: and lugre_again_rate: the force from the bristle slot with the relaxation
+#: not limited, the rate limited as the kernel limits its own.
+LUGRE_AGAIN_FORCE_C = """
+double r = v / p[PF_P_stribeck_velocity];
+double g = f_c + (f_s - f_c) * exp(-r * r);
+double s_v, dz;
+if (g < PF_LUGRE_MIN_LEVEL) g = PF_LUGRE_MIN_LEVEL;
+s_v = p[PF_P_friction_stiffness] * fabs(v);
+dz = v - s_v * x[PF_X_z_f] / g;
+return p[PF_P_friction_stiffness] * x[PF_X_z_f] + p[PF_P_friction_damping] * dz
+       + p[PF_P_friction_viscous] * v;
+"""
+LUGRE_AGAIN_RATE_C = """
+double r = v / p[PF_P_stribeck_velocity];
+double g = f_c + (f_s - f_c) * exp(-r * r);
+double s_v, z_ss;
+if (g < PF_LUGRE_MIN_LEVEL) g = PF_LUGRE_MIN_LEVEL;
+s_v = p[PF_P_friction_stiffness] * fabs(v);
+if (s_v <= max_rate * g) return v - s_v * x[PF_X_z_f] / g;
+z_ss = v > 0.0 ? g / p[PF_P_friction_stiffness] : -g / p[PF_P_friction_stiffness];
+return max_rate * (z_ss - x[PF_X_z_f]);
+"""
+
+
+def _lugre_again_kernels():
+    from numba import njit
+
+    from pneumafit.models import layout
+    from pneumafit.physics.friction import lugre_friction
+
+    fv, vst = layout.P["friction_viscous"], layout.P["stribeck_velocity"]
+    sig0, sig1, xz = layout.P["friction_stiffness"], layout.P["friction_damping"], layout.X_Z
+
+    @njit
+    def force(v, f_s, f_c, x, p):
+        _dz, f = lugre_friction(v, x[xz], f_s, f_c, p[fv], p[vst], p[sig0], p[sig1], math.inf)
+        return f
+
+    @njit
+    def rate(v, f_s, f_c, x, p, max_rate):
+        dz, _f = lugre_friction(v, x[xz], f_s, f_c, p[fv], p[vst], p[sig0], p[sig1], max_rate)
+        return dz
+
+    return force, rate
+
+
+def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside, tmp_path):
+    """Identity: LuGre written again from outside, its bristle deflection a
+    state of its own (``FrictionLaw.state_rate``, the bristle slot), in C
+    (``c_code``, ``c_state_rate``), against the FMU of the built-in LuGre at
+    the same integration step, on the open-loop steps. As in the
+    simulator's test of the same twin (tests/test_part_kernel.py), the
+    bristles are soft (sigma0 = 2e4 N/m) so that the step's rate limit,
+    which the force does not get, never acts; the same arithmetic then runs
+    through the hooks, with the sliding direction of the asymmetry and no
+    stuck mode, as LuGre's. Measured (gcc 12 -O2): 0 Pa and 0 m, 3.6e-14 N
+    of friction and 1.8e-18 m of deflection (the built-in bristles start at
+    -1.8e-18 m, the rounding of the balanced drive). Held to 1e-6 Pa, 1e-12
+    m, 1e-9 N and 1e-15 m; the rate's C code left out (the state frozen at
+    0: the piston obeys F = (sigma1 + b) v) moves the piston by 132 mm, the
+    switch model (stuck mode, events) by 7.3 mm."""
+    from pneumafit.models.parameters import default_parameters
+    from pneumafit.models.structure import ModelStructure
+    from pneumafit.outputs.fmu import write_fmu
+    from pneumafit.simulation import choose_step
+
+    parts, _layout = outside
+    force, rate = _lugre_again_kernels()
+    law = parts.register_friction_law(
+        parts.FrictionLaw(
+            name="lugre-again", code=7, parameters=parts.FRICTION_LAWS["lugre"].parameters,
+            description="LuGre written again, its bristle state through state_rate",
+            kernel=force, state_rate=rate, c_code=LUGRE_AGAIN_FORCE_C,
+            c_state_rate=LUGRE_AGAIN_RATE_C,
+        )
+    )  # fmt: skip
+    values = {**default_parameters(), "friction_stiffness": 2.0e4, "friction_asymmetry": 0.2}
+    effects = {"friction_asymmetry": 1}
+    # the built-in LuGre's step for both (the outside law's own bound would
+    # compile the kernel's copy, which this test does not need)
+    step = choose_step(values, friction="lugre")
+    # both from z = 0: the built-in LuGre starts its bristles in static
+    # equilibrium with the drive, the outside law at 0, so the piston starts
+    # balanced (no drive, no deflection)
+    s_p = math.pi * values["bore"] ** 2 / 4.0
+    s_n = s_p - math.pi * values["rod"] ** 2 / 4.0
+    f_ext = values["exhaust_pressure"] * (s_p - s_n) + values["external_force"]
+    p_p = 4.0e5
+    initial = {**INITIAL, "p_P": p_p, "p_N": (s_p * p_p - f_ext) / s_n}
+    outputs = ("y", "v", "p_P", "p_N", "F_f", "z_f")
+    runs = {}
+    for name, friction in (("outside", "lugre-again"), ("builtin", "lugre"),
+                           ("switch", "switch")):  # fmt: skip
+        structure = ModelStructure("convection", friction=friction, effects=effects)
+        fmu = write_fmu(structure, values, tmp_path / f"{name}.fmu", integration_step=step)
+        assert not validate_fmu(str(fmu)), name
+        runs[name] = _run_fmu(fmu, outputs if friction != "switch" else outputs[:5], initial)
+    parts.register_friction_law(dataclasses.replace(law, c_state_rate="return 0.0;"),
+                                replace=True)  # fmt: skip
+    structure = ModelStructure("convection", friction="lugre-again", effects=effects)
+    fmu = write_fmu(structure, values, tmp_path / "frozen.fmu", integration_step=step)
+    runs["frozen"] = _run_fmu(fmu, outputs, initial)
+    assert abs(runs["builtin"]["z_f"][0]) < 1e-15  # the built-in bristles start at 0 too
+    a, b = runs["outside"], runs["builtin"]
+    assert np.ptp(b["F_f"]) > 30.0  # N: friction both ways
+    for q, tol in (("p_P", 1e-6), ("p_N", 1e-6), ("y", 1e-12), ("F_f", 1e-9), ("z_f", 1e-15)):
+        assert np.max(np.abs(a[q] - b[q])) <= tol, q
+    assert np.max(np.abs(runs["frozen"]["y"] - b["y"])) > 1e-3
+    assert np.max(np.abs(runs["switch"]["y"] - b["y"])) > 1e-3
+
+
+def test_an_outside_friction_law_s_state_gets_the_step_s_rate_limit(outside, tmp_path):
+    """Analytic: the rate limit ``max_rate`` an outside friction law's state
+    rate receives is LUGRE_RATE_LIMIT / h, h the internal step, as in the
+    simulator. A law whose state rate is max_rate itself gives z_f(t) =
+    LUGRE_RATE_LIMIT t / h, which Kutta's RK3 integrates exactly (a constant
+    rate): measured 0 relative; held to 1e-12. Not set (the model's default,
+    no limit) the state is infinite; set from another step, off by that
+    step's ratio."""
+    from numba import njit
+
+    from pneumafit.models.parameters import default_parameters
+    from pneumafit.models.structure import ModelStructure
+    from pneumafit.outputs.fmu import write_fmu
+    from pneumafit.physics.friction import LUGRE_RATE_LIMIT
+
+    parts, layout = outside
+    fv = layout.P["friction_viscous"]
+
+    @njit
+    def force(v, f_s, f_c, x, p):
+        return p[fv] * v
+
+    @njit
+    def rate(v, f_s, f_c, x, p, max_rate):
+        return max_rate
+
+    parts.register_friction_law(
+        parts.FrictionLaw(
+            name="rate-probe", code=7, parameters=("friction_viscous",),
+            description="viscous, its state growing at the rate limit", kernel=force,
+            state_rate=rate, c_code="return p[PF_P_friction_viscous] * v;",
+            c_state_rate="return max_rate;",
+        )
+    )  # fmt: skip
+    step = 0.3e-3  # 1-ms communication steps of 4 internal steps, h = 0.25 ms
+    structure = ModelStructure("convection", friction="rate-probe")
+    fmu = write_fmu(structure, default_parameters(), tmp_path / "probe.fmu",
+                    integration_step=step)  # fmt: skip
+    signal = np.array([(0.0, 0.0, 0.0), (0.1, 0.0, 0.0)],
+                      dtype=[("time", float), ("u_P", float), ("u_N", float)])  # fmt: skip
+    run = fmpy.simulate_fmu(str(fmu), stop_time=0.1, output_interval=H, input=signal,
+                            output=["z_f"])  # fmt: skip
+    h = H / math.ceil(H / step)
+    np.testing.assert_allclose(run["z_f"], LUGRE_RATE_LIMIT * run["time"] / h, rtol=1e-12)

@@ -1238,7 +1238,8 @@ def test_c_code_for_the_fmu_is_checked_at_registration(registered: None) -> None
         (replace(effect, name="other", kernel=None, states=(), state_rate=None, c_code=body),
          "c_code: expected it only with kernel code"),
         (replace(effect, name="other", states=(), state_rate=None, c_code=body,
-                 c_state_rate=rate), "c_state_rate: expected it only with states and c_code"),
+                 c_state_rate=rate),
+         "c_state_rate: expected it only with a state of its own and c_code"),
         # the drain's own state (slot X_E0) in C without its rate
         (replace(effect, c_code=body), "c_code: expected a c_state_rate with it"),
     ]  # fmt: skip

@@ -306,12 +306,25 @@ class FrictionLaw(_Law):
         the state's mode by central differences of ``kernel`` and
         ``rate`` at rest (:func:`pneumafit.models.kernel.stiffness_bound`).
         None: no state (only with ``kernel``).
+    c_code : str or None
+        The same force in C, for the FMU (:mod:`pneumafit.outputs.fmu`): the
+        body of ``double force(double v, double f_s, double f_c, const double
+        *x, const double *p)``, reading the state as ``x[PF_X_<name>]`` (the
+        law's own, the bristle slot, ``x[PF_X_z_f]``) and the parameters as
+        ``p[PF_P_<name>]``. None: an FMU of a structure with this law is
+        refused. Only a law with ``kernel`` code takes one.
+    c_state_rate : str or None
+        With ``state_rate`` and ``c_code``: the body of ``double rate(double
+        v, double f_s, double f_c, const double *x, const double *p, double
+        max_rate)``, ``state_rate`` in C.
     """
 
     joint_prior: Callable[[Mapping[str, Any]], Any] | None = None
     kernel: Callable[..., float] | None = field(default=None, compare=False)
     starts: tuple[Mapping[str, float], ...] = ()
     state_rate: Callable[..., float] | None = field(default=None, compare=False)
+    c_code: str | None = field(default=None, compare=False)
+    c_state_rate: str | None = field(default=None, compare=False)
 
 
 # ----------------------------------------------------------------- effects
@@ -663,14 +676,19 @@ def _check_c_code(where: str, part: Any) -> None:
                 f"{where}: {key}: expected it only with kernel code (the C code is the "
                 "kernel code's port), found no kernel"
             )
-    if getattr(part, "c_state_rate", None) is not None and (not part.states or part.c_code is None):
+    # an effect's state is its states; a friction law's, its state_rate
+    stateful = bool(getattr(part, "states", ())) or (
+        isinstance(part, FrictionLaw) and part.state_rate is not None
+    )
+    if getattr(part, "c_state_rate", None) is not None and (not stateful or part.c_code is None):
         raise PneumafitInputError(
-            f"{where}: c_state_rate: expected it only with states and c_code, found "
-            f"states {tuple(part.states)} and c_code {'set' if part.c_code else 'None'}"
+            f"{where}: c_state_rate: expected it only with a state of its own and c_code, "
+            f"found {'a state' if stateful else 'no state'} and c_code "
+            f"{'set' if part.c_code else 'None'}"
         )
-    if getattr(part, "states", ()) and part.c_code is not None and part.c_state_rate is None:
+    if stateful and part.c_code is not None and part.c_state_rate is None:
         raise PneumafitInputError(
-            f"{where}: c_code: expected a c_state_rate with it for the effect's state, found none"
+            f"{where}: c_code: expected a c_state_rate with it for the part's state, found none"
         )
 
 
@@ -826,6 +844,7 @@ def _register_slot_law(
     outside ``codes``, starts) and commit it to ``registry``."""
     where = _check_law(registry, law, kind, replace)
     _check_own_code(where, law, codes)
+    _check_c_code(where, law)
     for start in law.starts:
         _check_values(where, start, law.parameters)
     return _commit(registry, law, replace)

@@ -48,8 +48,15 @@ from pneumafit.models.layout import (
     P,
 )
 from pneumafit.models.parts import EFFECTS as EFFECT_PARTS
+from pneumafit.models.parts import FRICTION_LAWS as FRICTION_LAW_PARTS
 from pneumafit.models.parts import HEAT_LAWS as HEAT_LAW_PARTS
-from pneumafit.models.parts import KERNEL_HEAT_CODES, Effect, HeatLaw
+from pneumafit.models.parts import (
+    KERNEL_FRICTION_CODES,
+    KERNEL_HEAT_CODES,
+    Effect,
+    FrictionLaw,
+    HeatLaw,
+)
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     FRICTION_PARAMETERS,
@@ -66,6 +73,7 @@ __all__ = [
     "find_compiler",
     "fmu_variables",
     "outside_effects",
+    "outside_friction_law",
     "outside_heat_law",
     "parts_header",
     "write_fmu",
@@ -176,6 +184,15 @@ def outside_heat_law(structure: ModelStructure) -> HeatLaw | None:
     return law
 
 
+def outside_friction_law(structure: ModelStructure) -> FrictionLaw | None:
+    """The structure's friction law when it comes from outside the package
+    with kernel code (a code outside the kernel's own branches), else None."""
+    law = FRICTION_LAW_PARTS.get(structure.friction)
+    if law is None or law.kernel is None or law.code in KERNEL_FRICTION_CODES:
+        return None
+    return law
+
+
 def outside_effects(structure: ModelStructure) -> list[Effect]:
     """The structure's effects switched on that come from outside the package
     with kernel code, in registration order (the order in which the
@@ -194,10 +211,11 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
     valve law and the measured valve map, the switch and LuGre friction laws,
     the polytropic, constant-lambda and convection heat laws (air properties
     constant or by Sutherland's law) and the optional effects of
-    :data:`SUPPORTED_EFFECTS`; and a heat law or effects from outside the
-    package that bring their law in C (``HeatLaw.c_code``, ``Effect.c_code``
-    and, with a state, ``Effect.c_state_rate``; :func:`parts_header`). Valve
-    and friction laws from outside the package are refused.
+    :data:`SUPPORTED_EFFECTS`; and a heat law, a friction law or effects
+    from outside the package that bring their law in C (``HeatLaw.c_code``,
+    ``FrictionLaw.c_code``, ``Effect.c_code`` and, with a state,
+    ``c_state_rate``; :func:`parts_header`). Valve laws from outside the
+    package are refused.
     """
     problems = []
     if structure.valve not in SUPPORTED_VALVES:
@@ -211,8 +229,15 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
                 f"heat law {structure.heat!r} (from outside the package, without its C code: "
                 "HeatLaw.c_code)"
             )
+    outside_friction = outside_friction_law(structure)
     if structure.friction not in SUPPORTED_FRICTION:
-        problems.append(f"friction law {structure.friction!r}")
+        if outside_friction is None:
+            problems.append(f"friction law {structure.friction!r}")
+        elif outside_friction.c_code is None:
+            problems.append(
+                f"friction law {structure.friction!r} (from outside the package, without its "
+                "C code: FrictionLaw.c_code and, with a state, c_state_rate)"
+            )
     if structure.air_properties not in SUPPORTED_AIR:
         problems.append(f"air properties {structure.air_properties!r}")
     ported = {e.name for e in outside_effects(structure) if e.c_code is not None}
@@ -233,8 +258,8 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
             + "; ".join(problems)
             + f". Supported: valve {' or '.join(SUPPORTED_VALVES)}, friction "
             f"{' or '.join(SUPPORTED_FRICTION)}, heat {', '.join(SUPPORTED_HEAT)}, effects "
-            f"{', '.join(SUPPORTED_EFFECTS)}, and a heat law or effects from outside the "
-            "package that bring their C code"
+            f"{', '.join(SUPPORTED_EFFECTS)}, and a heat law, a friction law or effects from "
+            "outside the package that bring their C code"
         )
 
 
@@ -249,6 +274,7 @@ def parts_header(structure: ModelStructure) -> str:
     such parts the header defines both as nothing (``PF_PART_EFFECTS`` 0).
     """
     heat = outside_heat_law(structure)
+    friction = outside_friction_law(structure)
     effects = outside_effects(structure)
     rate = next((e for e in effects if e.states), None)
     lines = [
@@ -261,6 +287,7 @@ def parts_header(structure: ModelStructure) -> str:
         '#include "pneumafit_config.h"',
         "",
         f"#define PF_PART_EFFECTS {len(effects)}",
+        f"#define PF_PART_FRICTION {0 if friction is None else 1}",
         "",
         f"/* heat law {heat.name!r} */" if heat is not None else "/* no outside heat law */",
         "static double pf_part_heat(const double *p, double pres, double temp, double t_wall)",
@@ -269,6 +296,26 @@ def parts_header(structure: ModelStructure) -> str:
         *(_indented(heat.c_code) if heat is not None and heat.c_code else ["    return 0.0;"]),
         "}",
     ]
+    lines += [
+        "",
+        f"/* friction law {friction.name!r}: the force */"
+        if friction is not None else "/* no outside friction law */",
+        "static double pf_part_friction(double v, double f_s, double f_c, const double *x,",
+        "                               const double *p)",
+        "{",
+        "    (void)v; (void)f_s; (void)f_c; (void)x; (void)p;",
+        *(_indented(friction.c_code or "") if friction is not None else ["    return 0.0;"]),
+        "}",
+        "",
+        "/* ... and the rate of its state (the bristle slot z_f) */",
+        "static double pf_part_friction_rate(double v, double f_s, double f_c, const double *x,",
+        "                                    const double *p, double max_rate)",
+        "{",
+        "    (void)v; (void)f_s; (void)f_c; (void)x; (void)p; (void)max_rate;",
+        *(_indented(friction.c_state_rate)
+          if friction is not None and friction.c_state_rate else ["    return 0.0;"]),
+        "}",
+    ]  # fmt: skip
     for i, e in enumerate(effects):
         lines += [
             "",
@@ -769,6 +816,7 @@ def write_fmu(
             _compile(compiler, sources, binaries / f"{identifier}{suffix}")
         except FmuBuildError as exc:
             ported = [f"heat law {h.name!r}" for h in [outside_heat_law(structure)] if h]
+            ported += [f"friction law {f.name!r}" for f in [outside_friction_law(structure)] if f]
             ported += [f"effect {e.name!r}" for e in outside_effects(structure)]
             if not ported:
                 raise

@@ -10,6 +10,9 @@
 #include "pneumafit_model.h"
 #include "pneumafit_parts.h"
 
+/* LuGre and a friction law from outside the package: no stuck mode, no events */
+#define PF_SMOOTH(m) ((m)->lugre || PF_PART_FRICTION)
+
 /* ------------------------------------------------------------------ air */
 
 static double viscosity(double t) /* physics.air.viscosity (Sutherland) */
@@ -677,7 +680,7 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
     }
     if (m->asym) { /* levels times (1 + a s), s the sliding direction */
         double s_dir, scale;
-        if (m->lugre)
+        if (PF_SMOOTH(m))
             s_dir = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
         else if (mode == 0)
             s_dir = f_drive > 0.0 ? 1.0 : (f_drive < 0.0 ? -1.0 : 0.0);
@@ -694,6 +697,11 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         dx[PF_X_y] = v;
         dx[PF_X_v] = (f_drive - f_f) * m->inv_m;
         dx[PF_X_z_f] = dz;
+    } else if (PF_PART_FRICTION) { /* kernel.part_friction, part_friction_rate */
+        f_f = pf_part_friction(v, f_s, f_c, x, p);
+        dx[PF_X_y] = v;
+        dx[PF_X_v] = (f_drive - f_f) * m->inv_m;
+        dx[PF_X_z_f] = pf_part_friction_rate(v, f_s, f_c, x, p, m->z_rate);
     } else if (mode == 0) {
         f_f = f_drive;
         dx[PF_X_y] = 0.0;
@@ -730,7 +738,8 @@ typedef struct {
 
 static int active_states(const pf_model *m)
 { /* kernel.active_states */
-    return (m->wall_mass || m->valve_order > 0 || m->lugre || PF_PART_EFFECTS > 0) ? PF_NX : 8;
+    return (m->wall_mass || m->valve_order > 0 || PF_SMOOTH(m) || PF_PART_EFFECTS > 0) ? PF_NX
+                                                                                       : 8;
 }
 
 static void rk_step(const pf_model *m, const double *x, int mode, const pf_inputs *in, double w0,
@@ -860,7 +869,7 @@ void pf_initial_state(const pf_model *m, const double *x0, const pf_inputs *in, 
         x[PF_X_z_f] = 0.0;
     }
     pf_rhs(m, x, 0, u_p, u_n, dx, aux);
-    if (!m->lugre) {
+    if (!PF_SMOOTH(m)) {
         if (x[PF_X_v] > 0.0)
             s->mode = 1;
         else if (x[PF_X_v] < 0.0)
@@ -885,11 +894,11 @@ int pf_advance(pf_model *m, pf_state *s, const pf_inputs *in, double H, double h
     n_sub = (int)n;
     h = H / n_sub;
     dw = 1.0 / n_sub;
-    if (m->lugre) m->z_rate = PF_LUGRE_RATE_LIMIT / h;
+    if (PF_SMOOTH(m)) m->z_rate = PF_LUGRE_RATE_LIMIT / h;
     for (j = 0; j < n_sub; j++) {
         w0 = j * dw;
         rk_step(m, x, mode, in, w0, dw, h, &wk, xn);
-        if (m->lugre) {
+        if (PF_SMOOTH(m)) {
             /* no friction modes */
         } else if (mode != 0) {
             if (xn[PF_X_v] * mode <= 0.0) {

@@ -254,11 +254,20 @@ class ValveLaw(_Law):
         mapping name -> SI value; the table's defaults for the rest). The
         valve stage fits every parameter of the group ``"valve"`` the law
         names from its starts (an outside law's own parameters).
+    c_code : str or None
+        The same flows in C, for the FMU (:mod:`pneumafit.outputs.fmu`): the
+        body of ``void flows(double u, double pres, double temp, double p_s,
+        const double *p, double *out)``, which sets ``out[0]``, ``out[1]``,
+        ``out[2]`` to what ``kernel`` returns (q_net, h_in, q_supply) and
+        reads the parameters as ``p[PF_P_<name>]``. None: an FMU of a
+        structure with this law is refused. Only a law with ``kernel`` code
+        takes one.
     """
 
     roughness: Callable[[Mapping[str, Any]], Any] | None = None
     kernel: Callable[..., tuple[float, float, float]] | None = field(default=None, compare=False)
     starts: tuple[Mapping[str, float], ...] = ()
+    c_code: str | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)

@@ -53,10 +53,13 @@ from pneumafit.models.parts import HEAT_LAWS as HEAT_LAW_PARTS
 from pneumafit.models.parts import (
     KERNEL_FRICTION_CODES,
     KERNEL_HEAT_CODES,
+    KERNEL_VALVE_CODES,
     Effect,
     FrictionLaw,
     HeatLaw,
+    ValveLaw,
 )
+from pneumafit.models.parts import VALVE_LAWS as VALVE_LAW_PARTS
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     FRICTION_PARAMETERS,
@@ -75,6 +78,7 @@ __all__ = [
     "outside_effects",
     "outside_friction_law",
     "outside_heat_law",
+    "outside_valve_law",
     "parts_header",
     "write_fmu",
 ]
@@ -184,6 +188,15 @@ def outside_heat_law(structure: ModelStructure) -> HeatLaw | None:
     return law
 
 
+def outside_valve_law(structure: ModelStructure) -> ValveLaw | None:
+    """The structure's valve law when it comes from outside the package with
+    kernel code (a code outside the kernel's own branches), else None."""
+    law = VALVE_LAW_PARTS.get(structure.valve)
+    if law is None or law.kernel is None or law.code in KERNEL_VALVE_CODES:
+        return None
+    return law
+
+
 def outside_friction_law(structure: ModelStructure) -> FrictionLaw | None:
     """The structure's friction law when it comes from outside the package
     with kernel code (a code outside the kernel's own branches), else None."""
@@ -211,15 +224,21 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
     valve law and the measured valve map, the switch and LuGre friction laws,
     the polytropic, constant-lambda and convection heat laws (air properties
     constant or by Sutherland's law) and the optional effects of
-    :data:`SUPPORTED_EFFECTS`; and a heat law, a friction law or effects
+    :data:`SUPPORTED_EFFECTS`; and a heat, valve or friction law or effects
     from outside the package that bring their law in C (``HeatLaw.c_code``,
-    ``FrictionLaw.c_code``, ``Effect.c_code`` and, with a state,
-    ``c_state_rate``; :func:`parts_header`). Valve laws from outside the
-    package are refused.
+    ``ValveLaw.c_code``, ``FrictionLaw.c_code``, ``Effect.c_code`` and, with
+    a state, ``c_state_rate``; :func:`parts_header`).
     """
     problems = []
+    outside_valve = outside_valve_law(structure)
     if structure.valve not in SUPPORTED_VALVES:
-        problems.append(f"valve law {structure.valve!r}")
+        if outside_valve is None:
+            problems.append(f"valve law {structure.valve!r}")
+        elif outside_valve.c_code is None:
+            problems.append(
+                f"valve law {structure.valve!r} (from outside the package, without its C "
+                "code: ValveLaw.c_code)"
+            )
     outside_heat = outside_heat_law(structure)
     if structure.heat not in SUPPORTED_HEAT:
         if outside_heat is None:
@@ -258,8 +277,8 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
             + "; ".join(problems)
             + f". Supported: valve {' or '.join(SUPPORTED_VALVES)}, friction "
             f"{' or '.join(SUPPORTED_FRICTION)}, heat {', '.join(SUPPORTED_HEAT)}, effects "
-            f"{', '.join(SUPPORTED_EFFECTS)}, and a heat law, a friction law or effects from "
-            "outside the package that bring their C code"
+            f"{', '.join(SUPPORTED_EFFECTS)}, and laws or effects from outside the package "
+            "that bring their C code"
         )
 
 
@@ -274,6 +293,7 @@ def parts_header(structure: ModelStructure) -> str:
     such parts the header defines both as nothing (``PF_PART_EFFECTS`` 0).
     """
     heat = outside_heat_law(structure)
+    valve = outside_valve_law(structure)
     friction = outside_friction_law(structure)
     effects = outside_effects(structure)
     rate = next((e for e in effects if e.states), None)
@@ -288,6 +308,7 @@ def parts_header(structure: ModelStructure) -> str:
         "",
         f"#define PF_PART_EFFECTS {len(effects)}",
         f"#define PF_PART_FRICTION {0 if friction is None else 1}",
+        f"#define PF_PART_VALVE {0 if valve is None else 1}",
         "",
         f"/* heat law {heat.name!r} */" if heat is not None else "/* no outside heat law */",
         "static double pf_part_heat(const double *p, double pres, double temp, double t_wall)",
@@ -297,6 +318,16 @@ def parts_header(structure: ModelStructure) -> str:
         "}",
     ]
     lines += [
+        "",
+        f"/* valve law {valve.name!r}: out = (q_net, h_in, q_supply) */"
+        if valve is not None else "/* no outside valve law */",
+        "static void pf_part_valve(double u, double pres, double temp, double p_s,",
+        "                          const double *p, double *out)",
+        "{",
+        "    (void)u; (void)pres; (void)temp; (void)p_s; (void)p;",
+        *(_indented(valve.c_code or "") if valve is not None
+          else ["    out[0] = out[1] = out[2] = 0.0;"]),
+        "}",
         "",
         f"/* friction law {friction.name!r}: the force */"
         if friction is not None else "/* no outside friction law */",
@@ -816,6 +847,7 @@ def write_fmu(
             _compile(compiler, sources, binaries / f"{identifier}{suffix}")
         except FmuBuildError as exc:
             ported = [f"heat law {h.name!r}" for h in [outside_heat_law(structure)] if h]
+            ported += [f"valve law {v.name!r}" for v in [outside_valve_law(structure)] if v]
             ported += [f"friction law {f.name!r}" for f in [outside_friction_law(structure)] if f]
             ported += [f"effect {e.name!r}" for e in outside_effects(structure)]
             if not ported:

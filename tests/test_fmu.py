@@ -448,8 +448,11 @@ def outside():
     from pneumafit.models import layout, parts
 
     effects, heat, friction = set(parts.EFFECTS), set(parts.HEAT_LAWS), set(parts.FRICTION_LAWS)
+    valve = set(parts.VALVE_LAWS)
     n = layout.n_parameters()
     yield parts, layout
+    for name in set(parts.VALVE_LAWS) - valve:
+        parts.unregister_valve_law(name)
     for name in set(parts.EFFECTS) - effects:
         parts.unregister_effect(name)
     for name in set(parts.HEAT_LAWS) - heat:
@@ -1042,3 +1045,4 @@ def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside, tmp_path
         assert np.max(np.abs(a[q] - b[q])) <= tol, q
     assert np.max(np.abs(runs["doubled"]["p_P"] - b["p_P"])) > 1e3
     assert np.max(np.abs(runs["m"]["p_P"] - b["p_P"])) > 1e3
+

@@ -1046,3 +1046,29 @@ def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside, tmp_path
     assert np.max(np.abs(runs["doubled"]["p_P"] - b["p_P"])) > 1e3
     assert np.max(np.abs(runs["m"]["p_P"] - b["p_P"])) > 1e3
 
+
+def test_the_c_code_digest_follows_the_parts_c_code(outside, tmp_path):
+    """The main job's export stage runs again when only a part's C code
+    changed (pipeline.StageBook.fingerprint's ``extra``): the digest is ""
+    without C code, so runs without such parts keep their fingerprints."""
+    from pneumafit.outputs.fmu import c_code_digest
+    from pneumafit.pipeline import StageBook
+
+    parts, layout = outside
+    assert c_code_digest() == ""
+    law = _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", _constant_lambda,
+                            "return p[PF_P_lambda_copy];")  # fmt: skip
+    first = c_code_digest()
+    parts.register_heat_law(dataclasses.replace(law, c_code="return 2.0 * p[PF_P_lambda_copy];"),
+                            replace=True)  # fmt: skip
+    second = c_code_digest()
+    assert "" != first != second
+    parts.register_heat_law(law, replace=True)
+    assert c_code_digest() == first
+
+    from types import SimpleNamespace
+
+    campaign = SimpleNamespace(sha256={"a.h5": "0" * 64})  # what the fingerprint reads
+    book = StageBook(tmp_path)
+    assert book.fingerprint(campaign, [], "") == book.fingerprint(campaign, [])
+    assert book.fingerprint(campaign, [], first) != book.fingerprint(campaign, [], second)

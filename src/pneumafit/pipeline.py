@@ -167,8 +167,9 @@ class StageBook:
         except (OSError, ValueError, AttributeError):
             self.done = {}
 
-    def fingerprint(self, campaign: Campaign, files: Sequence[Path]) -> str:
-        """Hash of the campaign's file hashes, the given files and the version.
+    def fingerprint(self, campaign: Campaign, files: Sequence[Path], extra: str = "") -> str:
+        """Hash of the campaign's file hashes, the given files, the version
+        and ``extra`` (another input of the stage, as text; "" adds nothing).
 
         A missing file (a stage skipped, e.g. discovery on a campaign of
         flow tests alone, or a comparison whose residual analysis failed)
@@ -177,6 +178,7 @@ class StageBook:
         for f in files:
             h.update((_sha256(f) if Path(f).is_file() else f"missing:{Path(f).name}").encode())
         h.update(__version__.encode())
+        h.update(extra.encode())
         return h.hexdigest()
 
     def is_done(self, stage: str, fingerprint: str, outputs: Sequence[Path]) -> bool:
@@ -268,8 +270,8 @@ def run(
     sims: dict[str, int] = {}  # simulations run by each stage (not reused)
 
     def stage(name: str, inputs: Sequence[Path], outputs: Sequence[Path],
-              body: Callable[[], int]) -> None:  # fmt: skip
-        fp = book.fingerprint(campaign, inputs)
+              body: Callable[[], int], extra: str = "") -> None:  # fmt: skip
+        fp = book.fingerprint(campaign, inputs, extra)
         if book.is_done(name, fp, outputs):
             console.print(f"[dim]{name}: reused (inputs unchanged)[/dim]")
             timings[name] = 0.0
@@ -532,9 +534,13 @@ def _analyses(
     def export() -> int:
         return _export(conv, closed_loop_file, out / "export", console)
 
+    # the plant FMU holds the C code of parts from outside the package: an
+    # edit of that code alone (the fits unchanged) builds it again
+    from pneumafit.outputs.fmu import c_code_digest
+
     stage("export", [conv, lambda_file, closed_loop_file],
           [out / "export" / f for f in (*EXPORT_FORMATS.values(), "controller.c", SIL_FILE)],
-          export)  # fmt: skip
+          export, c_code_digest())  # fmt: skip
 
 
 def _unrunnable_truth(truth: Path) -> str | None:

@@ -9,9 +9,11 @@ from pneumafit.outputs.fmu.builder import (
     FmuBuildError,
     FmuVariable,
     build_fmu,
+    c_code_digest,
     check_structure,
     find_compiler,
     fmu_variables,
+    parts_header,
     write_fmu,
 )
 
@@ -20,8 +22,10 @@ __all__ = [
     "FmuBuildError",
     "FmuVariable",
     "build_fmu",
+    "c_code_digest",
     "check_structure",
     "find_compiler",
     "fmu_variables",
+    "parts_header",
     "write_fmu",
 ]

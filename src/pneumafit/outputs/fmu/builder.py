@@ -72,6 +72,7 @@ __all__ = [
     "FmuBuildError",
     "FmuVariable",
     "build_fmu",
+    "c_code_digest",
     "check_structure",
     "find_compiler",
     "fmu_variables",
@@ -280,6 +281,22 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
             f"{', '.join(SUPPORTED_EFFECTS)}, and laws or effects from outside the package "
             "that bring their C code"
         )
+
+
+def c_code_digest() -> str:
+    """sha256 of the C code that the registered parts from outside the package
+    bring for the FMU ("" when none brings any): the main job's export stage
+    runs again when it changes, which the fits' parts digest
+    (:func:`pneumafit.models.part_kernel.parts_digest`, kernel code only)
+    does not see."""
+    items = [
+        f"{kind}|{part.name}|{part.c_code}|{getattr(part, 'c_state_rate', None)}"
+        for kind, registry in (("heat", HEAT_LAW_PARTS), ("valve", VALVE_LAW_PARTS),
+                               ("friction", FRICTION_LAW_PARTS), ("effect", EFFECT_PARTS))
+        for part in registry.values()
+        if getattr(part, "c_code", None) is not None
+    ]  # fmt: skip
+    return hashlib.sha256("\n".join(items).encode()).hexdigest() if items else ""
 
 
 def parts_header(structure: ModelStructure) -> str:

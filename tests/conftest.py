@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -32,3 +35,26 @@ def charge_experiment() -> Experiment:
         time=t, kind="charge", chamber="P", u_P=u, initial={"y": 0.2, "p_P": 1.013e5},
         name="charge",
     )  # fmt: skip
+
+
+@pytest.fixture
+def outside_parts() -> Iterator[tuple[Any, Any]]:
+    """Yield (``models.parts``, ``models.layout``) for a test that registers
+    parts from outside the package; remove them, and the parameters they
+    appended, afterwards."""
+    from pneumafit.models import layout, parts
+
+    effects, heat = set(parts.EFFECTS), set(parts.HEAT_LAWS)
+    friction, valve = set(parts.FRICTION_LAWS), set(parts.VALVE_LAWS)
+    n = layout.n_parameters()
+    yield parts, layout
+    for name in set(parts.VALVE_LAWS) - valve:
+        parts.unregister_valve_law(name)
+    for name in set(parts.EFFECTS) - effects:
+        parts.unregister_effect(name)
+    for name in set(parts.HEAT_LAWS) - heat:
+        parts.unregister_heat_law(name)
+    for name in set(parts.FRICTION_LAWS) - friction:
+        parts.unregister_friction_law(name)
+    while layout.n_parameters() > n:
+        parts.unregister_parameter(layout.PARAMETER_NAMES[-1])

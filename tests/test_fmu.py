@@ -53,6 +53,17 @@ from pneumafit.simulation import Experiment, Simulator
 fmpy = pytest.importorskip("fmpy", reason="fmpy is not installed (pip install fmpy)")
 from fmpy.validation import validate_fmu  # noqa: E402
 
+# the kernel code of the twins (tests/test_part_kernel.py); the FMU runs their C
+from test_part_kernel import (  # noqa: E402
+    _drain_functions,
+    constant_lambda_again,
+    external_leak_again,
+    iso_again,
+    lugre_again_force,
+    lugre_again_rate,
+    root_pressure_lambda,
+)
+
 pytestmark = pytest.mark.skipif(
     find_compiler() is None, reason="no C compiler: the FMU cannot be built"
 )
@@ -442,27 +453,6 @@ def test_fit_json_keeps_the_fitted_air_properties(tmp_path):
 # air sent to atmosphere has a closed form).
 
 
-@pytest.fixture
-def outside():
-    """Register a test's outside parts; remove them afterwards."""
-    from pneumafit.models import layout, parts
-
-    effects, heat, friction = set(parts.EFFECTS), set(parts.HEAT_LAWS), set(parts.FRICTION_LAWS)
-    valve = set(parts.VALVE_LAWS)
-    n = layout.n_parameters()
-    yield parts, layout
-    for name in set(parts.VALVE_LAWS) - valve:
-        parts.unregister_valve_law(name)
-    for name in set(parts.EFFECTS) - effects:
-        parts.unregister_effect(name)
-    for name in set(parts.HEAT_LAWS) - heat:
-        parts.unregister_heat_law(name)
-    for name in set(parts.FRICTION_LAWS) - friction:
-        parts.unregister_friction_law(name)
-    while layout.n_parameters() > n:
-        parts.unregister_parameter(layout.PARAMETER_NAMES[-1])
-
-
 def _outside_heat_law(parts, layout, name, code, parameter, kernel_of, c_code):
     from pneumafit.models.layout import ParameterSpec
 
@@ -495,27 +485,6 @@ def _outside_effect(parts, name, principal, parameters, kernel, c_code, **more):
     )  # fmt: skip
 
 
-def _constant_lambda(index):
-    from numba import njit
-
-    @njit
-    def law(p, pres, temp, t_wall):
-        return p[index]
-
-    return law
-
-
-def _root_pressure_lambda(index):
-
-    from numba import njit
-
-    @njit
-    def law(p, pres, temp, t_wall):
-        return p[index] * math.sqrt(pres / 1.0e5)
-
-    return law
-
-
 #: The built-in external leakage (kernel.rhs, C_EXTERNAL_LEAK) written again in C.
 LEAK_AGAIN_C = """
 double q1 = p[PF_P_external_leak_conductance] * (1.0 + p[PF_P_external_leak_split])
@@ -529,26 +498,6 @@ out[4] = q1 + q2; out[5] = 0.0;
 """
 
 
-def _leak_again_kernel():
-    from numba import njit
-
-    from pneumafit.models import layout
-
-    gel, ges = layout.P["external_leak_conductance"], layout.P["external_leak_split"]
-    pe, tamb = layout.P["exhaust_pressure"], layout.P["ambient_temperature"]
-    xpp, xpn, xtp, xtn = layout.X_PP, layout.X_PN, layout.X_TP, layout.X_TN
-
-    @njit
-    def leak(x, p):
-        q1 = p[gel] * (1.0 + p[ges]) * (x[xpp] - p[pe])
-        t1 = x[xtp] if q1 > 0.0 else p[tamb]
-        q2 = p[gel] * (1.0 - p[ges]) * (x[xpn] - p[pe])
-        t2 = x[xtn] if q2 > 0.0 else p[tamb]
-        return -q1, -q1 * t1, -q2, -q2 * t2, q1 + q2, 0.0
-
-    return leak
-
-
 def _load_again_kernel(index):
     from numba import njit
 
@@ -559,7 +508,7 @@ def _load_again_kernel(index):
     return load
 
 
-def test_outside_parts_in_c_run_in_the_fmu_as_their_builtin_twins(outside, tmp_path):
+def test_outside_parts_in_c_run_in_the_fmu_as_their_builtin_twins(outside_parts, tmp_path):
     """Identity: constant lambda on a parameter of its own, the external
     leakage and a load on the piston (the external force on a parameter of
     its own), all written again in C, against the FMU of the built-in
@@ -573,14 +522,14 @@ def test_outside_parts_in_c_run_in_the_fmu_as_their_builtin_twins(outside, tmp_p
     (air sent to exhaust, 2e-4 kg in all): without the leak the pressures
     differ by 44-50 kPa, without the load the position by 45 mm, lambda 0.1
     instead of 20 W/m^2/K moves them by 22-24 kPa."""
-    parts, layout = outside
+    parts, layout = outside_parts
     from pneumafit.models.layout import ParameterSpec
 
-    _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", _constant_lambda,
+    _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", constant_lambda_again,
                       "return p[PF_P_lambda_copy];")  # fmt: skip
     _outside_effect(parts, "leak_again", "external_leak_conductance",
                     ("external_leak_conductance", "external_leak_split"),
-                    _leak_again_kernel(), LEAK_AGAIN_C)  # fmt: skip
+                    external_leak_again, LEAK_AGAIN_C)  # fmt: skip
     parts.register_parameter(
         ParameterSpec("load_copy", "N", 0.0, -1000.0, 1000.0, "effect", "a load, again")
     )
@@ -616,7 +565,7 @@ def test_outside_parts_in_c_run_in_the_fmu_as_their_builtin_twins(outside, tmp_p
     assert np.max(np.abs(b["y"] - runs["no-load"]["y"])) > 1e-2
 
 
-def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside, tmp_path):
+def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, tmp_path):
     """Analytic: a heat law the C model does not have, lambda = c sqrt(P /
     1 bar), is read back from the FMU's own outputs (lambda_P against c
     sqrt(p_P / 1 bar) at every sample: the same numbers through the hook,
@@ -628,30 +577,20 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside, tmp_pa
     1.3e-11 relative at 1.5 s there), held to 1e-6 relative plus 1e-15 kg.
     A state that stayed at 0 (the rate not wired) sends no air; one taken
     as instantaneous (c t) is 25 % off at 1.5 s."""
-    parts, layout = outside
-    from numba import njit
+    parts, layout = outside_parts
 
     from pneumafit.models.layout import ParameterSpec
 
-    _outside_heat_law(parts, layout, "root-p", 8, "root_p_coefficient", _root_pressure_lambda,
+    _outside_heat_law(parts, layout, "root-p", 8, "root_p_coefficient", root_pressure_lambda,
                       "return p[PF_P_root_p_coefficient] * sqrt(pres / 1.0e5);")  # fmt: skip
     for spec in (
         ParameterSpec("drain_flow", "kg/s", 2e-6, 1e-9, 1e-3, "effect", "final flow"),
         ParameterSpec("drain_time", "s", 0.3, 1e-3, 10.0, "effect", "opening time"),
     ):
         parts.register_parameter(spec)
-    slot, xtp = layout.X_E0, layout.X_TP
-    c_i, tau_i = layout.P["drain_flow"], layout.P["drain_time"]
-
-    @njit
-    def drain(x, p):
-        e = x[slot]
-        return -e, -e * x[xtp], 0.0, 0.0, e, 0.0
-
-    @njit
-    def rate(x, p):
-        return (p[c_i] - x[slot]) / p[tau_i]
-
+    # the simulator's test of the same drain (its kernel code; the FMU runs the C)
+    slot = layout.X_E0
+    drain, rate = _drain_functions(layout.P["drain_flow"], layout.P["drain_time"])
     _outside_effect(
         parts, "drain", "drain_flow", ("drain_flow", "drain_time"), drain,
         "double e = x[PF_X_e_0];\n"
@@ -684,13 +623,13 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside, tmp_pa
     assert run["p_P"][-1] < run["p_P"][0] - 1e3  # chamber P loses that air
 
 
-def test_outside_parts_without_c_code_are_refused(outside, tmp_path):
-    parts, layout = outside
-    _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", _constant_lambda, None)
+def test_outside_parts_without_c_code_are_refused(outside_parts, tmp_path):
+    parts, layout = outside_parts
+    _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", constant_lambda_again, None)
     _outside_effect(parts, "leak_again", "external_leak_conductance",
                     ("external_leak_conductance", "external_leak_split"),
-                    _leak_again_kernel(), None)  # fmt: skip
-    force, rate = _lugre_again_kernels()
+                    external_leak_again, None)  # fmt: skip
+    force, rate = lugre_again_force, lugre_again_rate
     parts.register_friction_law(
         parts.FrictionLaw(
             name="lugre-again", code=7, parameters=parts.FRICTION_LAWS["lugre"].parameters,
@@ -727,51 +666,29 @@ def test_outside_parts_without_c_code_are_refused(outside, tmp_path):
 #: LuGre written again in C, as tests/test_part_kernel.py's lugre_again_force
 #: and lugre_again_rate: the force from the bristle slot with the relaxation
 #: not limited, the rate limited as the kernel limits its own.
-LUGRE_AGAIN_FORCE_C = """
+_LUGRE_LEVEL_C = """
 double r = v / p[PF_P_stribeck_velocity];
 double g = f_c + (f_s - f_c) * exp(-r * r);
-double s_v, dz;
+double s_v = p[PF_P_friction_stiffness] * fabs(v);
 if (g < PF_LUGRE_MIN_LEVEL) g = PF_LUGRE_MIN_LEVEL;
-s_v = p[PF_P_friction_stiffness] * fabs(v);
-dz = v - s_v * x[PF_X_z_f] / g;
-return p[PF_P_friction_stiffness] * x[PF_X_z_f] + p[PF_P_friction_damping] * dz
-       + p[PF_P_friction_viscous] * v;
 """
-LUGRE_AGAIN_RATE_C = """
-double r = v / p[PF_P_stribeck_velocity];
-double g = f_c + (f_s - f_c) * exp(-r * r);
-double s_v, z_ss;
-if (g < PF_LUGRE_MIN_LEVEL) g = PF_LUGRE_MIN_LEVEL;
-s_v = p[PF_P_friction_stiffness] * fabs(v);
+LUGRE_AGAIN_FORCE_C = (
+    _LUGRE_LEVEL_C
+    + """
+return p[PF_P_friction_stiffness] * x[PF_X_z_f]
+       + p[PF_P_friction_damping] * (v - s_v * x[PF_X_z_f] / g) + p[PF_P_friction_viscous] * v;
+"""
+)
+LUGRE_AGAIN_RATE_C = (
+    _LUGRE_LEVEL_C
+    + """
 if (s_v <= max_rate * g) return v - s_v * x[PF_X_z_f] / g;
-z_ss = v > 0.0 ? g / p[PF_P_friction_stiffness] : -g / p[PF_P_friction_stiffness];
-return max_rate * (z_ss - x[PF_X_z_f]);
+return max_rate * ((v > 0.0 ? g : -g) / p[PF_P_friction_stiffness] - x[PF_X_z_f]);
 """
+)
 
 
-def _lugre_again_kernels():
-    from numba import njit
-
-    from pneumafit.models import layout
-    from pneumafit.physics.friction import lugre_friction
-
-    fv, vst = layout.P["friction_viscous"], layout.P["stribeck_velocity"]
-    sig0, sig1, xz = layout.P["friction_stiffness"], layout.P["friction_damping"], layout.X_Z
-
-    @njit
-    def force(v, f_s, f_c, x, p):
-        _dz, f = lugre_friction(v, x[xz], f_s, f_c, p[fv], p[vst], p[sig0], p[sig1], math.inf)
-        return f
-
-    @njit
-    def rate(v, f_s, f_c, x, p, max_rate):
-        dz, _f = lugre_friction(v, x[xz], f_s, f_c, p[fv], p[vst], p[sig0], p[sig1], max_rate)
-        return dz
-
-    return force, rate
-
-
-def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside, tmp_path):
+def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside_parts, tmp_path):
     """Identity: LuGre written again from outside, its bristle deflection a
     state of its own (``FrictionLaw.state_rate``, the bristle slot), in C
     (``c_code``, ``c_state_rate``), against the FMU of the built-in LuGre at
@@ -791,8 +708,8 @@ def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside, tmp_path
     from pneumafit.outputs.fmu import write_fmu
     from pneumafit.simulation import choose_step
 
-    parts, _layout = outside
-    force, rate = _lugre_again_kernels()
+    parts, _layout = outside_parts
+    force, rate = lugre_again_force, lugre_again_rate
     law = parts.register_friction_law(
         parts.FrictionLaw(
             name="lugre-again", code=7, parameters=parts.FRICTION_LAWS["lugre"].parameters,
@@ -836,7 +753,7 @@ def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside, tmp_path
     assert np.max(np.abs(runs["switch"]["y"] - b["y"])) > 1e-3
 
 
-def test_an_outside_friction_law_s_state_gets_the_step_s_rate_limit(outside, tmp_path):
+def test_an_outside_friction_law_s_state_gets_the_step_s_rate_limit(outside_parts, tmp_path):
     """Analytic: the rate limit ``max_rate`` an outside friction law's state
     rate receives is LUGRE_RATE_LIMIT / h, h the internal step, as in the
     simulator. A law whose state rate is max_rate itself gives z_f(t) =
@@ -851,7 +768,7 @@ def test_an_outside_friction_law_s_state_gets_the_step_s_rate_limit(outside, tmp
     from pneumafit.outputs.fmu import write_fmu
     from pneumafit.physics.friction import LUGRE_RATE_LIMIT
 
-    parts, layout = outside
+    parts, layout = outside_parts
     fv = layout.P["friction_viscous"]
 
     @njit
@@ -943,51 +860,7 @@ out[2] = q[0];
 """
 
 
-def _iso_again_kernel():
-    from numba import njit
-
-    from pneumafit.models import layout, parts
-    from pneumafit.physics.air import T_REF
-    from pneumafit.physics.valve import conductances, path_flow
-
-    i = {n: layout.P[n] for n in parts.VALVE_LAWS["iso6358"].parameters}
-    cs_i, ce_i, ov, us = (
-        i["valve_C_supply"],
-        i["valve_C_exhaust"],
-        i["valve_overlap"],
-        i["valve_u_sat"],
-    )
-    cl, lw, ns, ne = (
-        i["valve_C_leak"],
-        i["valve_leak_width"],
-        i["valve_n_supply"],
-        i["valve_n_exhaust"],
-    )
-    fs, fe, nu = i["valve_full_supply"], i["valve_full_exhaust"], i["valve_null_offset"]
-    ks, ke, vm, xl = (
-        i["valve_knee_supply"],
-        i["valve_knee_exhaust"],
-        i["valve_m"],
-        i["valve_x_laminar"],
-    )
-    bs, be = i["valve_b_supply"], i["valve_b_exhaust"]
-    ta, pe = layout.P["ambient_temperature"], layout.P["exhaust_pressure"]
-
-    @njit
-    def flows(u, pres, temp, p_s, p):
-        c_s, c_e = conductances(u, p[cs_i], p[ce_i], p[ov], p[us], p[cl], p[lw], p[ns], p[ne],
-                                p[fs], p[fe], p[nu], p[ks], p[ke])  # fmt: skip
-        t_a = p[ta]
-        rt_a = math.sqrt(T_REF / t_a)
-        rt = math.sqrt(T_REF / temp)
-        q_s, t_s = path_flow(c_s, p[bs], p[vm], p[xl], p_s, t_a, rt_a, pres, temp, rt)
-        q_e, t_e = path_flow(c_e, p[be], p[vm], p[xl], pres, temp, rt, p[pe], t_a, rt_a)
-        return q_s - q_e, q_s * t_s - q_e * t_e, q_s
-
-    return flows
-
-
-def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside, tmp_path):
+def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside_parts, tmp_path):
     """Identity to rounding: the ISO 6358 law written again in C from its
     parameters (``ValveLaw.c_code``), against the FMU of the built-in law,
     which computes the same flows from precomputed constants (1 / (1 - b),
@@ -1005,12 +878,13 @@ def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside, tmp_path
     from pneumafit.outputs.fmu import write_fmu
     from pneumafit.simulation import choose_step
 
-    parts, _layout = outside
+    parts, _layout = outside_parts
     iso = parts.VALVE_LAWS["iso6358"]
     parts.register_valve_law(
         parts.ValveLaw(
             name="iso-again", code=7, parameters=iso.parameters,
-            description="ISO 6358 written again in C", kernel=_iso_again_kernel(),
+            description="ISO 6358 written again in C",
+            kernel=iso_again(_layout.P["valve_C_supply"], _layout.P["valve_C_exhaust"]),
             c_code=ISO_AGAIN_C,
         )
     )  # fmt: skip
@@ -1047,16 +921,16 @@ def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside, tmp_path
     assert np.max(np.abs(runs["m"]["p_P"] - b["p_P"])) > 1e3
 
 
-def test_the_c_code_digest_follows_the_parts_c_code(outside, tmp_path):
+def test_the_c_code_digest_follows_the_parts_c_code(outside_parts, tmp_path):
     """The main job's export stage runs again when only a part's C code
     changed (pipeline.StageBook.fingerprint's ``extra``): the digest is ""
     without C code, so runs without such parts keep their fingerprints."""
     from pneumafit.outputs.fmu import c_code_digest
     from pneumafit.pipeline import StageBook
 
-    parts, layout = outside
+    parts, layout = outside_parts
     assert c_code_digest() == ""
-    law = _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", _constant_lambda,
+    law = _outside_heat_law(parts, layout, "lambda-again", 7, "lambda_copy", constant_lambda_again,
                             "return p[PF_P_lambda_copy];")  # fmt: skip
     first = c_code_digest()
     parts.register_heat_law(dataclasses.replace(law, c_code="return 2.0 * p[PF_P_lambda_copy];"),

@@ -158,22 +158,10 @@ def _effect(name: str, principal: str, parameters: tuple[str, ...], function: ob
 
 
 @pytest.fixture
-def registered() -> Iterator[None]:
-    """Register the outside parts of a test; remove them afterwards."""
-    effects, heat = set(parts.EFFECTS), set(parts.HEAT_LAWS)
-    friction, valve = set(parts.FRICTION_LAWS), set(parts.VALVE_LAWS)
-    n = layout.n_parameters()
+def registered(outside_parts: object) -> Iterator[None]:
+    """Register the outside parts of a test; remove them afterwards (conftest's
+    ``outside_parts``)."""
     yield
-    for name in set(parts.VALVE_LAWS) - valve:
-        parts.unregister_valve_law(name)
-    for name in set(parts.EFFECTS) - effects:
-        parts.unregister_effect(name)
-    for name in set(parts.HEAT_LAWS) - heat:
-        parts.unregister_heat_law(name)
-    for name in set(parts.FRICTION_LAWS) - friction:
-        parts.unregister_friction_law(name)
-    while layout.n_parameters() > n:
-        parts.unregister_parameter(layout.PARAMETER_NAMES[-1])
 
 
 def _register_twins() -> None:

@@ -30,6 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -47,19 +48,12 @@ from pneumafit.models.layout import (
     STATE_UNITS,
     P,
 )
+from pneumafit.models.part_kernel import hooked_effects
 from pneumafit.models.parts import EFFECTS as EFFECT_PARTS
 from pneumafit.models.parts import FRICTION_LAWS as FRICTION_LAW_PARTS
 from pneumafit.models.parts import HEAT_LAWS as HEAT_LAW_PARTS
-from pneumafit.models.parts import (
-    KERNEL_FRICTION_CODES,
-    KERNEL_HEAT_CODES,
-    KERNEL_VALVE_CODES,
-    Effect,
-    FrictionLaw,
-    HeatLaw,
-    ValveLaw,
-)
 from pneumafit.models.parts import VALVE_LAWS as VALVE_LAW_PARTS
+from pneumafit.models.parts import Effect, FrictionLaw, HeatLaw, ValveLaw
 from pneumafit.models.structure import (
     EFFECT_SLOTS,
     FRICTION_PARAMETERS,
@@ -180,41 +174,35 @@ class FmuVariable:
     maximum: float | None = None
 
 
+def _own_code(law: Any) -> Any:
+    """``law`` when it brings kernel code of its own (registration keeps such
+    a law off the kernel's own codes), else None."""
+    return law if law is not None and law.kernel is not None else None
+
+
 def outside_heat_law(structure: ModelStructure) -> HeatLaw | None:
     """The structure's heat law when it comes from outside the package with
-    kernel code (a code outside the kernel's own branches), else None."""
-    law = HEAT_LAW_PARTS.get(structure.heat)
-    if law is None or law.kernel is None or law.code in KERNEL_HEAT_CODES:
-        return None
-    return law
+    kernel code, else None."""
+    return _own_code(HEAT_LAW_PARTS.get(structure.heat))
 
 
 def outside_valve_law(structure: ModelStructure) -> ValveLaw | None:
     """The structure's valve law when it comes from outside the package with
-    kernel code (a code outside the kernel's own branches), else None."""
-    law = VALVE_LAW_PARTS.get(structure.valve)
-    if law is None or law.kernel is None or law.code in KERNEL_VALVE_CODES:
-        return None
-    return law
+    kernel code, else None."""
+    return _own_code(VALVE_LAW_PARTS.get(structure.valve))
 
 
 def outside_friction_law(structure: ModelStructure) -> FrictionLaw | None:
     """The structure's friction law when it comes from outside the package
-    with kernel code (a code outside the kernel's own branches), else None."""
-    law = FRICTION_LAW_PARTS.get(structure.friction)
-    if law is None or law.kernel is None or law.code in KERNEL_FRICTION_CODES:
-        return None
-    return law
+    with kernel code, else None."""
+    return _own_code(FRICTION_LAW_PARTS.get(structure.friction))
 
 
 def outside_effects(structure: ModelStructure) -> list[Effect]:
     """The structure's effects switched on that come from outside the package
-    with kernel code, in registration order (the order in which the
-    simulator's hook adds them, :func:`pneumafit.models.part_kernel.hooked_effects`)."""
-    return [
-        e for e in EFFECT_PARTS.values()
-        if e.kernel is not None and e.slot is None and structure.effects.get(e.name)
-    ]  # fmt: skip
+    with kernel code, in the order in which the simulator's hook adds them
+    (:func:`pneumafit.models.part_kernel.hooked_effects`)."""
+    return [e for e in hooked_effects() if structure.effects.get(e.name)]
 
 
 def check_structure(structure: ModelStructure, where: str = "model") -> None:
@@ -231,32 +219,21 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
     a state, ``c_state_rate``; :func:`parts_header`).
     """
     problems = []
-    outside_valve = outside_valve_law(structure)
-    if structure.valve not in SUPPORTED_VALVES:
-        if outside_valve is None:
-            problems.append(f"valve law {structure.valve!r}")
-        elif outside_valve.c_code is None:
+    laws = (
+        ("valve law", structure.valve, SUPPORTED_VALVES, outside_valve_law, "ValveLaw.c_code"),
+        ("heat law", structure.heat, SUPPORTED_HEAT, outside_heat_law, "HeatLaw.c_code"),
+        ("friction law", structure.friction, SUPPORTED_FRICTION, outside_friction_law,
+         "FrictionLaw.c_code and, with a state, c_state_rate"),
+    )  # fmt: skip
+    for kind, name, supported, outside_law, field in laws:
+        if name in supported:
+            continue
+        law = outside_law(structure)
+        if law is None:
+            problems.append(f"{kind} {name!r}")
+        elif law.c_code is None:
             problems.append(
-                f"valve law {structure.valve!r} (from outside the package, without its C "
-                "code: ValveLaw.c_code)"
-            )
-    outside_heat = outside_heat_law(structure)
-    if structure.heat not in SUPPORTED_HEAT:
-        if outside_heat is None:
-            problems.append(f"heat law {structure.heat!r}")
-        elif outside_heat.c_code is None:
-            problems.append(
-                f"heat law {structure.heat!r} (from outside the package, without its C code: "
-                "HeatLaw.c_code)"
-            )
-    outside_friction = outside_friction_law(structure)
-    if structure.friction not in SUPPORTED_FRICTION:
-        if outside_friction is None:
-            problems.append(f"friction law {structure.friction!r}")
-        elif outside_friction.c_code is None:
-            problems.append(
-                f"friction law {structure.friction!r} (from outside the package, without its "
-                "C code: FrictionLaw.c_code and, with a state, c_state_rate)"
+                f"{kind} {name!r} (from outside the package, without its C code: {field})"
             )
     if structure.air_properties not in SUPPORTED_AIR:
         problems.append(f"air properties {structure.air_properties!r}")

@@ -1262,6 +1262,16 @@ def test_pneumafit_parts_names_the_states_of_one_s_own(registered: None) -> None
     rows = {line.split("│")[1].strip(): line for line in text.splitlines() if "│" in line}
     assert "its own (@njit), state z_f" in rows["lugre-again"]
     assert "its own (@njit), state e_0" in rows["drain"]
+    # a part that brings its C code too: the FMU export takes it
+    law = parts.FRICTION_LAWS["lugre-again"]
+    parts.register_friction_law(replace(law, c_code="return 0.0;", c_state_rate="return 0.0;"),
+                                replace=True)  # fmt: skip
+    console = Console(width=250, color_system=None, record=True)
+    for table in parts_tables():
+        console.print(table)
+    rows = {line.split("│")[1].strip(): line for line in console.export_text().splitlines()
+            if "│" in line}  # fmt: skip
+    assert "its own (@njit) and C (FMU), state z_f" in rows["lugre-again"]
 
 
 # ------------------------------------------- a Dahl law of one's own on a Dahl rig

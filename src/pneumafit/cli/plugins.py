@@ -139,11 +139,13 @@ def parts_tables() -> list[Table]:
 
     def kernel_of(part: object, built_in: bool) -> str:
         if getattr(part, "kernel", None) is not None:
+            # with C code too, the FMU export takes it (docs/export.md)
+            c = " and C (FMU)" if getattr(part, "c_code", None) is not None else ""
             if getattr(part, "state_rate", None) is None:
-                return "its own (@njit)"
+                return f"its own (@njit){c}"
             slots = getattr(part, "states", ()) or (layout.X_Z,)
             names = ", ".join(layout.STATE_NAMES[i] for i in slots)
-            return f"its own (@njit), state {names}"
+            return f"its own (@njit){c}, state {names}"
         return "built in" if built_in else "none (Python side only)"
 
     heat = Table(title="heat laws (--model)")

@@ -1246,6 +1246,28 @@ def test_c_code_for_the_fmu_is_checked_at_registration(registered: None) -> None
     parts.register_heat_law(replace(law, c_code="return p[PF_P_lambda];"))
 
 
+def test_building_the_kernel_copy_says_so(registered: None, caplog) -> None:
+    """The copy of the kernel for outside parts is compiled at its first use
+    in each process (not in numba's disk cache): the command line's log says
+    so once, naming the parts, instead of a silent wait. Building the copy
+    compiles nothing (numba compiles at the first call), so this is cheap."""
+    import logging
+
+    index = _coefficient("lambda_logged")
+    parts.register_heat_law(
+        _heat_law("lambda-logged", 7, constant_lambda_again(index), "constant lambda, logged",
+                  ("lambda_logged",))
+    )  # fmt: skip
+    structure = ModelStructure("lambda-logged")
+    with caplog.at_level(logging.INFO, logger="pneumafit"):
+        first = kernel_for(structure)
+        again = kernel_for(structure)
+    assert first is again and first is not kernel
+    said = [r.getMessage() for r in caplog.records if r.name == "pneumafit.models.part_kernel"]
+    assert len(said) == 1, said
+    assert "heat law 'lambda-logged'" in said[0] and "compiled at its first use" in said[0]
+
+
 def test_pneumafit_parts_names_the_states_of_one_s_own(registered: None) -> None:
     """``pneumafit parts`` says which state a law or an effect of one's own
     carries (the bristle slot, the effect slot)."""

@@ -60,6 +60,7 @@ checks (bit for bit: the tests write built-in laws again as outside parts).
 
 from __future__ import annotations
 
+import logging
 import sys
 from pathlib import Path
 from types import FunctionType, ModuleType
@@ -71,6 +72,8 @@ from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel, parts
 from pneumafit.models.layout import C_FRICTION_LAW, C_HEAT, C_PART_EFFECTS, C_VALVE_LAW
 from pneumafit.physics.friction import FASTMATH
+
+_log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from pneumafit.models.structure import ModelStructure
@@ -337,6 +340,16 @@ def _copy() -> ModuleType:
     module = _BUILT.get(key)
     if module is None:
         module = _BUILT[key] = _build(heat, valve, friction, effects, len(_BUILT))
+        named = [f"heat law {h.name!r}" for h in heat] + [f"valve law {v.name!r}" for v in valve]
+        named += [f"friction law {f.name!r}" for f in friction]
+        named += [f"effect {e.name!r}" for e in effects]
+        # the copy is not in numba's disk cache: each process compiles it at
+        # its first simulation, a silent wait on the command line otherwise
+        _log.info(
+            "the simulator with the parts from outside the package (%s) is compiled at its "
+            "first use in this process (about 20-60 s, once)",
+            ", ".join(named),
+        )
     return module
 
 

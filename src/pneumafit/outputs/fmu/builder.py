@@ -279,12 +279,17 @@ def c_code_digest() -> str:
 def parts_header(structure: ModelStructure) -> str:
     """``pneumafit_parts.h``: the C code of the structure's parts from outside the package.
 
-    ``pf_part_heat`` is the outside heat law's ``c_code`` (the C model calls
-    it for a heat code above the kernel's own, as the simulator's hook
-    ``kernel.part_heat`` does); ``pf_part_effects`` adds the outside effects'
-    six terms in registration order, as ``kernel.part_effects`` does, and
-    ``pf_part_effect_rate`` is the rate of their state (``X_E0``). Without
-    such parts the header defines both as nothing (``PF_PART_EFFECTS`` 0).
+    Each function is a part's ``c_code`` (or ``c_state_rate``), called where
+    the simulator calls that part's kernel code: ``pf_part_heat`` for a heat
+    code above the kernel's own (``kernel.part_heat``), ``pf_part_valve`` in
+    the valve function when ``PF_PART_VALVE`` (``kernel.part_valve``),
+    ``pf_part_friction`` and ``pf_part_friction_rate`` when
+    ``PF_PART_FRICTION`` (``kernel.part_friction``, ``part_friction_rate``),
+    ``pf_part_effects``, the outside effects' six terms added in
+    registration order, and ``pf_part_effect_rate``, their state's rate,
+    when ``PF_PART_EFFECTS`` > 0 (``kernel.part_effects``,
+    ``part_effect_rates``). A part the structure does not have gets a
+    function that returns zeros and is never called.
     """
     heat = outside_heat_law(structure)
     valve = outside_valve_law(structure)

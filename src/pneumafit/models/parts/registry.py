@@ -668,9 +668,10 @@ def _check_effect_states(where: str, effect: Effect) -> None:
 
 
 def _check_c_code(where: str, part: Any) -> None:
-    """A part's C code for the FMU (``c_code``, an effect's ``c_state_rate``):
-    a non-empty string, only beside kernel code (and a state rate only with
-    states and ``c_code``)."""
+    """A part's C code for the FMU (``c_code`` and, for an effect or a friction
+    law with a state of its own, ``c_state_rate``): a non-empty string, only
+    beside kernel code; a state rate exactly when the part has a state and
+    ``c_code``."""
     for key in ("c_code", "c_state_rate"):
         code = getattr(part, key, None)
         if code is None:

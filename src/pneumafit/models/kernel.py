@@ -913,12 +913,16 @@ def rk_step(
     dx: np.ndarray,
     aux: np.ndarray,
     xn: np.ndarray,
+    first: bool = True,
 ) -> None:
     """One explicit Runge-Kutta step of size h (s) in a fixed friction mode.
 
     The step starts at fraction w0 of sample interval k and spans dw of it;
     xn receives the new state and aux the last stage's auxiliary values (the
-    last node is c = 1, the end of the step).
+    last node is c = 1, the end of the step). With ``first`` False, kk[0]
+    already holds the first stage f(x) with the step's inputs (the end
+    derivative of a spanning step before it, :func:`_span_samples`) and is
+    not evaluated again.
     """
     n_st = tab_b.shape[0]
     nx = active_states(cfg)
@@ -932,8 +936,9 @@ def rk_step(
         k3 = kk[2]
         k4 = kk[3]
         hh = 0.5 * h
-        u_p, u_n = commands(x, inp, k, w0, cfg, ctrl)
-        rhs(x, mode, u_p, u_n, p, d, cfg, k1, aux)
+        if first:
+            u_p, u_n = commands(x, inp, k, w0, cfg, ctrl)
+            rhs(x, mode, u_p, u_n, p, d, cfg, k1, aux)
         for i in range(nx):
             xs[i] = x[i] + hh * k1[i]
         u_p, u_n = commands(xs, inp, k, w0 + 0.5 * dw, cfg, ctrl)
@@ -955,8 +960,9 @@ def rk_step(
         k1 = kk[0]
         k2 = kk[1]
         k3 = kk[2]
-        u_p, u_n = commands(x, inp, k, w0, cfg, ctrl)
-        rhs(x, mode, u_p, u_n, p, d, cfg, k1, aux)
+        if first:
+            u_p, u_n = commands(x, inp, k, w0, cfg, ctrl)
+            rhs(x, mode, u_p, u_n, p, d, cfg, k1, aux)
         hh = 0.5 * h
         for i in range(nx):
             xs[i] = x[i] + hh * k1[i]
@@ -970,7 +976,7 @@ def rk_step(
         for i in range(nx):
             xn[i] = x[i] + h6 * (k1[i] + 4.0 * k2[i] + k3[i])
         return
-    for s in range(n_st):
+    for s in range(0 if first else 1, n_st):
         for i in range(nx):
             acc = x[i]
             for r in range(s):
@@ -1330,17 +1336,40 @@ def integrate_from(
     # event location are the switch model's), and a state whose relaxation
     # rate is limited to what the step can follow (D_ZRATE)
     smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
-    for k in range(n - 1):
-        dt = t[k + 1] - t[k]
+    nx = active_states(cfg)
+    # a step that spans several sample intervals (nsub[k] = -m, m >= 2; see
+    # span_steps): its start state and derivative, and its end derivative,
+    # for the cubic Hermite interpolant at the samples within it
+    herm = np.empty((3, NX))
+    fsal = False  # herm[2] holds f at x, with the inputs of sample k
+    h_prev = 0.0
+    k = 0
+    while k < n - 1:
+        span = 1
+        if nsub[k] < -1:
+            span = min(-nsub[k], n - 1 - k)
+        dt = t[k + span] - t[k]
         n_sub = nsub[k] if nsub[k] > 0 else 1
         h = dt / n_sub
-        dw = 1.0 / n_sub
+        # w counts intervals from t_k: a span's inputs are constant over it
+        dw = span / n_sub
         if smooth:
             d[D_ZRATE] = LUGRE_RATE_LIMIT / h
         for j in range(n_sub):
             w0 = j * dw
+            # first same as last: a spanning step's end derivative is this
+            # step's first stage (the same state, mode and inputs; LuGre's
+            # rate limit the same only at the same step)
+            first = not (j == 0 and fsal and (h == h_prev or not smooth))
+            if not first:
+                for i in range(nx):
+                    kk[0, i] = herm[2, i]
             rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
-                    kk, xs, dx, aux, xn)  # fmt: skip
+                    kk, xs, dx, aux, xn, first)  # fmt: skip
+            if span > 1:
+                for i in range(NX):
+                    herm[0, i] = x[i]
+                    herm[1, i] = kk[0, i]
             if blocked or smooth:
                 pass
             elif mode != 0:
@@ -1388,17 +1417,88 @@ def integrate_from(
             fs_prev = aux[A_FS]
             for i in range(NX):
                 x[i] = xn[i]
-        # health check once per sample
+        # health check once per sample (per step at the end of a span)
         for i in range(NX):
             if not math.isfinite(x[i]):
                 return _fail(out, k + 1, STATUS_NONFINITE), mode, fd_prev, fs_prev
         if x[X_PP] <= 0.0 or x[X_PN] <= 0.0 or x[X_TP] <= 0.0 or x[X_TN] <= 0.0:
             return _fail(out, k + 1, STATUS_NONPHYSICAL), mode, fd_prev, fs_prev
+        fsal = span > 1
+        h_prev = h
+        if span > 1:
+            fd_prev, fs_prev = _span_samples(t, k, span, x, mode, inp, p, d, cfg, ctrl, nx,
+                                             herm, xe, dx, aux, need_aux, ch_sel, out)  # fmt: skip
         if need_aux:
-            u_p, u_n = commands(x, inp, k + 1, 0.0, cfg, ctrl)
+            u_p, u_n = commands(x, inp, k + span, 0.0, cfg, ctrl)
             rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
-        _record(out, k + 1, x, aux, ch_sel)
+        _record(out, k + span, x, aux, ch_sel)
+        k += span
     return STATUS_OK, mode, fd_prev, fs_prev
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
+def _span_samples(
+    t: np.ndarray,
+    k: int,
+    span: int,
+    x: np.ndarray,
+    mode: int,
+    inp: np.ndarray,
+    p: np.ndarray,
+    d: np.ndarray,
+    cfg: np.ndarray,
+    ctrl: np.ndarray,
+    nx: int,
+    herm: np.ndarray,
+    xe: np.ndarray,
+    dx: np.ndarray,
+    aux: np.ndarray,
+    need_aux: bool,
+    ch_sel: np.ndarray,
+    out: np.ndarray,
+) -> tuple[float, float]:
+    """Record the samples k+1 .. k+span-1 inside one step from t_k to
+    t_k+span (dense output).
+
+    Cubic Hermite interpolation between the step's start (state herm[0],
+    derivative herm[1], the first stage) and its end (state x, derivative
+    f(x) evaluated here into herm[2], with the span's inputs, which are
+    constant over it). Its error is O(h^4) locally, below the 3rd-order
+    method's own O(h^3) global error. A friction event inside the step
+    (the switch model) puts a kink in v within it: there the interpolant is
+    only first-order accurate in v, for that step alone.
+
+    Returns
+    -------
+    fd, fs : float
+        Driving force and static friction (N) at the step's end.
+    """
+    h = t[k + span] - t[k]
+    # the inputs at t_k+span, equal to the span's (and exactly the next
+    # step's first stage: integrate_from reuses herm[2])
+    u_p, u_n = commands(x, inp, k + span, 0.0, cfg, ctrl)
+    rhs(x, mode, u_p, u_n, p, d, cfg, dx, aux)
+    for i in range(nx):
+        herm[2, i] = dx[i]
+    fd = aux[A_FD]
+    fs = aux[A_FS]
+    for j in range(1, span):
+        s = (t[k + j] - t[k]) / h
+        s2 = s * s
+        s3 = s2 * s
+        c00 = 2.0 * s3 - 3.0 * s2 + 1.0
+        c10 = (s3 - 2.0 * s2 + s) * h
+        c01 = -2.0 * s3 + 3.0 * s2
+        c11 = (s3 - s2) * h
+        for i in range(nx):
+            xe[i] = c00 * herm[0, i] + c10 * herm[1, i] + c01 * x[i] + c11 * herm[2, i]
+        for i in range(nx, NX):
+            xe[i] = x[i]
+        if need_aux:
+            u_p, u_n = commands(xe, inp, k + j, 0.0, cfg, ctrl)
+            rhs(xe, mode, u_p, u_n, p, d, cfg, dx, aux)
+        _record(out, k + j, xe, aux, ch_sel)
+    return fd, fs
 
 
 @njit(cache=True)
@@ -1500,7 +1600,9 @@ def integrate(
         return STATUS_OK
 
     # LuGre's rate limit needs the first interval's step
-    h0 = (t[1] - t[0]) / (nsub[0] if nsub[0] > 0 else 1) if n > 1 else 1.0
+    h0 = 1.0
+    if n > 1:
+        h0 = (t[1] - t[0]) / nsub[0] if nsub[0] > 0 else t[min(max(-nsub[0], 1), n - 1)] - t[0]
     mode, fd_prev, fs_prev = initial_mode(x, inp, h0, p, d, cfg, ctrl, dx, aux)
     _record(out, 0, x, aux, ch_sel)
     status, _, _, _ = integrate_from(

@@ -163,6 +163,15 @@ class Simulator:
         ``"heun"`` (2nd order).
     channels : sequence of str, optional
         Channels to return (default: all of :data:`CHANNELS`).
+    dense : bool
+        Let one step span several sample intervals where ``step`` allows it
+        and the inputs (commands, reference, chamber pressure) do not change
+        over them, and give the samples inside it by cubic Hermite
+        interpolation between its ends (states and derivatives). Fewer
+        evaluations at a step longer than the sampling interval, e.g. the
+        stable step of :func:`choose_step`; the samples within a step are
+        interpolated, not integrated, so default off: every sample interval
+        then has its own steps and the samples are the integrator's states.
     """
 
     def __init__(
@@ -172,8 +181,10 @@ class Simulator:
         step: float = DEFAULT_STEP,
         method: str | Tableau = DEFAULT_METHOD,
         channels: Sequence[str] | None = None,
+        dense: bool = False,
     ) -> None:
         self.structure = get_structure(model)
+        self.dense = bool(dense)
         # the cached kernel, or its copy bound to outside parts (models.part_kernel)
         self._kernel = kernel_for(self.structure)
         if not step > 0:
@@ -238,7 +249,9 @@ class Simulator:
             offsets[r + 1] = offsets[r] + e.n_samples
         t_all = np.concatenate([e.time for e in exps])
         inp_all = np.concatenate([e.inputs() for e in exps])
-        nsub_all = np.concatenate([substeps(e, h) for e, h in zip(exps, steps, strict=True)])
+        nsub_all = np.concatenate(
+            [substeps(e, h, span=self.dense) for e, h in zip(exps, steps, strict=True)]
+        )
         return PackedExperiments(exps, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets)
 
     # -------------------------------------------------------------- simulation
@@ -375,7 +388,7 @@ class Simulator:
         return Simulation(experiment.time, chans, units, st, STATUS_MESSAGES[st], air)
 
 
-def substeps(experiment: Experiment, step: float) -> np.ndarray:
+def substeps(experiment: Experiment, step: float, *, span: bool = False) -> np.ndarray:
     """Number of integration steps in each sample interval of an experiment.
 
     At least ceil(dt / step), and enough that no valve command changes by more
@@ -386,10 +399,16 @@ def substeps(experiment: Experiment, step: float) -> np.ndarray:
     benchmark step test, against 3 Pa with the split). Depends on the inputs
     only, never on the parameters.
 
+    With ``span``, where the step allows m >= 2 sample intervals and the
+    inputs do not change over them, they are merged into one step (dense
+    output, :class:`Simulator`'s ``dense``).
+
     Returns
     -------
     ndarray of int64, shape (n,)
-        Steps in interval k at index k; the last entry is unused (0).
+        Steps in interval k at index k; the last entry is unused (0). A
+        step that spans m >= 2 intervals from interval k: -m at k (the
+        entries of the other intervals it covers are not read).
     """
     t = experiment.time
     dt = np.diff(t)
@@ -400,7 +419,55 @@ def substeps(experiment: Experiment, step: float) -> np.ndarray:
         gain = experiment.controller.reference_gain
         jump = np.maximum(jump, gain * np.abs(np.diff(inp[:, 2])))
     n = np.maximum(n, np.ceil(jump / COMMAND_RESOLUTION))
-    return np.concatenate([np.maximum(n, 1), [0]]).astype(np.int64)
+    nsub = np.concatenate([np.maximum(n, 1), [0]]).astype(np.int64)
+    if span:
+        same = np.all((inp[1:] == inp[:-1]) | (np.isnan(inp[1:]) & np.isnan(inp[:-1])), axis=1)
+        nsub = _spans(t, nsub, same, step)
+    return nsub
+
+
+def step_ends(nsub: np.ndarray) -> tuple[np.ndarray, int]:
+    """Which samples of one experiment's ``nsub`` (:func:`substeps`) the
+    integrator steps to, and how many steps it takes.
+
+    Returns
+    -------
+    ends : ndarray of bool, shape (n,)
+        False for the samples inside a spanning step (dense output: their
+        values are interpolated), True for the others.
+    steps : int
+        Integration steps: nsub[k] in a plain interval, one per span.
+    """
+    ends = np.ones(nsub.size, dtype=bool)
+    steps, k = 0, 0
+    while k < nsub.size - 1:
+        m = -int(nsub[k]) if nsub[k] < -1 else 1
+        ends[k + 1 : k + m] = False
+        steps += 1 if m > 1 else max(int(nsub[k]), 1)
+        k += m
+    return ends, steps
+
+
+def _spans(t: np.ndarray, nsub: np.ndarray, same: np.ndarray, step: float) -> np.ndarray:
+    """Merge runs of one-step sample intervals into steps of up to ``step``
+    (s) where the inputs are constant: rows k .. k+m equal (``same[j]``: row
+    j+1 equals row j), so that held and interpolated inputs alike are
+    constant over the merged step. The merged step's first interval gets
+    -m, the others keep 1 (not read)."""
+    out = nsub.copy()
+    n = t.size
+    k = 0
+    while k < n - 1:
+        m = 0
+        while (k + m < n - 1 and nsub[k + m] == 1 and same[k + m]
+               and t[k + m + 1] - t[k] <= step * (1.0 + 1e-9)):  # fmt: skip
+            m += 1
+        if m >= 2:
+            out[k] = -m
+            k += m
+        else:
+            k += 1
+    return out
 
 
 def choose_step(
@@ -529,7 +596,7 @@ def _balanced_jobs(run: np.ndarray, offsets: np.ndarray, nsub_all: np.ndarray) -
     work: by cost (integration steps of the experiment), then dealt in turn.
     """
     n_exp = run.shape[1]
-    steps = np.add.reduceat(nsub_all, offsets[:-1]) if nsub_all.size else np.zeros(n_exp)
+    steps = np.add.reduceat(np.abs(nsub_all), offsets[:-1]) if nsub_all.size else np.zeros(n_exp)
     sets, exps = np.nonzero(run)
     jobs = sets * n_exp + exps
     order = np.argsort(-steps[exps], kind="stable")

@@ -3,8 +3,14 @@
 One run, one machine, ratios: on the same 4-s closed-loop step test with
 1 kHz output (half stroke, stick-slip), it times
 
-- the compiled simulator (default method, Kutta's RK3, and default step),
-  single runs and batched over 64 parameter sets;
+- the compiled simulator (default method, Kutta's RK3) as the package runs
+  it in fits and replays: at the stable step :func:`choose_step` gives for
+  the positions the test visits (from the tight reference's y), here 2.3 ms
+  on 1-ms samples, with dense output (``Simulator(dense=True)``: a step
+  spans two sample intervals, the sample inside it by cubic Hermite
+  interpolation) -- ``ms_per_sim``; and at the default fixed 1-ms step,
+  every sample integrated -- ``ms_per_sim_default_step``; single runs and,
+  at the stable step, batched over 64 parameter sets;
 - two scipy peers, both ``solve_ivp(method="LSODA", rtol=1e-6)`` with the
   same events, breakpoints and tolerances
   (:func:`pneumafit.simulation.reference.solve_reference`):
@@ -17,16 +23,19 @@ One run, one machine, ratios: on the same 4-s closed-loop step test with
     evaluation (sample lookup, valve commands and RHS), compiled before the
     timing (one warm-up call, not timed), so that only scipy's own stepping
     and event handling run in Python. It is timed interleaved with the
-    compiled simulator (each round: the simulator twice, the peer once), so
-    that a change of the machine's load does not bias their ratio.
+    compiled simulator (each round: the simulator at the stable step twice,
+    at the default step once, the peer once), so that a change of the
+    machine's load does not bias their ratios.
 
   The model has stick-slip, so scipy must be given its events (v = 0 while
   sliding, |F_d| = F_s while stuck) to solve it at all: a version that takes
   the friction direction from sign(v) chatters about v = 0 and did not finish
   in minutes, which would make any "speedup" meaningless;
 
-and checks all three against a tight reference (Radau, rtol 1e-10, events
-located, compiled RHS): ``max_error_Pa`` (compiled simulator),
+and checks them against a tight reference (Radau, rtol 1e-10, events
+located, compiled RHS): ``max_error_Pa`` (compiled simulator at the stable
+step, over every sample, interpolated or not; ``max_error_Pa_default_step``
+at 1 ms),
 ``reference_max_error_Pa`` and ``compiled_reference_max_error_Pa``. For
 information it also times the pure-Python reference at rtol 1e-8, where it
 is about as accurate as the compiled simulator. Every time is the median of
@@ -54,8 +63,9 @@ import numpy as np
 
 from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
-from pneumafit.simulation import PD, Experiment, Simulator
+from pneumafit.simulation import PD, Experiment, Simulator, choose_step
 from pneumafit.simulation.reference import solve_reference
+from pneumafit.simulation.simulator import step_ends
 
 
 def step_test() -> Experiment:
@@ -105,9 +115,15 @@ def main() -> None:
     print("tight reference: scipy Radau, rtol 1e-10, events located ...", flush=True)
     ref = solve_reference("convection", params, exp, method="Radau", rtol=1e-10)
 
-    sim = Simulator("convection", channels=["y", "p_P", "p_N"])
+    # the step the package takes for this test (fits and replays choose it
+    # from the positions a recording visits: here the reference's)
+    step = choose_step(params, default=1.0,
+                       y_range=(float(ref["y"].min()), float(ref["y"].max())))  # fmt: skip
+    sim = Simulator("convection", channels=["y", "p_P", "p_N"], step=step, dense=True)
     packed = sim.pack([exp])
     sim.simulate_batch(params, packed)  # compile or load from cache
+    fixed = Simulator("convection", channels=["y", "p_P", "p_N"])
+    packed_fixed = fixed.pack([exp])
 
     def lsoda(compiled: bool, rtol: float = 1e-6) -> dict:
         return solve_reference("convection", params, exp, method="LSODA", rtol=rtol,
@@ -120,16 +136,24 @@ def main() -> None:
     def single() -> tuple[np.ndarray, np.ndarray]:
         return sim.simulate_batch(params, packed)
 
-    # each round: the compiled simulator twice, the fair peer once
-    timings = timed_interleaved([single, single, lambda: lsoda(True)], max(5, args.repeats // 2))
+    def single_fixed() -> tuple[np.ndarray, np.ndarray]:
+        return fixed.simulate_batch(params, packed_fixed)
+
+    # each round: the compiled simulator twice, at the default step once,
+    # the fair peer once
+    timings = timed_interleaved([single, single, single_fixed, lambda: lsoda(True)],
+                                max(5, args.repeats // 2))  # fmt: skip
     single_s = float(np.mean([timings[0][0], timings[1][0]]))
     single_cpu = float(np.mean([timings[0][1], timings[1][1]]))
     out, status = timings[0][2]
-    comp_s, comp_cpu, comp = timings[2]
-    assert status[0, 0] == 0, "compiled simulation failed"
+    fixed_s, fixed_cpu, (out_fixed, status_fixed) = timings[2]
+    comp_s, comp_cpu, comp = timings[3]
+    assert status[0, 0] == 0 and status_fixed[0, 0] == 0, "compiled simulation failed"
     y, p_p, p_n = out[0].T
     err_pa = float(max(np.abs(p_p - ref["p_P"]).max(), np.abs(p_n - ref["p_N"]).max()))
     err_mm = float(np.abs(y - ref["y"]).max() * 1e3)
+    _, p_p_f, p_n_f = out_fixed[0].T
+    err_fixed = float(max(np.abs(p_p_f - ref["p_P"]).max(), np.abs(p_n_f - ref["p_N"]).max()))
 
     rng = np.random.default_rng(64)
     sets = np.tile(params, (64, 1))
@@ -162,7 +186,10 @@ def main() -> None:
 
     ms = single_s * 1e3
     rows = [
-        (f"compiled {sim.tableau.name}, single", ms, err_pa, err_mm),
+        (f"compiled {sim.tableau.name}, {step * 1e3:.2f}-ms step, dense output", ms, err_pa,
+         err_mm),
+        (f"compiled {sim.tableau.name}, default 1-ms step", fixed_s * 1e3, err_fixed,
+         float("nan")),
         (f"compiled {sim.tableau.name}, batched x64 (per set)", batch_s * 1e3 / 64, float("nan"),
          float("nan")),
         ("scipy LSODA rtol 1e-6, compiled RHS (fair peer)", comp_s * 1e3, comp_err, comp_err_mm),
@@ -189,7 +216,13 @@ def main() -> None:
         "compiled_reference_ms_per_sim": round(comp_s * 1e3, 2),
         "compiled_reference_max_error_Pa": round(comp_err, 1),
         "speedup_equal_accuracy": round(tight_s * 1e3 / ms, 1),
-        "steps_per_sim": int(packed.nsub_all.sum()),
+        "ms_per_sim_default_step": round(fixed_s * 1e3, 3),
+        "speedup_compiled_default_step": round(comp_s / fixed_s, 1),
+        "max_error_Pa_default_step": round(err_fixed, 3),
+        "cpu_ms_per_sim_default_step": round(fixed_cpu * 1e3, 3),
+        "step_ms": round(step * 1e3, 3),
+        "steps_per_sim": step_ends(packed.nsub_all)[1],
+        "steps_per_sim_default_step": step_ends(packed_fixed.nsub_all)[1],
         "method": sim.tableau.name,
         "targets_met": bool(ms <= 1.2 and comp_s / single_s >= 25.0),
         "cpu_ms_per_sim": round(single_cpu * 1e3, 3),

@@ -1338,7 +1338,7 @@ def integrate_from(
     smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
     nx = active_states(cfg)
     # a step that spans several sample intervals (nsub[k] = -m, m >= 2; see
-    # span_steps): its start state and derivative, and its end derivative,
+    # simulation.simulator.substeps): its start state and derivative, and its end derivative,
     # for the cubic Hermite interpolant at the samples within it
     herm = np.empty((3, NX))
     fsal = False  # herm[2] holds f at x, with the inputs of sample k
@@ -1367,7 +1367,7 @@ def integrate_from(
             rk_step(x, mode, inp, k, w0, dw, h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
                     kk, xs, dx, aux, xn, first)  # fmt: skip
             if span > 1:
-                for i in range(NX):
+                for i in range(nx):
                     herm[0, i] = x[i]
                     herm[1, i] = kk[0, i]
             if blocked or smooth:

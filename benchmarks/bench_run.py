@@ -13,7 +13,10 @@ fit's ``mcmc`` block, and prints one JSON line:
 - ``shortest_chain_tau``: the shortest MCMC chain of all fits in units of its
   integrated autocorrelation time (``tau_multiple``; None without MCMC), with
   ``tau_multiple`` per fit and sampled stage;
-- ``reused``: stages that were reused (0 s), which a timing should not have.
+- ``reused``: stages that were reused (0 s), which a timing should not have;
+- ``cpu_model`` and ``steal_share``: the CPU the run had and the share of
+  its CPU time the hypervisor stole (``benchmarks/machine.py``), so that
+  totals of different runs are read with the machine they came from.
 
 The run's own console output goes to ``OUT/run.log``. The main job took
 7.3 min from a fresh clone on the 2-core machine (2026-11-27, README); the
@@ -33,6 +36,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from machine import cpu_model, cpu_times, steal_share  # benchmarks/machine.py
 
 
 def chain_lengths(out: Path) -> dict[str, dict[str, float]]:
@@ -69,9 +74,11 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     log = out / "run.log"
     t0 = time.perf_counter()
+    ticks = cpu_times()
     with open(log, "w") as f:
         code = subprocess.call(command, stdout=f, stderr=subprocess.STDOUT)
     wall = time.perf_counter() - t0
+    steal = steal_share(ticks, cpu_times())
     try:
         summary = json.loads((out / "summary.json").read_text())
     except (OSError, ValueError):
@@ -96,6 +103,8 @@ def main() -> None:
         "out": str(out),
         "cpus": os.cpu_count(),
         "load_average_end": round(load, 2) if load is not None else None,
+        "steal_share": None if steal is None else round(steal, 4),
+        "cpu_model": cpu_model(),
     }))  # fmt: skip
 
 

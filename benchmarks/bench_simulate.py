@@ -40,9 +40,11 @@ at 1 ms),
 ``reference_max_error_Pa`` and ``compiled_reference_max_error_Pa``. For
 information it also times the pure-Python reference at rtol 1e-8, where it
 is about as accurate as the compiled simulator. Every time is the median of
-repeated calls after one untimed call. The machine's load average is printed
-with the figures: ratios measured in one run on a busy machine are still
-comparable, absolute times are not; the CPU times of the single-threaded
+repeated calls after one untimed call. The machine's load average, its
+CPU's model (``cpu_model``) and the share of CPU time the hypervisor stole
+over the run (``steal_share``; ``benchmarks/machine.py``) are printed with
+the figures: ratios measured in one run are comparable across machines and
+loads, absolute times are not; the CPU times of the single-threaded
 runs (``cpu_ms_per_sim``, ``compiled_reference_cpu_ms_per_sim`` and their
 ratio ``speedup_compiled_cpu``) are less disturbed by other processes. The
 last line printed is one JSON object.
@@ -61,6 +63,7 @@ import os
 import time
 
 import numpy as np
+from machine import cpu_model, cpu_times, steal_share  # benchmarks/machine.py
 
 from pneumafit.models.layout import P
 from pneumafit.models.parameters import parameter_vector
@@ -110,6 +113,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=20)
     args = parser.parse_args()
+    ticks = cpu_times()
 
     exp = step_test()
     params = parameter_vector({})
@@ -199,8 +203,13 @@ def main() -> None:
          float("nan")),
     ]  # fmt: skip
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"{os.cpu_count()} CPUs, load average {load:.2f} over the last minute; CPU time per "
-          f"simulation: compiled {single_cpu * 1e3:.2f} ms, LSODA over the compiled RHS "
+    steal = steal_share(ticks, cpu_times())
+    stolen = "not known" if steal is None else f"{steal:.1%}"
+    model = cpu_model()
+    print(f"{os.cpu_count()} CPUs ({model or 'model not known'}), load average {load:.2f} over "
+          f"the last minute, CPU time stolen by the hypervisor over this run {stolen} "
+          f"(benchmarks/machine.py); CPU time per simulation: compiled "
+          f"{single_cpu * 1e3:.2f} ms, LSODA over the compiled RHS "
           f"{comp_cpu * 1e3:.2f} ms")  # fmt: skip
     print(f"{'simulator':50s} {'ms/sim':>9s} {'max err Pa':>11s} {'max err mm':>11s}")
     for name, t_ms, e_pa, e_mm in rows:
@@ -231,6 +240,8 @@ def main() -> None:
         "speedup_compiled_cpu": round(comp_cpu / single_cpu, 1),
         "cpus": os.cpu_count(),
         "load_average": round(load, 2),
+        "steal_share": None if steal is None else round(steal, 4),
+        "cpu_model": model,
     }
     print(json.dumps(result))
 

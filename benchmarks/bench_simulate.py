@@ -43,8 +43,8 @@ is about as accurate as the compiled simulator. Every time is the median of
 repeated calls after one untimed call. The machine's load average, its
 CPU's model (``cpu_model``) and the share of CPU time the hypervisor stole
 over the run (``steal_share``; ``benchmarks/machine.py``) are printed with
-the figures: ratios measured in one run are comparable across machines and
-loads, absolute times are not; the CPU times of the single-threaded
+the figures: the ratios are measured within one run, absolute times
+depend on the machine and its load; the CPU times of the single-threaded
 runs (``cpu_ms_per_sim``, ``compiled_reference_cpu_ms_per_sim`` and their
 ratio ``speedup_compiled_cpu``) are less disturbed by other processes. The
 last line printed is one JSON object.

@@ -4,9 +4,10 @@ The project's 2-core machine is a virtual machine whose host has changed
 between sessions (README, "Performance": AMD EPYC machines on 2026-11-27; an
 "Intel(R) Xeon(R) Processor" at 2.0 GHz on 2026-12-02), and the same code's
 times differ by 2-3x between them: on 2026-12-02 the unchanged simulator at
-its 1-ms step took 4.0-4.8 ms per simulation, of wall and of process CPU time
+its 1-ms step took 3.9-4.8 ms per simulation, of wall and of process CPU time
 alike, against 1.64 ms on the evening of 2026-12-01, with the load average
-at 0.4-0.8 and 0.2 % of the CPU time stolen by the hypervisor over the run.
+at 0.3-0.8 and 0.2-0.4 % of the CPU time stolen by the hypervisor over the
+run.
 A load average or a "quiet machine" does not tell these apart; the CPU's
 model and the stolen share do. Each benchmark prints both with its times, so
 that absolute times from different runs are read with the machine they came

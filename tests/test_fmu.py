@@ -59,6 +59,7 @@ from test_part_kernel import (  # noqa: E402
     constant_lambda_again,
     external_leak_again,
     iso_again,
+    leak_where,
     lugre_again_force,
     lugre_again_rate,
     root_pressure_lambda,
@@ -621,6 +622,55 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
     np.testing.assert_allclose(run["m_exhaust"], expected, rtol=1e-6, atol=1e-15)
     assert abs(2e-6 * t[-1] - expected[-1]) > 0.2 * expected[-1]
     assert run["p_P"][-1] < run["p_P"][0] - 1e3  # chamber P loses that air
+
+
+#: tests/test_part_kernel.leak_where in C: option 1 the chamber leakage,
+#: option 2 the external leakage, as the kernel writes them.
+LEAK_WHERE_C = (
+    """
+if (option == 1) {
+    double q = p[PF_P_chamber_leak_conductance] * (x[PF_X_p_P] - x[PF_X_p_N]);
+    double t = q > 0.0 ? x[PF_X_T_P] : x[PF_X_T_N];
+    out[0] = -q; out[1] = -q * t; out[2] = q; out[3] = q * t; out[4] = 0.0; out[5] = 0.0;
+    return;
+}
+"""
+    + LEAK_AGAIN_C
+)
+
+
+def test_an_outside_effect_s_option_reaches_its_c_code(outside_parts, tmp_path):
+    """Identity: one outside effect with options 1 and 2 (the chamber
+    leakage and the external leakage written again in C, reading the
+    ``option`` the builder declares), against the FMU of each built-in
+    effect. Bit for bit is expected, as for the external leakage above
+    (measured 0 Pa, 0 K, 0 m); held to the tolerances of
+    test_outside_parts_in_c_run_in_the_fmu_as_their_builtin_twins. The two
+    built-in leaks differ by far more (checked), so an option not passed, or
+    the wrong one, fails."""
+    parts, _layout = outside_parts
+    names = ("chamber_leak_conductance", "external_leak_conductance", "external_leak_split")
+    _outside_effect(parts, "leak_where", "chamber_leak_conductance", names, leak_where,
+                    LEAK_WHERE_C, options={1: names[:1], 2: names[1:]})  # fmt: skip
+    leak = {"chamber_leak_conductance": 1e-10, "external_leak_conductance": 1e-10,
+            "external_leak_split": -0.35, "lambda": 20.0}  # fmt: skip
+    documents = {
+        "own-1": {"effects": {"leak_where": 1}}, "own-2": {"effects": {"leak_where": 2}},
+        "piston": {"effects": {"chamber_leakage": 1}}, "atm": {"effects": {"external_leakage": 1}},
+    }  # fmt: skip
+    runs = {}
+    for name, document in documents.items():
+        params = tmp_path / f"{name}.json"
+        params.write_text(json.dumps({"model": "constant-lambda", "parameters": leak, **document}),
+                          encoding="utf-8")  # fmt: skip
+        fmu = build_fmu(params, tmp_path / f"{name}.fmu")
+        runs[name] = _run_fmu(fmu, ("y", "p_P", "p_N", "T_P", "T_N", "m_exhaust"))
+    for own, builtin in (("own-1", "piston"), ("own-2", "atm")):
+        a, b = runs[own], runs[builtin]
+        for q, tol in (("p_P", 1e-6), ("p_N", 1e-6), ("T_P", 1e-6), ("T_N", 1e-6), ("y", 1e-9),
+                       ("m_exhaust", 1e-15)):  # fmt: skip
+            assert np.max(np.abs(a[q] - b[q])) <= tol, (own, q)
+    assert np.max(np.abs(runs["piston"]["p_P"] - runs["atm"]["p_P"])) > 1e3
 
 
 def test_outside_parts_without_c_code_are_refused(outside_parts, tmp_path):

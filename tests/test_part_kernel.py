@@ -317,7 +317,7 @@ def test_a_bad_parameter_is_refused(registered: None, spec: ParameterSpec, messa
         ("heat", {"kernel": math.sqrt}, "numba @njit function"),
         ("effect", {"kernel": math.sqrt}, "numba @njit function"),
         ("effect", {"slot": layout.C_CHAMBER_LEAK + 100}, "slot=None"),
-        ("effect", {"options": {1: ("chamber_leak_conductance",), 2: ()}}, "single option"),
+        ("effect", {"options": {0: ("chamber_leak_conductance",)}}, "option 0"),
     ],
 )
 def test_bad_kernel_code_is_refused(
@@ -338,6 +338,114 @@ def test_bad_kernel_code_is_refused(
     with pytest.raises(ValueError, match=message):
         parts.register_effect(parts.Effect(**fields))
     assert "bad_leak" not in parts.EFFECTS
+
+
+@njit
+def leak_where(x, p, option):
+    # option 1: the kernel's chamber leakage (P to N across the piston);
+    # option 2: its external leakage (each chamber to atmosphere). Written
+    # out here, not called, so that both compile with the kernel's flags
+    if option == 1:
+        q = p[_GCL] * (x[_XPP] - x[_XPN])
+        t = x[_XTP] if q > 0.0 else x[_XTN]
+        return -q, -q * t, q, q * t, 0.0, 0.0
+    q1 = p[_GEL] * (1.0 + p[_GES]) * (x[_XPP] - p[_PE])
+    t1 = x[_XTP] if q1 > 0.0 else p[_TAMB]
+    q2 = p[_GEL] * (1.0 - p[_GES]) * (x[_XPN] - p[_PE])
+    t2 = x[_XTN] if q2 > 0.0 else p[_TAMB]
+    return -q1, -q1 * t1, -q2, -q2 * t2, q1 + q2, 0.0
+
+
+def _register_leak_where() -> None:
+    """The two leaks as one outside effect with options 1 and 2, registered
+    after the twins' two one-bit effects and before a third (a load again,
+    whose field then starts past leak_where's two bits)."""
+    _register_twins()
+    names = ("chamber_leak_conductance", "external_leak_conductance", "external_leak_split")
+    effect = _effect(
+        "leak_where", "chamber_leak_conductance", names, leak_where,
+        (parts.FitRange("chamber_leak_conductance", 1e-13, 1e-9),
+         parts.FitRange("external_leak_conductance", 0.0, 1e-9, "uniform"),  # typical 0: off
+         parts.FitRange("external_leak_split", -1.0, 1.0, "uniform", signed=True)),
+        "1: across the piston; 2: to atmosphere",
+    )  # fmt: skip
+    parts.register_effect(replace(effect, options={1: names[:1], 2: names[1:]}))
+    parts.register_effect(replace(parts.EFFECTS["load_again"], name="load_late"))
+
+
+def test_an_outside_effect_with_options_runs_each_as_its_builtin_twin(
+    registered: None, step_experiment: Experiment, charge_experiment: Experiment
+) -> None:
+    """Identity: one outside effect whose kernel code takes the structure's
+    option (``Effect.options``), option 1 the chamber leakage and option 2
+    the external leakage written again, must give the built-in effect's
+    simulation bit for bit for each option (the arithmetic is the same, in
+    the same order: one outside effect adds -q where the kernel subtracts
+    q). An option read from the wrong bits (another effect's field, or 0)
+    runs the other leak or none: the two leaks differ by kPa here."""
+    _register_leak_where()
+    from pneumafit.models.part_kernel import effect_fields
+
+    # twins' effects first (one bit each), then leak_where's two bits, then load_late
+    fields = effect_fields()
+    assert fields["leak_where"] == (2, 2) and fields["load_late"] == (4, 1)
+    values = default_parameters()
+    values.update(chamber_leak_conductance=6e-11, external_leak_conductance=4e-11,
+                  external_leak_split=0.3)  # fmt: skip
+    vec = parameter_vector(values)
+    exps = [step_experiment, charge_experiment]
+    runs = {}
+    for name, effects in (
+        ("piston", {"chamber_leakage": 1}),
+        ("atm", {"external_leakage": 1}),
+        ("own-1", {"leak_where": 1}),
+        ("own-2", {"leak_where": 2}),
+    ):
+        structure = ModelStructure("constant-lambda", effects=effects)
+        out, status = Simulator(structure).simulate_batch(vec[None], exps)
+        assert (status == 0).all(), name
+        runs[name] = out
+    assert ModelStructure("constant-lambda", effects={"leak_where": 2}).config()[
+        layout.C_PART_EFFECTS] == 2 << 2  # fmt: skip
+    assert np.array_equal(runs["own-1"], runs["piston"], equal_nan=True)
+    assert np.array_equal(runs["own-2"], runs["atm"], equal_nan=True)
+    p_p = Simulator(ModelStructure("constant-lambda")).channels.index("p_P")
+    assert np.nanmax(np.abs(runs["piston"][0, :, p_p] - runs["atm"][0, :, p_p])) > 1e3  # Pa
+    # beside an effect whose bit follows its field: the leak to atmosphere and
+    # the load both act, against the built-in structure at twice the force (as
+    # in test_an_outside_force_acts_on_the_piston, rounding only: measured
+    # 3.3e-16 m and 6.4e-10 Pa; held to 1e-12 m and 1e-6 Pa)
+    values["external_force"] = 25.0
+    both = ModelStructure("constant-lambda", effects={"leak_where": 2, "load_late": 1})
+    assert both.config()[layout.C_PART_EFFECTS] == (2 << 2) | (1 << 4)
+    out, status = Simulator(both).simulate_batch(parameter_vector(values)[None], exps)
+    twice = parameter_vector({**values, "external_force": 50.0})
+    ref, _ = Simulator(ModelStructure("constant-lambda", effects={"external_leakage": 1})
+                       ).simulate_batch(twice[None], exps)  # fmt: skip
+    y = Simulator(both).channels.index("y")
+    assert (status == 0).all()
+    assert np.nanmax(np.abs(out[0, :, y] - ref[0, :, y])) < 1e-12
+    assert np.nanmax(np.abs(out[0, :, p_p] - ref[0, :, p_p])) < 1e-6  # Pa
+
+
+def test_an_outside_effect_s_option_is_checked(registered: None) -> None:
+    _register_leak_where()
+    from pneumafit.models.part_kernel import effect_field
+
+    with pytest.raises(PneumafitInputError, match=r"expected one of \[0, 1, 2\], found 3"):
+        effect_field("leak_where", 3)
+    with pytest.raises(ValueError, match="leak_where"):
+        ModelStructure("constant-lambda", effects={"leak_where": 3})
+    assert effect_field("leak_where", 0) == 0
+    # options are part of the parts' fingerprint: a fit saved with option 2
+    # meaning the leak to atmosphere is not reused when it means another law
+    from pneumafit.models.part_kernel import parts_digest
+
+    before, effect = parts_digest(), parts.EFFECTS["leak_where"]
+    renumbered = {1: effect.options[1], 3: effect.options[2]}
+    parts.register_effect(replace(effect, options=renumbered), replace=True)
+    assert parts_digest() != before
+    assert effect_field("leak_where", 3) == 3 << 2
 
 
 def test_a_built_in_heat_code_cannot_take_kernel_code(registered: None) -> None:

@@ -167,12 +167,13 @@ def parts_tables() -> list[Table]:
                           law.description)  # fmt: skip
         tables.append(table)
     effects = Table(title="effects (discovery's catalog, --effect)")
-    for col in ("name", "kernel code", "principal", "parameters", "description"):
+    for col in ("name", "kernel code", "options", "principal", "parameters", "description"):
         effects.add_column(col)
     for effect in parts.EFFECTS.values():
         where = f"slot {effect.slot}" if effect.slot is not None else kernel_of(effect, False)
-        effects.add_row(effect.name, where, effect.principal, ", ".join(effect.parameters),
-                        effect.description)  # fmt: skip
+        options = ", ".join(str(v) for v in sorted(effect.options))
+        effects.add_row(effect.name, where, options, effect.principal,
+                        ", ".join(effect.parameters), effect.description)  # fmt: skip
     tables.append(effects)
     registered = layout.PARAMETER_SPECS[layout.NP :]
     if registered:

@@ -35,10 +35,14 @@ its own compiled code instead:
   and N (kg/s), the enthalpy they carry as sum q_i T_i (kg K/s: inflows at
   their upstream temperature, outflows at the chamber's), the mass sent to
   atmosphere (kg/s, for the air consumed) and a force on the piston along
-  +y (N). The structure switches it on by its bit in the configuration slot
-  ``C_PART_EFFECTS``. An effect with a state of its own (``Effect.states``,
-  the slot ``layout.X_E0``) adds ``Effect.state_rate``: ``rate(x, p) ->
-  float``, its time derivative.
+  +y (N). The structure switches it on by its field in the configuration
+  slot ``C_PART_EFFECTS`` (:func:`effect_field`). An effect with a state of
+  its own (``Effect.states``, the slot ``layout.X_E0``) adds
+  ``Effect.state_rate``: ``rate(x, p) -> float``, its time derivative. An
+  effect with options other than the single option 1 (``Effect.options``:
+  variants, as the built-in spool order 1 or 2) takes the structure's value
+  as a third argument, ``eff(x, p, option)`` and ``rate(x, p, option)``,
+  ``option`` an int >= 1 (0, off, never reaches it).
 
 All are numba ``@njit`` functions. They are compiled again here with the
 kernel's own flags (``fastmath`` as the kernel, no reference counting): they
@@ -81,6 +85,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_PART_EFFECTS",
     "effect_bit",
+    "effect_field",
     "hooked_effects",
     "hooked_friction_laws",
     "hooked_heat_laws",
@@ -93,8 +98,9 @@ __all__ = [
     "rebound",
 ]
 
-#: Outside effects with kernel code that can be registered at once (bits of
-#: the int64 configuration slot ``C_PART_EFFECTS``).
+#: Bits of the int64 configuration slot ``C_PART_EFFECTS`` that the outside
+#: effects with kernel code share: one per effect with the single option 1,
+#: ``max(options).bit_length()`` for one with options (:func:`effect_fields`).
 MAX_PART_EFFECTS = 62
 
 _BUILT: dict[tuple[object, ...], ModuleType] = {}
@@ -130,9 +136,10 @@ def parts_digest() -> str:
     sha256 over every registered part that is not built in (a heat, valve or
     friction law with a code outside the kernel's, every effect without a
     configuration slot) and every parameter appended to the table: names,
-    codes, parameters, starts, and the kernel code's bytecode, constants,
-    names, closure cells and the numbers it reads from its module's globals
-    (a parameter index). Stable across processes for the same source; an
+    codes, parameters, starts, an effect's options (when not the single
+    option 1), and the kernel code's bytecode, constants, names, closure
+    cells and the numbers it reads from its module's globals (a parameter
+    index). Stable across processes for the same source; an
     edited law gives another digest, so that a saved fit of the old law is
     not taken for one of the new (``pipeline.fit_is_reusable``).
     """
@@ -156,6 +163,8 @@ def parts_digest() -> str:
         rate = getattr(part, "state_rate", None)
         if rate is not None:  # appended only when present: older digests unchanged
             item += f"|state_rate|{getattr(part, 'states', '')}|" + _code_fingerprint(rate)
+        if isinstance(part, parts.Effect) and takes_option(part):  # likewise
+            item += f"|options|{sorted(part.options.items())!r}"
         items.append(item)
     items += [repr(spec) for spec in layout.PARAMETER_SPECS[layout.NP :]]
     if not items:
@@ -186,27 +195,78 @@ def _plain(cell: Any) -> bool:
         return False
 
 
-def effect_bit(name: str) -> int:
-    """The bit of an outside effect in the configuration slot ``C_PART_EFFECTS``.
+def takes_option(effect: parts.Effect) -> bool:
+    """Whether an outside effect's kernel code takes the option as a third
+    argument: it has options other than the single option 1."""
+    return set(effect.options) != {1}
+
+
+def effect_fields() -> dict[str, tuple[int, int]]:
+    """Where each outside effect with kernel code sits in ``C_PART_EFFECTS``.
+
+    Returns
+    -------
+    dict of str to (int, int)
+        Effect name -> (shift, width) in bits, in registration order: the
+        structure's option value v is stored as ``v << shift`` and read as
+        ``(mask >> shift) & (2**width - 1)``. An effect with the single
+        option 1 takes one bit (its bit, as before options existed), one
+        with options ``max(options).bit_length()`` bits.
+    """
+    effects = hooked_effects()
+    return {e.name: field for e, field in zip(effects, _fields_of(effects), strict=True)}
+
+
+def effect_field(name: str, value: int) -> int:
+    """An outside effect's option value placed in the configuration slot
+    ``C_PART_EFFECTS`` (to be or-ed into it; 0 for value 0, off).
+
+    Parameters
+    ----------
+    name : str
+        A registered effect with kernel code (``Effect.kernel``).
+    value : int
+        0 (off) or one of its options (``Effect.options``).
 
     Raises
     ------
     PneumafitInputError
-        ``name`` is not a registered effect with kernel code.
+        ``name`` is not a registered effect with kernel code, ``value`` not
+        one of its options, or the effects registered before it and it take
+        more than :data:`MAX_PART_EFFECTS` bits.
     """
-    names = [e.name for e in hooked_effects()]
-    if name not in names:
+    fields = effect_fields()
+    if name not in fields:
         raise PneumafitInputError(
             f"effect {name!r}: expected an effect registered with kernel code "
             f"(Effect.kernel), found {'none' if name not in parts.EFFECTS else 'no kernel code'}"
         )
-    index = names.index(name)
-    if index >= MAX_PART_EFFECTS:
+    effect = parts.EFFECTS[name]
+    if value != 0 and value not in effect.options:
         raise PneumafitInputError(
-            f"effect {name!r}: expected at most {MAX_PART_EFFECTS} effects with kernel code "
-            f"registered outside the package, found {len(names)}"
+            f"effect {name!r}: option: expected one of {list(effect.option_values)}, "
+            f"found {value!r}"
         )
-    return 1 << index
+    shift, width = fields[name]
+    if shift + width > MAX_PART_EFFECTS:
+        raise PneumafitInputError(
+            f"effect {name!r}: expected the effects with kernel code registered outside the "
+            f"package to fit in {MAX_PART_EFFECTS} bits (one per effect, more for one with "
+            f"options), found {shift + width} up to this one ({len(fields)} effects)"
+        )
+    return int(value) << shift
+
+
+def effect_bit(name: str) -> int:
+    """The bit of an outside effect's option 1 in ``C_PART_EFFECTS``
+    (``effect_field(name, 1)``).
+
+    Raises
+    ------
+    PneumafitInputError
+        As :func:`effect_field`.
+    """
+    return effect_field(name, 1)
 
 
 def kernel_for(structure: ModelStructure | None) -> ModuleType:
@@ -335,7 +395,10 @@ def _copy() -> ModuleType:
         tuple((h.name, h.code, id(h.kernel)) for h in heat),
         tuple((v.name, v.code, id(v.kernel)) for v in valve),
         tuple((f.name, f.code, id(f.kernel), id(f.state_rate)) for f in friction),
-        tuple((e.name, id(e.kernel), e.states, id(e.state_rate)) for e in effects),
+        tuple(
+            (e.name, id(e.kernel), e.states, id(e.state_rate), tuple(sorted(e.options)))
+            for e in effects
+        ),
     )
     module = _BUILT.get(key)
     if module is None:
@@ -420,10 +483,11 @@ def _hook_source(
         "    q_a = 0.0",
         "    f = 0.0",
     ]
-    for i in range(len(effects)):
+    for i, (effect, field) in enumerate(zip(effects, _fields_of(effects), strict=True)):
+        guard, arguments = _switched_on(i, effect, field)
         lines += [
-            f"    if mask & {1 << i}:",
-            f"        a0, a1, a2, a3, a4, a5 = _effect_{i}(x, p)",
+            *guard,
+            f"        a0, a1, a2, a3, a4, a5 = _effect_{i}({arguments})",
             "        q_p += a0",
             "        h_p += a1",
             "        q_n += a2",
@@ -439,14 +503,36 @@ def _hook_source(
         "def part_effect_rates(mask, x, p, dx):",
         "    dx[X_E0] = 0.0",
     ]
-    for i, effect in enumerate(effects):
+    for i, (effect, field) in enumerate(zip(effects, _fields_of(effects), strict=True)):
+        guard, arguments = _switched_on(i, effect, field)
         for slot in effect.states:
-            lines += [
-                f"    if mask & {1 << i}:",
-                f"        dx[{int(slot)}] = _effect_rate_{i}(x, p)",
-            ]
+            lines += [*guard, f"        dx[{int(slot)}] = _effect_rate_{i}({arguments})"]
     lines += ["    return", ""]
     return "\n".join(lines)
+
+
+def _switched_on(i: int, effect: parts.Effect, field: tuple[int, int]) -> tuple[list[str], str]:
+    """The hook's lines that test whether the ``i``-th outside effect is on in
+    ``mask`` (its ``field``, (shift, width)), and the arguments of its calls:
+    ``x, p`` for the single option 1 (its bit, the code before options
+    existed), ``x, p, o_i`` with the option read from its field otherwise."""
+    shift, width = field
+    if not takes_option(effect):
+        return [f"    if mask & {1 << shift}:"], "x, p"
+    return [f"    o_{i} = (mask >> {shift}) & {(1 << width) - 1}", f"    if o_{i} != 0:"], (
+        f"x, p, o_{i}"
+    )
+
+
+def _fields_of(effects: list[parts.Effect]) -> list[tuple[int, int]]:
+    """(shift, width) of each effect in ``C_PART_EFFECTS``, in this order
+    (:func:`effect_fields` for the registered ones)."""
+    fields, shift = [], 0
+    for effect in effects:
+        width = max(effect.options).bit_length()
+        fields.append((shift, width))
+        shift += width
+    return fields
 
 
 def _recompiled(function: object, where: str) -> object:

@@ -261,9 +261,9 @@ class ModelStructure:
                 cfg[slot] = value
             elif parts.EFFECTS[name].kernel is not None:
                 if value:
-                    from pneumafit.models.part_kernel import effect_bit
+                    from pneumafit.models.part_kernel import effect_field
 
-                    cfg[C_PART_EFFECTS] |= effect_bit(name)
+                    cfg[C_PART_EFFECTS] |= effect_field(name, value)
             else:
                 raise PneumafitInputError(
                     f"model structure {self.name}: effect {name}: expected an effect the compiled "

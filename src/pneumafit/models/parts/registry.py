@@ -461,8 +461,10 @@ class Effect:
         into chambers P and N (kg/s), the enthalpy they carry as sum q_i T_i
         (kg K/s), mass sent to atmosphere (kg/s) and a force on the piston
         along +y (N); it may not allocate arrays
-        (:mod:`pneumafit.models.part_kernel`). Such an effect has the single
-        option 1.
+        (:mod:`pneumafit.models.part_kernel`). With ``options`` other than
+        the single option 1 it takes the structure's option value as a third
+        argument, ``eff(x, p, option)`` (an int >= 1), and so does its
+        ``state_rate``.
     states : tuple of int
         State slots the effect claims (``layout.EFFECT_STATE_SLOTS``: the
         one slot X_E0), for a state of its own that its ``kernel`` reads
@@ -479,8 +481,9 @@ class Effect:
         the body of ``void eff(const double *x, const double *p, double
         *out)``, which sets ``out[0]`` ... ``out[5]`` to what ``kernel``
         returns, in its order, and reads the state as ``x[PF_X_<name>]``
-        (``layout.STATE_NAMES``; the effect's own state is ``x[PF_X_e_0]``)
-        and the parameters as ``p[PF_P_<name>]``. None: an FMU of a
+        (``layout.STATE_NAMES``; the effect's own state is ``x[PF_X_e_0]``),
+        the parameters as ``p[PF_P_<name>]`` and the structure's option value
+        as the ``const int option`` the function declares before it. None: an FMU of a
         structure with this effect switched on is refused. Only an effect
         with ``kernel`` code takes one.
     c_state_rate : str or None
@@ -905,11 +908,6 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
             raise PneumafitInputError(
                 f"{where}: kernel: expected slot=None for an effect with kernel code of its "
                 f"own, found slot {effect.slot!r}"
-            )
-        if set(effect.options) != {1}:
-            raise PneumafitInputError(
-                f"{where}: options: expected the single option 1 for an effect with kernel "
-                f"code of its own, found {sorted(effect.options)}"
             )
     _check_effect_states(where, effect)
     _check_c_code(where, effect)

@@ -353,6 +353,7 @@ def parts_header(structure: ModelStructure) -> str:
             f"/* effect {e.name!r}: {e.description} */",
             f"static void pf_part_effect_{i}(const double *x, const double *p, double *out)",
             "{",
+            *_option_line(structure, e),
             "    (void)x; (void)p;",
             *_indented(e.c_code or ""),
             "}",
@@ -379,6 +380,7 @@ def parts_header(structure: ModelStructure) -> str:
         if rate is not None else "/* no outside effect has a state */",
         "static double pf_part_effect_rate(const double *x, const double *p)",
         "{",
+        *(_option_line(structure, rate) if rate is not None else []),
         "    (void)x; (void)p;",
         *(_indented(rate.c_state_rate or "") if rate is not None else ["    return 0.0;"]),
         "}",
@@ -387,6 +389,13 @@ def parts_header(structure: ModelStructure) -> str:
         "",
     ]  # fmt: skip
     return "\n".join(lines)
+
+
+def _option_line(structure: ModelStructure, effect: Effect) -> list[str]:
+    """The C line that gives an outside effect's code the structure's option
+    value (``Effect.options``; the numba code gets it as its third argument)."""
+    value = int(structure.effects[effect.name])
+    return [f"    const int option = {value}; /* the structure's option */", "    (void)option;"]
 
 
 def _indented(code: str) -> list[str]:

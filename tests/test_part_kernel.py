@@ -44,7 +44,7 @@ from pneumafit.models.layout import ParameterSpec
 from pneumafit.models.parameters import default_parameters, parameter_dict, parameter_vector
 from pneumafit.models.part_kernel import kernel_for
 from pneumafit.models.structure import ModelStructure
-from pneumafit.physics.friction import lugre_friction
+from pneumafit.physics.friction import lugre_friction, sliding_friction
 from pneumafit.simulation import Experiment, Simulator
 from pneumafit.simulation.reference import solve_reference
 
@@ -614,6 +614,88 @@ def test_an_outside_friction_law_gives_the_force_it_computes(
     # the switch model on the same test sticks; the smooth law never stops
     # exactly but creeps below the smoothing speed
     assert np.min(np.abs(v[len(v) // 2 :])) < 1e-3
+
+
+@njit
+def switch_again(v, s, f_s, f_c, x, p):
+    """The switch model's sliding force (physics.friction.sliding_friction),
+    as a law of one's own in the switch model's modes (FrictionLaw.stuck)."""
+    return sliding_friction(v, s, f_s, f_c, p[_FV_I], p[_VST_I])
+
+
+def _register_switch_again(**more: object) -> parts.FrictionLaw:
+    return parts.register_friction_law(
+        parts.FrictionLaw(
+            name="switch-again", code=9, parameters=parts.FRICTION_LAWS["switch"].parameters,
+            description="the switch model's sliding force, in its stuck mode",
+            kernel=switch_again, stuck=True, **more,
+        )
+    )  # fmt: skip
+
+
+def test_an_outside_friction_law_in_the_stuck_mode_runs_as_the_switch_model(
+    registered: None, step_experiment: Experiment, charge_experiment: Experiment
+) -> None:
+    """Identity (not recovery): the switch model's sliding force registered
+    from outside the package with ``stuck=True`` runs in the kernel's stuck
+    mode and events, so it must give the built-in switch model's simulation
+    bit for bit (the same force through the hook, the same mode logic),
+    with the seal friction and the asymmetry on (levels passed to the law)
+    and off. Not vacuous: the piston of the step test sticks (v exactly 0
+    over many samples), and the same force as a smooth law (stuck=False,
+    its direction sign(v)) cannot stick there."""
+    _register_switch_again()
+    values = default_parameters()
+    values.update(seal_friction_coefficient=1.5e-5, friction_asymmetry=0.2)
+    exps = [step_experiment, charge_experiment]
+    for effects in ({}, {"seal_friction": 1, "friction_asymmetry": 1}):
+        ref = Simulator(ModelStructure("convection", effects=effects))
+        own = Simulator(ModelStructure("convection", friction="switch-again", effects=effects))
+        assert own._kernel is not kernel
+        vec = parameter_vector(values)[None]
+        a, st_a = ref.simulate_batch(vec, exps)
+        b, st_b = own.simulate_batch(vec, exps)
+        assert (st_a == 0).all() and (st_b == 0).all()
+        assert np.array_equal(a, b, equal_nan=True), effects
+    run = Simulator(ModelStructure("convection", friction="switch-again")).simulate(
+        values, step_experiment
+    )
+    assert run.ok and np.sum(run["v"] == 0.0) > 100  # samples stuck
+    # the reference solver (scipy, events) runs the same modes: to its
+    # tolerance (1e-8) on the positions, against the built-in switch model
+    from pneumafit.simulation.reference import solve_reference
+
+    r_own = solve_reference(ModelStructure("convection", friction="switch-again"), values,
+                            step_experiment, rtol=1e-8)  # fmt: skip
+    r_ref = solve_reference(ModelStructure("convection"), values, step_experiment, rtol=1e-8)
+    # the same right-hand side compiled twice (the kernel and its copy):
+    # rounding apart, as the heat law's twin (test_the_reference_solver_runs_outside_parts)
+    for ch in ("y", "p_P"):
+        np.testing.assert_allclose(r_own[ch], r_ref[ch], rtol=1e-9, atol=1e-12, err_msg=ch)
+
+
+def test_a_law_in_the_stuck_mode_is_checked_and_named(registered: None) -> None:
+    law = _register_switch_again()
+    cases = [
+        (replace(law, name="s1", code=10, kernel=None), "found no kernel"),
+        (replace(law, name="s2", code=11, state_rate=lugre_again_rate), "found a state_rate"),
+        (replace(law, name="s3", code=12, c_code="return 0.0;"), "found c_code"),
+        (replace(law, name="s4", code=13, stuck="yes"), "expected True or False"),
+    ]
+    for bad, message in cases:
+        with pytest.raises(PneumafitInputError, match=message):
+            parts.register_friction_law(bad)
+        assert bad.name not in parts.FRICTION_LAWS
+    assert law.modes and parts.FRICTION_LAWS["switch"].modes
+    assert not parts.FRICTION_LAWS["lugre"].modes
+    from pneumafit.outputs.fmu.builder import check_structure
+
+    with pytest.raises(PneumafitInputError, match="stuck mode"):
+        check_structure(ModelStructure("convection", friction="switch-again"))
+    # a kernel copy that knows the law: part_friction_stuck says so
+    module = kernel_for(ModelStructure("convection", friction="switch-again"))
+    assert module.part_friction_stuck(9) and not module.part_friction_stuck(0)
+    assert not kernel.part_friction_stuck(9)  # the cached kernel knows none
 
 
 def test_an_outside_friction_law_matches_the_reference_solver(

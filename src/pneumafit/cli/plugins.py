@@ -141,6 +141,8 @@ def parts_tables() -> list[Table]:
         if getattr(part, "kernel", None) is not None:
             # with C code too, the FMU export takes it (docs/export.md)
             c = " and C (FMU)" if getattr(part, "c_code", None) is not None else ""
+            if getattr(part, "stuck", False):
+                return "its own (@njit), sliding force in the switch model's stuck mode"
             if getattr(part, "state_rate", None) is None:
                 return f"its own (@njit){c}"
             slots = getattr(part, "states", ()) or (layout.X_Z,)

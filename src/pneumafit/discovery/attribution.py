@@ -386,7 +386,7 @@ def _rates_along(
     dx = np.empty(xs.shape[1])
     aux = np.empty(kernel.NAUX)
     x = np.empty(xs.shape[1])
-    smooth = cfg[layout.C_FRICTION_LAW] != kernel.FRICTION_SWITCH
+    smooth = not kernel.friction_modes(cfg)
     for k in range(n):
         for i in range(xs.shape[1]):
             x[i] = xs[k, i]

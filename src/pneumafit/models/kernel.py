@@ -363,7 +363,7 @@ def derive(p: np.ndarray, d: np.ndarray) -> None:
 # A heat, valve or friction law or an effect registered from outside the
 # package with kernel code (``HeatLaw.kernel``, ``ValveLaw.kernel``,
 # ``FrictionLaw.kernel`` and ``state_rate``, ``Effect.kernel``;
-# pneumafit.models.part_kernel) is called through these five functions. In
+# pneumafit.models.part_kernel) is called through these functions. In
 # this module, the cached kernel of the built-in parts, they do nothing: a
 # structure that uses such a part runs
 # on a copy of this module compiled with the hooks bound to its parts
@@ -410,6 +410,34 @@ def part_friction_rate(
     """Rate of the own state (slot X_Z) of a friction law registered outside the
     package (``FrictionLaw.state_rate``): none here (0, the state frozen)."""
     return 0.0
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
+def part_friction_stuck(law: int) -> bool:
+    """Whether the friction law ``law``, registered outside the package, is a
+    sliding force with the switch model's stuck mode and events
+    (``FrictionLaw.stuck``): none here (False)."""
+    return False
+
+
+@njit(cache=True, fastmath=_FM, _nrt=False)
+def part_friction_sliding(
+    law: int, v: float, s: float, f_s: float, f_c: float, x: np.ndarray, p: np.ndarray
+) -> float:
+    """Sliding friction force (N, against the motion) of an outside law with the
+    switch model's modes, sliding in direction ``s`` (+-1, the mode; v may
+    be 0 at breakaway): none here (NaN)."""
+    return math.nan
+
+
+@njit(cache=True, _nrt=False)
+def friction_modes(cfg: np.ndarray) -> bool:
+    """Whether the structure's friction law has the switch model's modes
+    (stuck, sliding +-1) and events: the switch model, and a law from
+    outside the package with ``FrictionLaw.stuck``; LuGre and the smooth
+    outside laws have none."""
+    law = cfg[C_FRICTION_LAW]
+    return law == FRICTION_SWITCH or part_friction_stuck(law)
 
 
 @njit(cache=True, fastmath=_FM, _nrt=False)
@@ -795,7 +823,7 @@ def rhs(
         # drive pushes, for the break-away level)
         asym = cfg[C_FRICTION_ASYM] == 1
         if asym:
-            if cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
+            if not friction_modes(cfg):
                 s_dir = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
             elif mode == 0:
                 s_dir = 1.0 if f_drive > 0.0 else (-1.0 if f_drive < 0.0 else 0.0)
@@ -811,7 +839,7 @@ def rhs(
             dx[X_Y] = v
             dx[X_V] = (f_drive - f_f) * d[D_IM]
             dx[X_Z] = dz
-        elif cfg[C_FRICTION_LAW] != FRICTION_SWITCH:
+        elif not friction_modes(cfg):
             # a smooth law registered outside the package: no stuck mode
             law_f = cfg[C_FRICTION_LAW]
             f_f = part_friction(law_f, v, f_s, f_c, x, p)
@@ -824,7 +852,10 @@ def rhs(
             dx[X_V] = 0.0
             dx[X_Z] = 0.0
         else:
-            f_f = sliding_friction(v, mode, f_s, f_c, p[P_FV], p[P_VST])
+            if cfg[C_FRICTION_LAW] == FRICTION_SWITCH:
+                f_f = sliding_friction(v, mode, f_s, f_c, p[P_FV], p[P_VST])
+            else:  # an outside law's sliding force, in the switch model's modes
+                f_f = part_friction_sliding(cfg[C_FRICTION_LAW], v, mode, f_s, f_c, x, p)
             dx[X_Y] = v
             dx[X_V] = (f_drive - f_f) * d[D_IM]
             dx[X_Z] = 0.0
@@ -885,7 +916,7 @@ def active_states(cfg: np.ndarray) -> int:
     if (
         cfg[C_WALL_MASS] == 1
         or cfg[C_VALVE_ORDER] > 0
-        or cfg[C_FRICTION_LAW] != FRICTION_SWITCH
+        or not friction_modes(cfg)
         or cfg[C_PART_EFFECTS] != 0
     ):
         return NX
@@ -1144,7 +1175,7 @@ def steady_friction_state(x: np.ndarray, p: np.ndarray, cfg: np.ndarray) -> floa
     if law == FRICTION_LUGRE:
         return initial_deflection(x, p, cfg, 0.0)
     z0 = x[X_Z]
-    if law == FRICTION_SWITCH:
+    if friction_modes(cfg):  # the switch model or a law in its modes: no state
         return z0
     v = x[X_V]
     f_s, f_c = _moving_levels(x, p, cfg)
@@ -1239,10 +1270,10 @@ def initial_mode(
         breakaway test of the first step.
     """
     blocked = cfg[C_BLOCKED] == 1
-    # LuGre and the laws from outside: no friction modes (the stuck mode and
-    # event location are the switch model's)
+    # LuGre and the smooth laws from outside: no friction modes (the stuck
+    # mode and event location are the switch model's)
     lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
-    smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
+    smooth = not friction_modes(cfg) and not blocked
     u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
     if cfg[C_VALVE_ORDER] > 0:
         x[X_UP] = u_p
@@ -1332,10 +1363,10 @@ def integrate_from(
     """
     n = t.shape[0]
     blocked = cfg[C_BLOCKED] == 1
-    # LuGre and the laws from outside: no friction modes (the stuck mode and
-    # event location are the switch model's), and a state whose relaxation
+    # LuGre and the smooth laws from outside: no friction modes (the stuck
+    # mode and event location are the switch model's), and a state whose relaxation
     # rate is limited to what the step can follow (D_ZRATE)
-    smooth = cfg[C_FRICTION_LAW] != FRICTION_SWITCH and not blocked
+    smooth = not friction_modes(cfg) and not blocked
     nx = active_states(cfg)
     # a step that spans several sample intervals (nsub[k] = -m, m >= 2; see
     # simulation.simulator.substeps): its start state and derivative, and its end derivative,
@@ -1780,6 +1811,13 @@ def _part_friction_mode(p: np.ndarray, law: int) -> float:
     f_c = p[P_FC]
     dv = 1e-7
     dz = 1e-10
+    if part_friction_stuck(law):
+        # a sliding force in the switch model's modes: no state, and its
+        # slope one-sided (v -> 0+, sliding forwards: the levels jump at 0)
+        f_1 = part_friction_sliding(law, dv, 1.0, f_s, f_c, x, p)
+        f_2 = part_friction_sliding(law, 2.0 * dv, 1.0, f_s, f_c, x, p)
+        bound = abs(f_2 - f_1) / dv / p[P_MASS]
+        return bound if math.isfinite(bound) else 0.0
     f_hi = part_friction(law, dv, f_s, f_c, x, p)
     r_hi = part_friction_rate(law, dv, f_s, f_c, x, p, math.inf)
     f_lo = part_friction(law, -dv, f_s, f_c, x, p)

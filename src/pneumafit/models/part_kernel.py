@@ -29,7 +29,11 @@ its own compiled code instead:
   bristle deflection) adds ``FrictionLaw.state_rate``: ``rate(v, f_s, f_c,
   x, p, max_rate) -> float``, the rate of that state, held in the bristle
   slot ``x[layout.X_Z]`` (``max_rate``: the relaxation rate the step can
-  follow, 1/s);
+  follow, 1/s). A law with ``FrictionLaw.stuck`` is instead the sliding
+  force of the switch model's modes, ``force(v, s, f_s, f_c, x, p)``, s
+  = +-1 the sliding direction (v may be 0 at breakaway): the kernel keeps
+  the piston stuck while the drive stays within the static level and
+  locates breakaway and rest as for the switch model;
 - an effect (``Effect.kernel``): ``eff(x, p) -> (q_P, H_P, q_N, H_N, q_atm,
   F)``, from the state x (``layout.X_*``) and p: mass flows into chambers P
   and N (kg/s), the enthalpy they carry as sum q_i T_i (kg K/s: inflows at
@@ -52,7 +56,8 @@ may not allocate arrays.
 kernel when it uses built-in parts only, else a copy of the kernel's source
 compiled, without numba's disk cache, with its hooks
 (``kernel.part_heat``, ``kernel.part_valve``, ``kernel.part_friction``,
-``kernel.part_friction_rate``, ``kernel.part_effects``,
+``kernel.part_friction_rate``, ``kernel.part_friction_stuck``,
+``kernel.part_friction_sliding``, ``kernel.part_effects``,
 ``kernel.part_effect_rates``)
 bound to every outside part
 registered at the time. The copy is made once per set of registered parts
@@ -163,6 +168,8 @@ def parts_digest() -> str:
         rate = getattr(part, "state_rate", None)
         if rate is not None:  # appended only when present: older digests unchanged
             item += f"|state_rate|{getattr(part, 'states', '')}|" + _code_fingerprint(rate)
+        if getattr(part, "stuck", False):  # likewise
+            item += "|stuck"
         if isinstance(part, parts.Effect) and takes_option(part):  # likewise
             item += f"|options|{sorted(part.options.items())!r}"
         items.append(item)
@@ -394,7 +401,7 @@ def _copy() -> ModuleType:
     key = (
         tuple((h.name, h.code, id(h.kernel)) for h in heat),
         tuple((v.name, v.code, id(v.kernel)) for v in valve),
-        tuple((f.name, f.code, id(f.kernel), id(f.state_rate)) for f in friction),
+        tuple((f.name, f.code, id(f.kernel), id(f.state_rate), f.stuck) for f in friction),
         tuple(
             (e.name, id(e.kernel), e.states, id(e.state_rate), tuple(sorted(e.options)))
             for e in effects
@@ -422,7 +429,7 @@ def _hook_source(
     friction: list[parts.FrictionLaw],
     effects: list[parts.Effect],
 ) -> str:
-    """Source of the six hooks, dispatching on the heat, valve and friction
+    """Source of the hooks, dispatching on the heat, valve and friction
     codes and the effect bits."""
     lines = [
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
@@ -452,7 +459,9 @@ def _hook_source(
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
         "def part_friction(law, v, f_s, f_c, x, p):",
     ]
-    for f in friction:
+    smooth = [f for f in friction if not f.stuck]
+    stuck = [f for f in friction if f.stuck]
+    for f in smooth:
         lines += [
             f"    if law == {int(f.code)}:",
             f"        return _friction_{int(f.code)}(v, f_s, f_c, x, p)",
@@ -462,8 +471,21 @@ def _hook_source(
         "",
         "",
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_friction_stuck(law):",
+        *[f"    if law == {int(f.code)}:\n        return True" for f in stuck],
+        "    return False",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
+        "def part_friction_sliding(law, v, s, f_s, f_c, x, p):",
+        *[f"    if law == {int(f.code)}:\n"
+          f"        return _friction_{int(f.code)}(v, s, f_s, f_c, x, p)" for f in stuck],
+        "    return math.nan",
+        "",
+        "",
+        "@njit(cache=False, fastmath=_FM, _nrt=False)",
         "def part_friction_rate(law, v, f_s, f_c, x, p, max_rate):",
-    ]
+    ]  # fmt: skip
     for f in friction:
         if f.state_rate is not None:
             lines += [

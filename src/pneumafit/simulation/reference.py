@@ -35,6 +35,7 @@ from pneumafit.models import kernel
 from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.part_kernel import kernel_for, rebound
+from pneumafit.models.parts import FRICTION_LAWS
 from pneumafit.models.structure import ModelStructure, get_structure
 from pneumafit.numba_stamp import njit
 from pneumafit.simulation.experiment import Experiment
@@ -199,9 +200,10 @@ def solve_reference(
 
     blocked = experiment.blocked
     lugre = structure.friction == "lugre" and not blocked
-    # no stuck mode and no events but in the switch model (LuGre and the
-    # laws registered from outside are smooth)
-    smooth = structure.friction != "switch" and not blocked
+    # no stuck mode and no events but in the switch model and the laws from
+    # outside in its modes (FrictionLaw.stuck); LuGre and the other laws
+    # registered from outside are smooth
+    smooth = not FRICTION_LAWS[structure.friction].modes and not blocked
     if lugre and not np.isfinite(x[X_Z]):
         x[X_Z] = 0.0
         evaluate(t[0], x, 0)

@@ -326,6 +326,18 @@ class FrictionLaw(_Law):
         With ``state_rate`` and ``c_code``: the body of ``double rate(double
         v, double f_s, double f_c, const double *x, const double *p, double
         max_rate)``, ``state_rate`` in C.
+    stuck : bool
+        With ``kernel``: the law is the sliding force of the switch model's
+        modes instead of a smooth law. The piston sticks at rest while the
+        driving force stays within the static level f_s, breaks away above
+        it and comes to rest where v crosses 0 with the drive within f_s,
+        and the integrator locates both events, as for the switch model;
+        ``kernel`` is then ``force(v, s, f_s, f_c, x, p) -> float``, called
+        only while sliding, s = +1 or -1 the sliding direction (v may be 0,
+        at breakaway, or of the other sign within a step before the event).
+        A Coulomb-type law that jumps at v = 0 belongs here. No state of its
+        own (``state_rate``) and no C code: the FMU's C model runs outside
+        friction laws as smooth ones.
     """
 
     joint_prior: Callable[[Mapping[str, Any]], Any] | None = None
@@ -334,6 +346,13 @@ class FrictionLaw(_Law):
     state_rate: Callable[..., float] | None = field(default=None, compare=False)
     c_code: str | None = field(default=None, compare=False)
     c_state_rate: str | None = field(default=None, compare=False)
+    stuck: bool = False
+
+    @property
+    def modes(self) -> bool:
+        """Whether the law has the switch model's stuck mode and events (the
+        switch model itself, or ``stuck``); the kernel's ``friction_modes``."""
+        return self.stuck or self.code == 0  # 0: the switch model (kernel.FRICTION_SWITCH)
 
 
 # ----------------------------------------------------------------- effects
@@ -845,8 +864,24 @@ def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> Frictio
     """Add a friction law to :data:`FRICTION_LAWS` (checks as :func:`register_heat_law`).
 
     A law with ``kernel`` code takes a code outside
-    :data:`KERNEL_FRICTION_CODES`, and its ``starts`` name only its parameters.
+    :data:`KERNEL_FRICTION_CODES`, and its ``starts`` name only its parameters;
+    a law with ``stuck`` has kernel code, and no ``state_rate`` or C code.
     """
+    if law.stuck is not False:
+        where = f"register friction law {law.name!r}"
+        if law.stuck is not True:
+            raise PneumafitInputError(
+                f"{where}: stuck: expected True or False, found {law.stuck!r}"
+            )
+        found = [n for n, bad in (("no kernel", law.kernel is None),
+                                  ("a state_rate", law.state_rate is not None),
+                                  ("c_code", law.c_code is not None)) if bad]  # fmt: skip
+        if found:
+            raise PneumafitInputError(
+                f"{where}: stuck: expected kernel code, a sliding force(v, s, f_s, f_c, x, p) "
+                "without a state of its own (state_rate) or C code (the FMU's C model runs "
+                f"outside friction laws as smooth ones), found {', '.join(found)}"
+            )
     return _register_slot_law(_FRICTION, law, "friction law", KERNEL_FRICTION_CODES, replace)
 
 

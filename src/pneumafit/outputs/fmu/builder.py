@@ -231,6 +231,11 @@ def check_structure(structure: ModelStructure, where: str = "model") -> None:
         law = outside_law(structure)
         if law is None:
             problems.append(f"{kind} {name!r}")
+        elif getattr(law, "stuck", False):
+            problems.append(
+                f"{kind} {name!r} (from outside the package, in the switch model's stuck mode: "
+                "the C model runs outside friction laws as smooth ones, FrictionLaw.stuck)"
+            )
         elif law.c_code is None:
             problems.append(
                 f"{kind} {name!r} (from outside the package, without its C code: {field})"

@@ -6,6 +6,15 @@ Format (JSON)::
      "friction": "lugre",
      "parameters": {"xi": 0.4, "bore": "32 mm", "supply_pressure": "7 bar"}}
 
+or the same keys in TOML, in a file whose name ends in ``.toml``::
+
+    model = "convection"
+    friction = "lugre"
+    [parameters]
+    xi = 0.4
+    bore = "32 mm"
+    supply_pressure = "7 bar"
+
 ``friction`` (optional) is the friction law of the structure, ``"switch"``
 (the default when absent) or ``"lugre"``; ``effects`` and ``structure`` are
 optional too (see :func:`parse_effects`, :func:`read_valve_law`), and
@@ -30,6 +39,7 @@ import dataclasses
 import json
 import math
 import os
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -163,7 +173,7 @@ def parse_parameters(document: dict[str, Any], where: str = "parameters") -> tup
 
 
 def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, float]]:
-    """Read a parameter file (JSON): model name and SI values by name.
+    """Read a parameter file (JSON or TOML): model name and SI values by name.
 
     Raises
     ------
@@ -359,15 +369,29 @@ def _fitted(document: dict[str, Any], where: str) -> ModelStructure:
 
 
 def _read_document(path: str | os.PathLike[str]) -> Any:
-    """The parsed JSON of a parameter file, fit.json or truth.json; a fit.json
-    is checked by its reader (:meth:`SavedFit.from_document`)."""
+    """The parsed document of a parameter file (JSON, or TOML when its name
+    ends in ``.toml``: the same keys, as the campaign's own file), fit.json
+    or truth.json; a fit.json is checked by its reader
+    (:meth:`SavedFit.from_document`)."""
     file = Path(path)
     try:
-        document = json.loads(file.read_text(encoding="utf-8"))
+        text = file.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise PneumafitInputError(f"{file}: expected a parameter file, found none") from None
     except OSError as exc:
         raise PneumafitInputError(f"{file}: cannot be read: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise PneumafitInputError(f"{file}: expected UTF-8 text, found other bytes") from None
+    if file.suffix.lower() == ".toml":
+        try:
+            document = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:  # the message gives line and column
+            raise PneumafitInputError(
+                f"{file}: expected valid TOML, found an error: {exc}"
+            ) from None
+        return document
+    try:
+        document = json.loads(text)
     except json.JSONDecodeError as exc:
         raise PneumafitInputError(
             f"{file}: line {exc.lineno}: expected valid JSON, found an error: {exc.msg}"

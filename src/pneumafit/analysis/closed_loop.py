@@ -600,12 +600,19 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
     PneumafitInputError
         Unreadable file or bad entries.
     """
-    from pneumafit.parameters_io import parse_parameters, parse_structure, read_parameter_file
+    from pneumafit.parameters_io import (
+        parse_parameters,
+        parse_structure,
+        read_parameter_file,
+        read_structure,
+    )
 
     file = Path(path)
+    if file.suffix.lower() == ".toml":  # a parameter file in TOML (never a fit or truth)
+        return read_structure(file)
     try:
         document = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         model, values = read_parameter_file(file)  # raises the readable message
         return get_structure(model), values
     if isinstance(document, dict) and document.get("format") == "pneumafit-truth":

@@ -535,7 +535,7 @@ def rig(
 
 @app.command()
 def simulate(
-    params: Annotated[Path, typer.Argument(help="Parameter file (JSON) or a fit.json.")],
+    params: Annotated[Path, typer.Argument(help="Parameter file (JSON or TOML) or a fit.json.")],
     kind: Annotated[str, typer.Option(help="charge, discharge or step.")],
     out: Annotated[Path, typer.Option("--out", help="HDF5 recording to write.")],
     model: Annotated[str | None, typer.Option(help="Override the file's model structure.")] = None,

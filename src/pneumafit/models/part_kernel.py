@@ -89,7 +89,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_PART_EFFECTS",
-    "effect_bit",
     "effect_field",
     "hooked_effects",
     "hooked_friction_laws",
@@ -262,18 +261,6 @@ def effect_field(name: str, value: int) -> int:
             f"options), found {shift + width} up to this one ({len(fields)} effects)"
         )
     return int(value) << shift
-
-
-def effect_bit(name: str) -> int:
-    """The bit of an outside effect's option 1 in ``C_PART_EFFECTS``
-    (``effect_field(name, 1)``).
-
-    Raises
-    ------
-    PneumafitInputError
-        As :func:`effect_field`.
-    """
-    return effect_field(name, 1)
 
 
 def kernel_for(structure: ModelStructure | None) -> ModuleType:

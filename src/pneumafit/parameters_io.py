@@ -180,7 +180,7 @@ def read_parameter_file(path: str | os.PathLike[str]) -> tuple[str, dict[str, fl
     PneumafitInputError
         Missing file, invalid JSON (with line), or a bad entry.
     """
-    return parse_parameters(_read_document(path), os.fspath(path))
+    return parse_parameters(read_document(path), os.fspath(path))
 
 
 def read_valve_law(path: str | os.PathLike[str]) -> str:
@@ -191,7 +191,7 @@ def read_valve_law(path: str | os.PathLike[str]) -> str:
     parameter file, or a fit written before the map existed).
     """
     try:
-        document = _read_document(path)
+        document = read_document(path)
     except PneumafitInputError:
         return "iso6358"
     if is_fit_document(document):
@@ -351,7 +351,7 @@ def read_structure(
     PneumafitInputError
         Missing file, invalid JSON or bad entries, naming the file and key.
     """
-    document = _read_document(path)
+    document = read_document(path)
     file_model, values = parse_parameters(document, os.fspath(path))
     return parse_structure(document, model or file_model, os.fspath(path)), values
 
@@ -368,7 +368,7 @@ def _fitted(document: dict[str, Any], where: str) -> ModelStructure:
     return structure
 
 
-def _read_document(path: str | os.PathLike[str]) -> Any:
+def read_document(path: str | os.PathLike[str]) -> Any:
     """The parsed document of a parameter file (JSON, or TOML when its name
     ends in ``.toml``: the same keys, as the campaign's own file), fit.json
     or truth.json; a fit.json is checked by its reader
@@ -409,7 +409,7 @@ def read_friction_law(path: str | os.PathLike[str]) -> str:
     PneumafitInputError
         Missing file, invalid JSON or a wrong friction law.
     """
-    document = _read_document(path)
+    document = read_document(path)
     if is_fit_document(document):
         return _fitted(document, os.fspath(path)).friction
     return parse_friction_law(document, os.fspath(path))
@@ -423,7 +423,7 @@ def read_effects(path: str | os.PathLike[str]) -> dict[str, int]:
     PneumafitInputError
         Missing file, invalid JSON or a wrong effect entry.
     """
-    document = _read_document(path)
+    document = read_document(path)
     if is_fit_document(document):
         return dict(_fitted(document, os.fspath(path)).effects)
     return parse_effects(document, os.fspath(path))
@@ -435,7 +435,7 @@ def read_parameter_details(path: str | os.PathLike[str]) -> tuple[str, dict[str,
 
     Values of a fit.json are SI by its contract; unit strings are honoured.
     """
-    document = _read_document(path)
+    document = read_document(path)
     model, values = parse_parameters(document, os.fspath(path))
     entries = document.get("parameters", {})
     details: dict[str, dict] = {}

@@ -27,7 +27,6 @@ overlap (docs/physics.md, "State feedback on the nonlinear model"):
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -600,21 +599,10 @@ def read_plant_file(path: str | Path) -> tuple[ModelStructure, dict[str, float]]
     PneumafitInputError
         Unreadable file or bad entries.
     """
-    from pneumafit.parameters_io import (
-        parse_parameters,
-        parse_structure,
-        read_parameter_file,
-        read_structure,
-    )
+    from pneumafit.parameters_io import parse_parameters, parse_structure, read_document
 
     file = Path(path)
-    if file.suffix.lower() == ".toml":  # a parameter file in TOML (never a fit or truth)
-        return read_structure(file)
-    try:
-        document = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        model, values = read_parameter_file(file)  # raises the readable message
-        return get_structure(model), values
+    document = read_document(file)  # JSON or TOML; a fit.json checked by its reader
     if isinstance(document, dict) and document.get("format") == "pneumafit-truth":
         name = independent_truth(document)
         if name is not None:

@@ -75,3 +75,32 @@ def test_the_stamp_hashes_names_and_contents(
     (tmp_path / "a.py").write_text("@njit(cache=True)\ndef f(): return 2\n")
     numba_stamp._STAMP.clear()
     assert numba_stamp.package_stamp() != first
+
+
+def test_the_stamp_covers_the_constants_compiled_code_reads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A module without compiled functions whose constants compiled code
+    freezes (as ``models/layout.py``: ``NX``, the parameter indices) is in
+    the stamp, through an import of an import within the model and physics
+    layers; an import of another layer is not followed. Editing the
+    constants' file changes the stamp: before, a layout-only edit left every
+    cached kernel running the old layout."""
+    root = tmp_path / "pkg"
+    (root / "models").mkdir(parents=True)
+    (root / "other").mkdir()
+    (root / "kern.py").write_text(
+        "from pkg.models import layout\nfrom pkg.other.cli import X\n"
+        "@njit(cache=True)\ndef f(): return layout.N\n"
+    )
+    (root / "models" / "layout.py").write_text("from pkg.models.specs import SPECS\nN = 16\n")
+    (root / "models" / "specs.py").write_text("SPECS = (1, 2)\n")
+    (root / "other" / "cli.py").write_text("X = 1\n")
+    monkeypatch.setattr(numba_stamp, "_ROOT", root)
+    monkeypatch.setattr(numba_stamp, "_STAMP", [])
+    names = {p.relative_to(root).as_posix() for p in numba_stamp.stamped_sources()}
+    assert names == {"kern.py", "models/layout.py", "models/specs.py"}
+    first = numba_stamp.package_stamp()
+    (root / "models" / "layout.py").write_text("from pkg.models.specs import SPECS\nN = 18\n")
+    numba_stamp._STAMP.clear()
+    assert numba_stamp.package_stamp() != first

@@ -14,7 +14,9 @@ kernel, and a 3-s charge ended 110 kPa away from the kernel's own run.
 module of the package uses instead of numba's) gives numba a cache locator
 for the package's own files whose freshness stamp is the defining file's
 (numba's) together with one hash of every compiled source file of the
-package: a change to any of them
+package and of the model and physics modules they import (the state
+layout, the parameter table: constants the compiled code freezes;
+:func:`stamped_sources`): a change to any of them
 invalidates the cache of all of them (one recompilation, about a minute;
 ``python -m pneumafit.warmup`` does it ahead). Other packages' functions
 keep numba's own locators. The locator list is numba's private API
@@ -24,18 +26,21 @@ it is missing, nothing is installed and numba's behaviour is unchanged.
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import re
 from pathlib import Path
 from typing import Any
 
-__all__ = ["compiled_sources", "install", "njit", "package_stamp"]
+__all__ = ["compiled_sources", "install", "njit", "package_stamp", "stamped_sources"]
 
 #: The package directory.
 _ROOT = Path(__file__).resolve().parent
 #: What marks a module with cached compiled functions.
 _MARK = re.compile(r"njit\([^)]*cache=True")
 _STAMP: list[bytes] = []
+#: Packages whose modules' constants compiled code reads (:func:`stamped_sources`).
+_CONSTANT_LAYERS = ("models", "physics")
 
 
 def compiled_sources(root: Path | None = None) -> list[Path]:
@@ -65,11 +70,63 @@ def compiled_sources(root: Path | None = None) -> list[Path]:
     return out
 
 
+def stamped_sources(root: Path | None = None) -> list[Path]:
+    """:func:`compiled_sources` and the modules of the model and physics
+    layers (``models/``, ``physics/``) they import, directly or through
+    another such module: compiled code freezes the module-level constants it
+    reads (the state layout's ``NX``, the parameter indices of
+    ``models/layout.py``, which defines no compiled function, built from the
+    registered parts), so their files belong in the stamp too. Imports of
+    other layers are not followed (their constants are not the kernel's, and
+    an edit there would recompile everything).
+
+    Parameters
+    ----------
+    root : Path, optional
+        The package directory; this module's own by default.
+
+    Returns
+    -------
+    list of Path
+        Sorted; this module is not one of them.
+    """
+    base = _ROOT if root is None else root
+    here = Path(__file__).resolve()
+    seen: set[Path] = set()
+    todo = list(compiled_sources(base))
+    while todo:
+        path = todo.pop()
+        if path in seen or path.resolve() == here:
+            continue
+        seen.add(path)
+        try:
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+        except (OSError, SyntaxError, UnicodeDecodeError):
+            continue
+        for node in ast.walk(tree):
+            names: list[str] = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            for name in names:
+                parts = name.split(".")
+                if parts[0] != base.name:
+                    continue
+                if len(parts) < 2 or parts[1] not in _CONSTANT_LAYERS:
+                    continue
+                stem = base.joinpath(*parts[1:])
+                for candidate in (stem.with_suffix(".py"), stem / "__init__.py"):
+                    if candidate.is_file() and candidate not in seen:
+                        todo.append(candidate)
+    return sorted(seen)
+
+
 def package_stamp() -> bytes:
-    """SHA-256 over the names and contents of :func:`compiled_sources` (computed once)."""
+    """SHA-256 over the names and contents of :func:`stamped_sources` (computed once)."""
     if not _STAMP:
         digest = hashlib.sha256()
-        for path in compiled_sources():
+        for path in stamped_sources():
             digest.update(path.relative_to(_ROOT).as_posix().encode())
             digest.update(path.read_bytes())
         _STAMP.append(digest.digest())

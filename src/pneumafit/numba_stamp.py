@@ -26,7 +26,6 @@ it is missing, nothing is installed and numba's behaviour is unchanged.
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import re
 from pathlib import Path
@@ -39,6 +38,14 @@ _ROOT = Path(__file__).resolve().parent
 #: What marks a module with cached compiled functions.
 _MARK = re.compile(r"njit\([^)]*cache=True")
 _STAMP: list[bytes] = []
+#: An import statement: ``import a.b`` or ``from a.b import c, d`` (names in
+#: parentheses over several lines too); :func:`stamped_sources` keeps the
+#: package's.
+_IMPORT = re.compile(
+    r"^[ \t]*(?:import[ \t]+(?P<plain>[\w.]+(?:[ \t]*,[ \t]*[\w.]+)*)"
+    r"|from[ \t]+(?P<module>[\w.]+)[ \t]+import[ \t]+(?P<names>\([^)]*\)|[^\n#]+))",
+    re.MULTILINE,
+)
 #: Packages whose modules' constants compiled code reads (:func:`stamped_sources`).
 _CONSTANT_LAYERS = ("models", "physics")
 
@@ -100,15 +107,18 @@ def stamped_sources(root: Path | None = None) -> list[Path]:
             continue
         seen.add(path)
         try:
-            tree = ast.parse(path.read_text(encoding="utf-8"))
-        except (OSError, SyntaxError, UnicodeDecodeError):
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
             continue
-        for node in ast.walk(tree):
-            names: list[str] = []
-            if isinstance(node, ast.Import):
-                names = [alias.name for alias in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        for match in _IMPORT.finditer(text):  # a regular expression: ast costs 0.1 s here
+            if match.group("plain"):
+                names = [n.split(" as ")[0].strip() for n in match.group("plain").split(",")]
+            else:
+                module = match.group("module")
+                listed = re.sub(r"#[^\n]*", "", match.group("names")).strip("()")
+                names = [module] + [
+                    f"{module}.{n.split(' as ')[0].strip()}" for n in listed.split(",") if n.strip()
+                ]
             for name in names:
                 parts = name.split(".")
                 if parts[0] != base.name:

@@ -573,7 +573,9 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
     measured 0 relative; held to 1e-12); and a drain out of chamber P whose
     flow e, the effect's state (slot e_0), opens as de/dt = (c - e) / tau
     from 0, valves closed and leak-free: the air sent to atmosphere is m(t)
-    = c (t - tau (1 - exp(-t / tau))). Kutta's RK3 on this linear state,
+    = c (t - tau (1 - exp(-t / tau))), and a second drain out of chamber N
+    whose flow is a state in another slot (e_2), with its own c and tau: the
+    two integrals add. Kutta's RK3 on these linear states,
     as the simulator's test of the same drain (tests/test_part_kernel.py:
     1.3e-11 relative at 1.5 s there), held to 1e-6 relative plus 1e-15 kg.
     A state that stayed at 0 (the rate not wired) sends no air; one taken
@@ -600,11 +602,29 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
         states=(slot,), state_rate=rate,
         c_state_rate="return (p[PF_P_drain_flow] - x[PF_X_e_0]) / p[PF_P_drain_time];",
     )  # fmt: skip
+    # a second drain, out of chamber N, its state in another slot (X_E2)
+    for spec in (
+        ParameterSpec("drain_n_flow", "kg/s", 1.5e-6, 1e-9, 1e-3, "effect", "final flow"),
+        ParameterSpec("drain_n_time", "s", 0.5, 1e-3, 10.0, "effect", "opening time"),
+    ):
+        parts.register_parameter(spec)
+    drain_n, rate_n = _drain_functions(
+        layout.P["drain_n_flow"], layout.P["drain_n_time"], layout.X_E2, "N"
+    )
+    _outside_effect(
+        parts, "drain_n", "drain_n_flow", ("drain_n_flow", "drain_n_time"), drain_n,
+        "double e = x[PF_X_e_2];\n"
+        "out[0] = 0.0; out[1] = 0.0; out[2] = -e; out[3] = -e * x[PF_X_T_N];\n"
+        "out[4] = e; out[5] = 0.0;",
+        states=(layout.X_E2,), state_rate=rate_n,
+        c_state_rate="return (p[PF_P_drain_n_flow] - x[PF_X_e_2]) / p[PF_P_drain_n_time];",
+    )  # fmt: skip
     params = tmp_path / "root-p.json"
     params.write_text(
-        json.dumps({"model": "root-p", "effects": {"drain": 1},
+        json.dumps({"model": "root-p", "effects": {"drain": 1, "drain_n": 1},
                     "parameters": {"root_p_coefficient": 12.0, "valve_C_leak": 0.0,
-                                   "drain_flow": 2e-6, "drain_time": 0.3}}),
+                                   "drain_flow": 2e-6, "drain_time": 0.3,
+                                   "drain_n_flow": 1.5e-6, "drain_n_time": 0.5}}),
         encoding="utf-8",
     )  # fmt: skip
     fmu = build_fmu(params, tmp_path / "root-p.fmu")
@@ -618,9 +638,11 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
     )  # fmt: skip
     t = run["time"]
     np.testing.assert_allclose(run["lambda_P"], 12.0 * np.sqrt(run["p_P"] / 1e5), rtol=1e-12)
-    expected = 2e-6 * (t - 0.3 * (1.0 - np.exp(-t / 0.3)))
-    np.testing.assert_allclose(run["m_exhaust"], expected, rtol=1e-6, atol=1e-15)
-    assert abs(2e-6 * t[-1] - expected[-1]) > 0.2 * expected[-1]
+    first = 2e-6 * (t - 0.3 * (1.0 - np.exp(-t / 0.3)))
+    second = 1.5e-6 * (t - 0.5 * (1.0 - np.exp(-t / 0.5)))
+    np.testing.assert_allclose(run["m_exhaust"], first + second, rtol=1e-6, atol=1e-15)
+    assert abs(2e-6 * t[-1] - first[-1]) > 0.2 * first[-1]
+    assert second[-1] > 0.3 * (first[-1] + second[-1])  # a second state not wired fails
     assert run["p_P"][-1] < run["p_P"][0] - 1e3  # chamber P loses that air
 
 

@@ -59,7 +59,6 @@ from pneumafit.models.layout import (
     CTRL_DB_WIDTH,
     LAW_STATE_FEEDBACK,
     NCTRL,
-    NX,
     VALVE_LAWS,
     X_PN,
     X_PP,
@@ -619,10 +618,10 @@ def numerical_jacobian(
     d = np.empty(kernel.ND)
     module.derive(p, d)
     slots = SLOTS_6[:order]
-    x0 = np.zeros(NX)
+    x0 = np.zeros(module.NX)
     x0[list(SLOTS_6)] = eq.state()
     x0[kernel.X_TWN] = x0[kernel.X_TWP] = p[P["wall_temperature"]]
-    dx = np.empty(NX)
+    dx = np.empty(module.NX)
     aux = np.empty(kernel.NAUX)
     scale = np.array([p[P["stroke"]], 1.0, eq.p_N, eq.p_P, eq.T, eq.T])
 

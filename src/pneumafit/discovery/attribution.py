@@ -450,7 +450,6 @@ def model_rates(
         ``p_N``, ``T_P``, ``T_N``, ``y``.
     """
     from pneumafit.models.layout import (
-        NX,
         X_PN,
         X_PP,
         X_TN,
@@ -518,7 +517,9 @@ def model_rates(
                 rate_k = (lam[k - 1] + h_o) / c_w
                 target = (lam[k - 1] * gas[k - 1] + h_o * t_amb) / (lam[k - 1] + h_o)
                 tw[k] = target + (tw[k - 1] - target) * math.exp(-rate_k * (t[k] - t[k - 1]))
-    xs = np.zeros((n, NX))
+    # the state vector of the kernel that runs it (longer than layout.NX
+    # for outside effects with states past the first slot; those at 0 here)
+    xs = np.zeros((n, kernel_for_config(cfg).NX))
     xs[:, X_Y] = state["y"]
     xs[:, X_V] = vel
     xs[:, X_PP] = state["p_P"]

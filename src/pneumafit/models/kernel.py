@@ -390,8 +390,9 @@ def part_effects(
 @njit(cache=True, fastmath=_FM, _nrt=False)
 def part_effect_rates(mask: int, x: np.ndarray, p: np.ndarray, dx: np.ndarray) -> None:
     """Rate of the state of an outside effect switched on in ``mask`` (slot
-    X_E0; ``Effect.states``, ``Effect.state_rate``): none here (zero)."""
-    dx[X_E0] = 0.0
+    X_E0 and above; ``Effect.states``, ``Effect.state_rate``): none here (zero)."""
+    for i in range(X_E0, NX):
+        dx[i] = 0.0
 
 
 @njit(cache=True, fastmath=_FM, _nrt=False)
@@ -633,7 +634,8 @@ def rhs(
         for i in range(8, NX):
             dx[i] = 0.0
     else:
-        dx[X_E0] = 0.0
+        for i in range(X_E0, NX):
+            dx[i] = 0.0
 
     # --- valve commands: static, or spool dynamics (effect valve_dynamics)
     order = cfg[C_VALVE_ORDER]
@@ -912,7 +914,8 @@ def active_states(cfg: np.ndarray) -> int:
     accounts) unless an effect adds wall-temperature or spool states, a
     friction law other than the switch model (LuGre, a law from outside the
     package) its state in the bristle slot, or an effect from outside the
-    package its state (X_E0)."""
+    package its state (X_E0 and above: every slot, NX, which a copy of the
+    kernel for outside effects sizes to their slots)."""
     if (
         cfg[C_WALL_MASS] == 1
         or cfg[C_VALVE_ORDER] > 0
@@ -1136,8 +1139,9 @@ def _initial_state(x0: np.ndarray, p: np.ndarray, cfg: np.ndarray, x: np.ndarray
     x[X_DUP] = 0.0
     if not math.isfinite(x[X_Z]) and (cfg[C_FRICTION_LAW] != FRICTION_LUGRE or cfg[C_BLOCKED] == 1):
         x[X_Z] = 0.0  # unused (switch model) or frozen (blocked piston)
-    if not math.isfinite(x[X_E0]):  # an outside effect's state: from 0 unless given
-        x[X_E0] = 0.0
+    for i in range(X_E0, NX):  # the outside effects' states: from 0 unless given
+        if not math.isfinite(x[i]):
+            x[i] = 0.0
 
 
 @njit(cache=True, fastmath=_FM)

@@ -7,7 +7,7 @@ here once; everything else refers to the names.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -32,19 +32,30 @@ X_TWN, X_TWP = 8, 9  # wall temperatures (effect wall_thermal_mass)
 X_UN, X_UP = 10, 11  # effective spool commands (effect valve_dynamics)
 X_DUN, X_DUP = 12, 13  # their rates (second-order valve dynamics)
 X_Z = 14  # bristle deflection z (m) of the LuGre friction law
-# the state of an effect registered from outside the package (Effect.states:
-# one effect claims it; its unit is the effect's). One slot: 16 states cost
-# 1-3 % of a simulation, 17 cost 3-5 % (docs/effects.md)
-X_E0 = 15
-EFFECT_STATE_SLOTS = (X_E0,)
+# the states of effects registered from outside the package (Effect.states:
+# each slot claimed by one effect; its unit is the effect's). The cached
+# kernel has the first (NX = 16): two slots more cost the built-in
+# structures 3.5 % of the compiled code's instructions, so the copy of the
+# kernel that runs outside parts (part_kernel) is compiled with the slots
+# its effects claim (state_size; docs/effects.md)
+X_E0, X_E1, X_E2 = 15, 16, 17
+EFFECT_STATE_SLOTS = (X_E0, X_E1, X_E2)
 NX = 16
-STATE_NAMES = (
+STATE_NAMES = (  # every slot: the cached kernel's NX and the effects' beyond
     "y", "v", "p_N", "p_P", "T_N", "T_P", "m_supply", "m_exhaust",
-    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P", "z_f", "e_0",
+    "Tw_N", "Tw_P", "us_N", "us_P", "dus_N", "dus_P", "z_f", "e_0", "e_1", "e_2",
 )  # fmt: skip
 STATE_UNITS = (
-    "m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s", "m", "",
+    "m", "m/s", "Pa", "Pa", "K", "K", "kg", "kg", "K", "K", "V", "V", "V/s", "V/s", "m",
+    "", "", "",
 )  # fmt: skip
+
+
+def state_size(slots: Iterable[int] = ()) -> int:
+    """Length of the state vector of a kernel that runs the effect states in
+    ``slots`` (``Effect.states``): the cached kernel's ``NX``, or one past
+    the highest slot claimed."""
+    return max([NX, *(int(s) + 1 for s in slots)])
 
 # ----------------------------------------------------------------------------
 # Output channels (simulated, at the recording's sample times)

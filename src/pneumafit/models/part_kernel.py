@@ -41,7 +41,8 @@ its own compiled code instead:
   atmosphere (kg/s, for the air consumed) and a force on the piston along
   +y (N). The structure switches it on by its field in the configuration
   slot ``C_PART_EFFECTS`` (:func:`effect_field`). An effect with a state of
-  its own (``Effect.states``, the slot ``layout.X_E0``) adds
+  its own (``Effect.states``, one of the slots ``layout.X_E0`` to ``X_E2``,
+  so up to three such effects together) adds
   ``Effect.state_rate``: ``rate(x, p) -> float``, its time derivative. An
   effect with options other than the single option 1 (``Effect.options``:
   variants, as the built-in spool order 1 or 2) takes the structure's value
@@ -78,7 +79,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pneumafit.errors import PneumafitInputError
-from pneumafit.models import kernel, parts
+from pneumafit.models import kernel, layout, parts
 from pneumafit.models.layout import C_FRICTION_LAW, C_HEAT, C_PART_EFFECTS, C_VALVE_LAW
 from pneumafit.physics.friction import FASTMATH
 
@@ -367,6 +368,8 @@ def rebound(function: Any, module: ModuleType) -> Any:
         py = function.py_func
         env = dict(py.__globals__)
         env["kernel"] = module
+        if "NX" in env:  # arrays of states sized as the module's (state_size)
+            env["NX"] = module.NX
         for name, value in py.__globals__.items():
             inner = getattr(value, "py_func", None)
             if inner is not None and inner.__module__ == kernel.__name__:
@@ -510,7 +513,8 @@ def _hook_source(
         "",
         "@njit(cache=False, fastmath=_FM, _nrt=False)",
         "def part_effect_rates(mask, x, p, dx):",
-        "    dx[X_E0] = 0.0",
+        "    for i in range(X_E0, NX):",
+        "        dx[i] = 0.0",
     ]
     for i, (effect, field) in enumerate(zip(effects, _fields_of(effects), strict=True)):
         guard, arguments = _switched_on(i, effect, field)
@@ -576,6 +580,9 @@ def _build(
     code = compile(source, f"<pneumafit kernel copy {serial}>", "exec")
     exec(code, module.__dict__)
     namespace = module.__dict__
+    # the state vector: the cached kernel's, or longer for effect states in
+    # the slots past it (numba reads the global at compilation, after this)
+    namespace["NX"] = layout.state_size(s for e in effects for s in e.states)
     for law in heat:
         namespace[f"_heat_{int(law.code)}"] = _recompiled(law.kernel, f"heat law {law.name!r}")
     for law in valve:

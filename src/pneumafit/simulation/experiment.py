@@ -247,9 +247,13 @@ class Experiment:
             inp[:, 3] = self.p_chamber
         return inp
 
-    def initial_state(self) -> np.ndarray:
-        """Initial state vector (NX,); NaN where the kernel takes a default."""
-        x0 = np.full(NX, np.nan)
+    def initial_state(self, size: int = NX) -> np.ndarray:
+        """Initial state vector (size,); NaN where the kernel takes a default.
+
+        ``size`` is the state vector's length of the kernel that runs it
+        (``kernel_for(structure).NX``: longer than ``layout.NX`` for outside
+        effects with states past the first slot; those start at 0)."""
+        x0 = np.full(size, np.nan)
         x0[X_Y] = self.initial.get("y", 0.0)
         x0[X_V] = self.initial.get("v", 0.0)
         for name, idx in (("p_N", X_PN), ("p_P", X_PP), ("T_N", X_TN), ("T_P", X_TP)):

@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 
 from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.models import kernel
-from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, NX, X_UN, X_UP, X_V, X_Z
+from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.part_kernel import kernel_for, rebound
 from pneumafit.models.parts import FRICTION_LAWS
@@ -167,19 +167,19 @@ def solve_reference(
     inp = experiment.inputs()
     d = np.empty(kernel.ND)
     kernel.derive(p, d)
-    x = np.empty(NX)
-    kernel._initial_state(experiment.initial_state(), p, cfg, x)
+    nx = kern.NX  # the copy's for outside effects' states past layout.NX
+    x = np.empty(nx)
+    kern._initial_state(experiment.initial_state(nx), p, cfg, x)
     if cfg[C_VALVE_ORDER] > 0:  # valve dynamics: the spool starts at the first command
         x[X_UP], x[X_UN] = commands(x, inp, 0, 0.0, cfg, ctrl)
-    dx = np.empty(NX)
+    dx = np.empty(nx)
     aux = np.empty(kernel.NAUX)
     if atol is None:
-        scale = np.array(
-            [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4, 1.0]
-        )
+        scale = np.ones(nx)  # the outside effects' states: 1 in their unit
+        scale[:15] = [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4]
         atol_v = rtol * scale
     else:
-        atol_v = np.full(NX, atol)
+        atol_v = np.full(nx, atol)
 
     span = [0, t.size - 2]  # the sample intervals evaluate() may use
     if compiled:
@@ -216,7 +216,7 @@ def solve_reference(
         else:
             mode = kernel.next_mode(aux[kernel.A_FD], aux[kernel.A_FS])
 
-    out = np.full((t.size, NX), np.nan)
+    out = np.full((t.size, nx), np.nan)
     out[0] = x
     hold = structure.inputs == "hold"
     bps = _breakpoints(t, inp[:, :3], hold)

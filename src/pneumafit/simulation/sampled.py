@@ -35,7 +35,6 @@ from pneumafit.models.layout import (
     CHANNEL_UNITS,
     CHANNELS,
     NCTRL,
-    NX,
 )
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.part_kernel import kernel_for, rebound
@@ -171,16 +170,17 @@ def simulate_sampled(
     n = t.size
     nsub = np.maximum(np.ceil(np.diff(t) / step - 1e-9), 1).astype(np.int64)
     d = np.empty(kernel.ND)
-    x = np.empty(NX)
-    xs, xn, xe, dx = (np.empty(NX) for _ in range(4))
-    kk = np.empty((tab.b.shape[0], NX))
+    nx = kern.NX  # the copy's for outside effects' states past layout.NX
+    x = np.empty(nx)
+    xs, xn, xe, dx = (np.empty(nx) for _ in range(4))
+    kk = np.empty((tab.b.shape[0], nx))
     aux = np.zeros(kernel.NAUX)
     mem_i = np.zeros(1, dtype=np.int64)
     mem_f = np.zeros(2)
     inp = np.zeros((2, 4))
     out = np.full((n, ch_sel.size), np.nan)
-    x0 = exp.initial_state()
-    kernel._initial_state(x0, p, cfg, x)  # the state the controller first reads
+    x0 = exp.initial_state(nx)
+    kern._initial_state(x0, p, cfg, x)  # the state the controller first reads
     status = kernel.STATUS_OK
     for k in range(n):
         u = float(controller(x[MEASURED].copy(), float(ref[k])))

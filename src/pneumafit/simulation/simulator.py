@@ -234,7 +234,8 @@ class Simulator:
         n_rec = len(exps)
         cfgs = np.zeros((n_rec, self.structure.config().size), dtype=np.int64)
         ctrls = np.zeros((n_rec, NCTRL))
-        x0s = np.zeros((n_rec, NX))
+        nx = self._kernel.NX  # longer than layout.NX for outside effects' states
+        x0s = np.zeros((n_rec, nx))
         offsets = np.zeros(n_rec + 1, dtype=np.int64)
         for r, e in enumerate(exps):
             cfgs[r] = self.structure.config(
@@ -245,7 +246,7 @@ class Simulator:
             )
             if e.controller is not None:
                 ctrls[r] = e.controller.as_array()
-            x0s[r] = e.initial_state()
+            x0s[r] = e.initial_state(nx)
             offsets[r + 1] = offsets[r] + e.n_samples
         t_all = np.concatenate([e.time for e in exps])
         inp_all = np.concatenate([e.inputs() for e in exps])
@@ -274,7 +275,9 @@ class Simulator:
         experiments : sequence of Experiment or PackedExperiments
         initial_states : ndarray, shape (n_sets, n_experiments, NX), optional
             An initial state per parameter set and experiment (when initial
-            states are fitted); default the experiments' own.
+            states are fitted); default the experiments' own. NX is the
+            kernel's (``self._kernel.NX``); states of ``layout.NX`` are
+            taken too, the outside effects' states past it from 0.
         nsub : ndarray of int, optional
             Steps per sample interval, rows as ``packed.t_all`` (default the
             packed ones).
@@ -312,13 +315,14 @@ class Simulator:
         out = np.empty((n_sets, packed.t_all.size, self._ch_sel.size))
         status = np.zeros((n_sets, n_exp), dtype=np.int64)
         tab = self.tableau if tableau is None else tableau
+        nx = self._kernel.NX
         if initial_states is None:
-            x0s = np.broadcast_to(packed.x0s, (n_sets, n_exp, NX)).copy()  # writable
+            x0s = np.broadcast_to(_sized(packed.x0s, nx), (n_sets, n_exp, nx)).copy()  # writable
         else:
-            x0s = np.require(initial_states, dtype=float, requirements="CW")
-            if x0s.shape != (n_sets, n_exp, NX):
+            x0s = _sized(np.require(initial_states, dtype=float, requirements="CW"), nx)
+            if x0s.shape != (n_sets, n_exp, nx):
                 raise PneumafitInputError(
-                    f"simulator: initial_states: expected shape {(n_sets, n_exp, NX)}, "
+                    f"simulator: initial_states: expected shape {(n_sets, n_exp, nx)}, "
                     f"found {x0s.shape}"
                 )
         nsub_all = packed.nsub_all if nsub is None else nsub
@@ -604,3 +608,13 @@ def _balanced_jobs(run: np.ndarray, offsets: np.ndarray, nsub_all: np.ndarray) -
     threads = max(int(numba.get_num_threads()), 1)
     # thread t takes jobs t, t + threads, ... of the sorted list, as a run
     return np.concatenate([jobs[t::threads] for t in range(threads)]).astype(np.int64)
+
+
+def _sized(x0s: np.ndarray, nx: int) -> np.ndarray:
+    """States of ``layout.NX`` (the cached kernel's) made ``nx`` long for a
+    kernel copy with outside effects' states past it: those start at 0, as
+    the kernel's own default. Any other length is returned as it is."""
+    if x0s.ndim >= 1 and x0s.shape[-1] == NX < nx:
+        pad = np.zeros((*x0s.shape[:-1], nx - NX))
+        return np.require(np.concatenate([x0s, pad], axis=-1), requirements="CW")
+    return x0s

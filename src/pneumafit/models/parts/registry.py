@@ -485,11 +485,12 @@ class Effect:
         argument, ``eff(x, p, option)`` (an int >= 1), and so does its
         ``state_rate``.
     states : tuple of int
-        State slots the effect claims (``layout.EFFECT_STATE_SLOTS``: the
-        one slot X_E0), for a state of its own that its ``kernel`` reads
-        from ``x`` (a wall temperature, a spool, a leak that opens over
-        time); none by default. No two registered effects claim the same
-        slot.
+        The state slot the effect claims, one of
+        ``layout.EFFECT_STATE_SLOTS`` (X_E0, X_E1, X_E2), for a state of its
+        own that its ``kernel`` reads from ``x`` (a wall temperature, a
+        spool, a leak that opens over time); none by default. No two
+        registered effects claim the same slot, so up to three effects with
+        a state run together.
     state_rate : numba njit function or None
         With ``states``: an ``@njit`` function ``rate(x, p) -> float``, the
         state's time derivative (its unit per second). The state starts at
@@ -500,7 +501,8 @@ class Effect:
         the body of ``void eff(const double *x, const double *p, double
         *out)``, which sets ``out[0]`` ... ``out[5]`` to what ``kernel``
         returns, in its order, and reads the state as ``x[PF_X_<name>]``
-        (``layout.STATE_NAMES``; the effect's own state is ``x[PF_X_e_0]``),
+        (``layout.STATE_NAMES``; the effect's own state is ``x[PF_X_e_0]``
+        for slot X_E0, ``x[PF_X_e_1]`` for X_E1, ...),
         the parameters as ``p[PF_P_<name>]`` and the structure's option value
         as the ``const int option`` the function declares before it. None: an FMU of a
         structure with this effect switched on is refused. Only an effect
@@ -659,9 +661,9 @@ def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
 
 
 def _check_effect_states(where: str, effect: Effect) -> None:
-    """An effect's states: slots among ``EFFECT_STATE_SLOTS``, distinct, no
-    other registered effect's, and a compiled rate exactly when it has some
-    (and kernel code that reads them)."""
+    """An effect's states: one slot among ``EFFECT_STATE_SLOTS``, no other
+    registered effect's, and a compiled rate exactly when it has one (and
+    kernel code that reads it)."""
     _check_kernel(where, effect.state_rate, "state_rate")
     states = tuple(effect.states)
     if not states:
@@ -675,10 +677,10 @@ def _check_effect_states(where: str, effect: Effect) -> None:
         raise PneumafitInputError(
             f"{where}: states: expected kernel code and a state_rate with them, found no {missing}"
         )
-    if len(set(states)) != len(states) or not set(states) <= set(EFFECT_STATE_SLOTS):
+    if len(states) != 1 or states[0] not in EFFECT_STATE_SLOTS:
         raise PneumafitInputError(
-            f"{where}: states: expected distinct slots among {list(EFFECT_STATE_SLOTS)} "
-            f"(layout.X_E0), found {list(states)}"
+            f"{where}: states: expected one slot among {list(EFFECT_STATE_SLOTS)} "
+            f"(layout.X_E0 to X_E2; its state_rate is one number), found {list(states)}"
         )
     taken = {s: e.name for e in _EFFECTS.values() if e.name != effect.name for s in e.states}
     clash = sorted(set(states) & set(taken))

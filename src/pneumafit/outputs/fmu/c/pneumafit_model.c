@@ -540,7 +540,7 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
     if (!m->wall_mass && order == 0) {
         for (i = 8; i < PF_NX; i++) dx[i] = 0.0;
     }
-    dx[PF_X_e_0] = 0.0; /* the state of an effect from outside the package (below) */
+    for (i = PF_X_e_0; i < PF_NX; i++) dx[i] = 0.0; /* outside effects' states (below) */
 
     /* valve commands: static, or spool dynamics (effect valve_dynamics) */
     if (order < 2) {
@@ -628,7 +628,7 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         h_n += e[3];
         qe_total += e[4];
         f_part = e[5];
-        dx[PF_X_e_0] = pf_part_effect_rate(x, p);
+        pf_part_effect_rates(x, p, dx);
     }
 
     /* wall heat exchange (paper eqs. 6-8) */
@@ -861,7 +861,7 @@ void pf_initial_state(const pf_model *m, const double *x0, const pf_inputs *in, 
     x[PF_X_us_P] = 0.0;
     x[PF_X_dus_N] = 0.0;
     x[PF_X_dus_P] = 0.0;
-    x[PF_X_e_0] = 0.0;
+    for (i = PF_X_e_0; i < PF_NX; i++) x[i] = 0.0;
     commands(in, 0.0, &u_p, &u_n);
     if (m->valve_order > 0) {
         x[PF_X_us_P] = u_p;

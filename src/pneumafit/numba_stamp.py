@@ -85,25 +85,15 @@ def stamped_sources(root: Path | None = None) -> list[Path]:
     ``models/layout.py``, which defines no compiled function, built from the
     registered parts), so their files belong in the stamp too. Imports of
     other layers are not followed (their constants are not the kernel's, and
-    an edit there would recompile everything).
-
-    Parameters
-    ----------
-    root : Path, optional
-        The package directory; this module's own by default.
-
-    Returns
-    -------
-    list of Path
-        Sorted; this module is not one of them.
+    an edit there would recompile everything). ``root`` and the result as
+    :func:`compiled_sources` (this module is not in those layers).
     """
     base = _ROOT if root is None else root
-    here = Path(__file__).resolve()
     seen: set[Path] = set()
     todo = list(compiled_sources(base))
     while todo:
         path = todo.pop()
-        if path in seen or path.resolve() == here:
+        if path in seen:
             continue
         seen.add(path)
         try:

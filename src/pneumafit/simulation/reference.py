@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 
 from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.models import kernel
-from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, X_UN, X_UP, X_V, X_Z
+from pneumafit.models.layout import C_VALVE_ORDER, NCTRL, X_E0, X_UN, X_UP, X_V, X_Z
 from pneumafit.models.parameters import parameter_vector
 from pneumafit.models.part_kernel import kernel_for, rebound
 from pneumafit.models.parts import FRICTION_LAWS
@@ -175,8 +175,8 @@ def solve_reference(
     dx = np.empty(nx)
     aux = np.empty(kernel.NAUX)
     if atol is None:
-        scale = np.ones(nx)  # the outside effects' states: 1 in their unit
-        scale[:15] = [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4]
+        scale = np.ones(nx)  # the outside effects' states (X_E0 on): 1 in their unit
+        scale[:X_E0] = [0.5, 1.0, 1e5, 1e5, 300, 300, 1e-3, 1e-3, 300, 300, 10, 10, 1e3, 1e3, 1e-4]
         atol_v = rtol * scale
     else:
         atol_v = np.full(nx, atol)

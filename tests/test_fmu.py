@@ -63,6 +63,7 @@ from test_part_kernel import (  # noqa: E402
     lugre_again_force,
     lugre_again_rate,
     root_pressure_lambda,
+    switch_again,
 )
 
 pytestmark = pytest.mark.skipif(
@@ -823,6 +824,67 @@ def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside_parts, tm
         assert np.max(np.abs(a[q] - b[q])) <= tol, q
     assert np.max(np.abs(runs["frozen"]["y"] - b["y"])) > 1e-3
     assert np.max(np.abs(runs["switch"]["y"] - b["y"])) > 1e-3
+
+
+#: The switch model's sliding force (physics.friction.sliding_friction) in C,
+#: as tests/test_part_kernel.py's switch_again: s the sliding direction.
+SWITCH_AGAIN_C = """
+double r = v / p[PF_P_stribeck_velocity];
+return s * (f_c + (f_s - f_c) * exp(-r * r)) + p[PF_P_friction_viscous] * v;
+"""
+
+
+def test_an_outside_friction_law_in_the_stuck_mode_runs_in_the_fmu_as_the_switch_model(
+    outside_parts, tmp_path
+):
+    """Identity to rounding: the switch model's sliding force registered from
+    outside the package with ``FrictionLaw.stuck`` and its C code, against
+    the FMU of the built-in switch model at the same integration step, on
+    the open-loop steps, with the seal friction and the asymmetry on (levels
+    passed to the law, the stuck piston's breakaway direction from the
+    drive): the C model keeps the stuck mode, breakaway and rest events for
+    it and calls the law's C code while sliding. Measured (gcc 12 -O2): 0 Pa
+    and 0 m (the same operations in the same order). Held to 1e-3 Pa and
+    1e-9 m, as the valve law's twin. Not vacuous: the piston sticks (v
+    exactly 0 over many samples, which a smooth run of the law cannot give),
+    and the same C code with the Coulomb level doubled moves it by 31 mm
+    (held: more than 1 mm), so the FMU runs the part's code, not the
+    built-in force."""
+    from pneumafit.models.parameters import default_parameters
+    from pneumafit.models.structure import ModelStructure
+    from pneumafit.outputs.fmu import write_fmu
+    from pneumafit.simulation import choose_step
+
+    parts, _layout = outside_parts
+    law = parts.register_friction_law(
+        parts.FrictionLaw(
+            name="switch-again", code=9, parameters=parts.FRICTION_LAWS["switch"].parameters,
+            description="the switch model's sliding force, in its stuck mode, in C",
+            kernel=switch_again, stuck=True, c_code=SWITCH_AGAIN_C,
+        )
+    )  # fmt: skip
+    values = {**default_parameters(), "seal_friction_coefficient": 1.5e-5,
+              "friction_asymmetry": 0.2}  # fmt: skip
+    effects = {"seal_friction": 1, "friction_asymmetry": 1}
+    step = choose_step(values)  # the built-in switch model's, for both
+    outputs = ("y", "v", "p_P", "p_N", "F_f")
+    runs = {}
+    for name, friction in (("outside", "switch-again"), ("builtin", "switch")):
+        structure = ModelStructure("convection", friction=friction, effects=effects)
+        fmu = write_fmu(structure, values, tmp_path / f"{name}.fmu", integration_step=step)
+        assert not validate_fmu(str(fmu)), name
+        runs[name] = _run_fmu(fmu, outputs)
+    doubled = SWITCH_AGAIN_C.replace("s * (f_c +", "s * (2.0 * f_c +")
+    assert doubled != SWITCH_AGAIN_C
+    parts.register_friction_law(dataclasses.replace(law, c_code=doubled), replace=True)
+    structure = ModelStructure("convection", friction="switch-again", effects=effects)
+    fmu = write_fmu(structure, values, tmp_path / "doubled.fmu", integration_step=step)
+    runs["doubled"] = _run_fmu(fmu, outputs)
+    a, b = runs["outside"], runs["builtin"]
+    assert np.sum(a["v"] == 0.0) > 100  # samples stuck
+    for q, tol in (("p_P", 1e-3), ("p_N", 1e-3), ("y", 1e-9), ("F_f", 1e-6)):
+        assert np.max(np.abs(a[q] - b[q])) <= tol, q
+    assert np.max(np.abs(runs["doubled"]["y"] - b["y"])) > 1e-3
 
 
 def test_an_outside_friction_law_s_state_gets_the_step_s_rate_limit(outside_parts, tmp_path):

@@ -320,8 +320,10 @@ class FrictionLaw(_Law):
         body of ``double force(double v, double f_s, double f_c, const double
         *x, const double *p)``, reading the state as ``x[PF_X_<name>]`` (the
         law's own, the bristle slot, ``x[PF_X_z_f]``) and the parameters as
-        ``p[PF_P_<name>]``. None: an FMU of a structure with this law is
-        refused. Only a law with ``kernel`` code takes one.
+        ``p[PF_P_<name>]`` (a law with ``stuck``: ``double force(double v,
+        double s, double f_s, double f_c, const double *x, const double
+        *p)``, s the sliding direction). None: an FMU of a structure with
+        this law is refused. Only a law with ``kernel`` code takes one.
     c_state_rate : str or None
         With ``state_rate`` and ``c_code``: the body of ``double rate(double
         v, double f_s, double f_c, const double *x, const double *p, double
@@ -336,8 +338,9 @@ class FrictionLaw(_Law):
         only while sliding, s = +1 or -1 the sliding direction (v may be 0,
         at breakaway, or of the other sign within a step before the event).
         A Coulomb-type law that jumps at v = 0 belongs here. No state of its
-        own (``state_rate``) and no C code: the FMU's C model runs outside
-        friction laws as smooth ones.
+        own (``state_rate``); its ``c_code`` is then the body of ``double
+        force(double v, double s, double f_s, double f_c, const double *x,
+        const double *p)``, which the FMU's C model calls in the same modes.
     """
 
     joint_prior: Callable[[Mapping[str, Any]], Any] | None = None
@@ -867,7 +870,7 @@ def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> Frictio
 
     A law with ``kernel`` code takes a code outside
     :data:`KERNEL_FRICTION_CODES`, and its ``starts`` name only its parameters;
-    a law with ``stuck`` has kernel code, and no ``state_rate`` or C code.
+    a law with ``stuck`` has kernel code and no ``state_rate``.
     """
     if law.stuck is not False:
         where = f"register friction law {law.name!r}"
@@ -876,13 +879,11 @@ def register_friction_law(law: FrictionLaw, *, replace: bool = False) -> Frictio
                 f"{where}: stuck: expected True or False, found {law.stuck!r}"
             )
         found = [n for n, bad in (("no kernel", law.kernel is None),
-                                  ("a state_rate", law.state_rate is not None),
-                                  ("c_code", law.c_code is not None)) if bad]  # fmt: skip
+                                  ("a state_rate", law.state_rate is not None)) if bad]  # fmt: skip
         if found:
             raise PneumafitInputError(
                 f"{where}: stuck: expected kernel code, a sliding force(v, s, f_s, f_c, x, p) "
-                "without a state of its own (state_rate) or C code (the FMU's C model runs "
-                f"outside friction laws as smooth ones), found {', '.join(found)}"
+                f"without a state of its own (state_rate), found {', '.join(found)}"
             )
     return _register_slot_law(_FRICTION, law, "friction law", KERNEL_FRICTION_CODES, replace)
 

@@ -10,8 +10,9 @@
 #include "pneumafit_model.h"
 #include "pneumafit_parts.h"
 
-/* LuGre and a friction law from outside the package: no stuck mode, no events */
-#define PF_SMOOTH(m) ((m)->lugre || PF_PART_FRICTION)
+/* LuGre and a smooth friction law from outside the package: no stuck mode, no
+   events (an outside law with FrictionLaw.stuck has the switch model's modes) */
+#define PF_SMOOTH(m) ((m)->lugre || (PF_PART_FRICTION && !PF_PART_FRICTION_STUCK))
 
 /* ------------------------------------------------------------------ air */
 
@@ -706,7 +707,7 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         dx[PF_X_y] = v;
         dx[PF_X_v] = (f_drive - f_f) * m->inv_m;
         dx[PF_X_z_f] = dz;
-    } else if (PF_PART_FRICTION) { /* kernel.part_friction, part_friction_rate */
+    } else if (PF_SMOOTH(m)) { /* kernel.part_friction, part_friction_rate */
         f_f = pf_part_friction(v, f_s, f_c, x, p);
         dx[PF_X_y] = v;
         dx[PF_X_v] = (f_drive - f_f) * m->inv_m;
@@ -717,8 +718,11 @@ void pf_rhs(const pf_model *m, const double *x, int mode, double u_p_cmd, double
         dx[PF_X_v] = 0.0;
         dx[PF_X_z_f] = 0.0;
     } else {
-        f_f = sliding_friction(v, mode, f_s, f_c, p[PF_P_friction_viscous],
-                               p[PF_P_stribeck_velocity]);
+        if (PF_PART_FRICTION_STUCK) /* kernel.part_friction_sliding */
+            f_f = pf_part_friction_sliding(v, (double)mode, f_s, f_c, x, p);
+        else
+            f_f = sliding_friction(v, mode, f_s, f_c, p[PF_P_friction_viscous],
+                                   p[PF_P_stribeck_velocity]);
         dx[PF_X_y] = v;
         dx[PF_X_v] = (f_drive - f_f) * m->inv_m;
         dx[PF_X_z_f] = 0.0;

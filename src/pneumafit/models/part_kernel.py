@@ -40,10 +40,10 @@ its own compiled code instead:
   their upstream temperature, outflows at the chamber's), the mass sent to
   atmosphere (kg/s, for the air consumed) and a force on the piston along
   +y (N). The structure switches it on by its field in the configuration
-  slot ``C_PART_EFFECTS`` (:func:`effect_field`). An effect with a state of
-  its own (``Effect.states``, one of the slots ``layout.X_E0`` to ``X_E2``,
-  so up to three such effects together) adds
-  ``Effect.state_rate``: ``rate(x, p) -> float``, its time derivative. An
+  slot ``C_PART_EFFECTS`` (:func:`effect_field`). An effect with states of
+  its own (``Effect.states``, among the slots ``layout.X_E0`` to ``X_E2``,
+  three between all effects) adds ``Effect.state_rate``: ``rate(x, p)``,
+  their time derivatives (a float for one state, a tuple for more). An
   effect with options other than the single option 1 (``Effect.options``:
   variants, as the built-in spool order 1 or 2) takes the structure's value
   as a third argument, ``eff(x, p, option)`` and ``rate(x, p, option)``,
@@ -517,9 +517,17 @@ def _hook_source(
         "        dx[i] = 0.0",
     ]
     for i, (effect, field) in enumerate(zip(effects, _fields_of(effects), strict=True)):
+        if not effect.states:
+            continue
         guard, arguments = _switched_on(i, effect, field)
-        for slot in effect.states:
-            lines += [*guard, f"        dx[{int(slot)}] = _effect_rate_{i}({arguments})"]
+        if len(effect.states) == 1:  # the rate is a number
+            slot = int(effect.states[0])
+            lines += [*guard, f"        dx[{slot}] = _effect_rate_{i}({arguments})"]
+            continue
+        # a tuple, one rate per state in the order of the effect's states
+        names = [f"r{i}_{k}" for k in range(len(effect.states))]
+        lines += [*guard, f"        {', '.join(names)} = _effect_rate_{i}({arguments})"]
+        lines += [f"        dx[{int(s)}] = {r}" for s, r in zip(effect.states, names, strict=True)]
     lines += ["    return", ""]
     return "\n".join(lines)
 

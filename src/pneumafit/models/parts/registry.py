@@ -36,6 +36,7 @@ from pneumafit.models.layout import (
     PART_PARAMETER_GROUPS,
     SPECS,
     LiveTuple,
+    P,
     ParameterSpec,
     _append_parameter,
     _remove_last_parameter,
@@ -488,17 +489,19 @@ class Effect:
         argument, ``eff(x, p, option)`` (an int >= 1), and so does its
         ``state_rate``.
     states : tuple of int
-        The state slot the effect claims, one of
-        ``layout.EFFECT_STATE_SLOTS`` (X_E0, X_E1, X_E2), for a state of its
+        The state slots the effect claims, among
+        ``layout.EFFECT_STATE_SLOTS`` (X_E0, X_E1, X_E2), for states of its
         own that its ``kernel`` reads from ``x`` (a wall temperature, a
-        spool, a leak that opens over time); none by default. No two
-        registered effects claim the same slot, so up to three effects with
-        a state run together.
+        spool's position and speed, a leak that opens over time); none by
+        default. No two registered effects claim the same slot, so the
+        effects with states run together while they claim three slots or
+        fewer between them.
     state_rate : numba njit function or None
-        With ``states``: an ``@njit`` function ``rate(x, p) -> float``, the
-        state's time derivative (its unit per second). The state starts at
-        0 (from the experiment's initial state when it gives it) and
-        evolves in every test, blocked or not.
+        With ``states``: an ``@njit`` function ``rate(x, p)``, the states'
+        time derivatives (their units per second): a float for one state, a
+        tuple of as many floats as ``states``, in their order, for more.
+        The states start at 0 (from the experiment's initial state when it
+        gives them) and evolve in every test, blocked or not.
     c_code : str or None
         The same effect in C, for the FMU (:mod:`pneumafit.outputs.fmu`):
         the body of ``void eff(const double *x, const double *p, double
@@ -511,8 +514,11 @@ class Effect:
         structure with this effect switched on is refused. Only an effect
         with ``kernel`` code takes one.
     c_state_rate : str or None
-        With ``states`` and ``c_code``: the body of ``double rate(const
-        double *x, const double *p)``, ``state_rate`` in C.
+        With ``states`` and ``c_code``: ``state_rate`` in C, the body of
+        ``double rate(const double *x, const double *p)`` for one state, of
+        ``void rate(const double *x, const double *p, double *out)``
+        setting ``out[0]``, ``out[1]``, ... in the order of ``states`` for
+        more.
     """
 
     name: str
@@ -664,9 +670,10 @@ def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
 
 
 def _check_effect_states(where: str, effect: Effect) -> None:
-    """An effect's states: one slot among ``EFFECT_STATE_SLOTS``, no other
-    registered effect's, and a compiled rate exactly when it has one (and
-    kernel code that reads it)."""
+    """An effect's states: distinct slots among ``EFFECT_STATE_SLOTS``, no
+    other registered effect's, and a compiled rate exactly when it has some
+    (and kernel code that reads them), which returns one number per state
+    (checked by calling its Python function once when that call succeeds)."""
     _check_kernel(where, effect.state_rate, "state_rate")
     states = tuple(effect.states)
     if not states:
@@ -680,17 +687,46 @@ def _check_effect_states(where: str, effect: Effect) -> None:
         raise PneumafitInputError(
             f"{where}: states: expected kernel code and a state_rate with them, found no {missing}"
         )
-    if len(states) != 1 or states[0] not in EFFECT_STATE_SLOTS:
+    if len(set(states)) != len(states) or not set(states) <= set(EFFECT_STATE_SLOTS):
         raise PneumafitInputError(
-            f"{where}: states: expected one slot among {list(EFFECT_STATE_SLOTS)} "
-            f"(layout.X_E0 to X_E2; its state_rate is one number), found {list(states)}"
+            f"{where}: states: expected distinct slots among {list(EFFECT_STATE_SLOTS)} "
+            f"(layout.X_E0 to X_E2), found {list(states)}"
         )
+    option = () if set(effect.options) == {1} else (min(effect.options),)
+    _check_rate_arity(where, effect.state_rate, len(states), option)
     taken = {s: e.name for e in _EFFECTS.values() if e.name != effect.name for s in e.states}
     clash = sorted(set(states) & set(taken))
     if clash:
         raise PneumafitInputError(
             f"{where}: states: expected slots no other effect has, found {clash[0]} taken by "
             f"{taken[clash[0]]!r}"
+        )
+
+
+def _check_rate_arity(where: str, rate: Any, n: int, option: tuple[int, ...]) -> None:
+    """``rate(x, p, *option)`` returns a number for one state (``n`` = 1), a
+    tuple of ``n`` numbers for more. Called once in Python on a state of ones
+    and the parameters' defaults; a call that fails there (a law that
+    divides by a state, say) is left to the compiler, which types the same
+    return."""
+    import numpy as np
+
+    x = np.ones(max(EFFECT_STATE_SLOTS) + 1)
+    p = np.empty(len(P))
+    for name, index in P.items():
+        p[index] = SPECS[name].default
+    try:
+        with np.errstate(all="ignore"):
+            out = rate.py_func(x, p, *option)
+    except Exception:  # the compiler reports the law's own errors
+        return
+    found = len(out) if isinstance(out, tuple) else None
+    if (n == 1 and found is not None) or (n > 1 and found != n):
+        raise PneumafitInputError(
+            f"{where}: state_rate: expected "
+            + ("one number (one state)" if n == 1 else f"a tuple of {n} numbers (one per state)")
+            + ", found "
+            + ("a number" if found is None else f"a tuple of {found}")
         )
 
 

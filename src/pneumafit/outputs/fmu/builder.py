@@ -394,10 +394,16 @@ def parts_header(structure: ModelStructure) -> str:
         "",
     ]  # fmt: skip
     stateful = [(i, e) for i, e in enumerate(effects) if e.states]
+    calls = []
     for i, e in stateful:
+        names = [STATE_NAMES[slot] for slot in e.states]
+        one = len(names) == 1  # one state: its rate returned; more: out[k], in order
         lines += [
-            f"/* the rate of effect {e.name!r}'s state ({STATE_NAMES[e.states[0]]}) */",
-            f"static double pf_part_effect_rate_{i}(const double *x, const double *p)",
+            f"/* the rate of effect {e.name!r}'s state{'' if one else 's'} "
+            f"({', '.join(names)}) */",
+            f"static double pf_part_effect_rate_{i}(const double *x, const double *p)"
+            if one else
+            f"static void pf_part_effect_rate_{i}(const double *x, const double *p, double *out)",
             "{",
             *_option_line(structure, e),
             "    (void)x; (void)p;",
@@ -405,14 +411,23 @@ def parts_header(structure: ModelStructure) -> str:
             "}",
             "",
         ]
+        if one:
+            calls.append(f"    dx[PF_X_{names[0]}] = pf_part_effect_rate_{i}(x, p);")
+        else:
+            calls += [
+                "    {",
+                f"        double r[{len(names)}];",
+                f"        pf_part_effect_rate_{i}(x, p, r);",
+                *(f"        dx[PF_X_{n}] = r[{k}];" for k, n in enumerate(names)),
+                "    }",
+            ]
     lines += [
         "static void pf_part_effect_rates(const double *x, const double *p, double *dx)",
         "{ /* kernel.part_effect_rates: the outside effects' states (X_E0 to X_E2) */",
         "    int i;",
         "    (void)x; (void)p;",
         "    for (i = PF_X_e_0; i < PF_NX; i++) dx[i] = 0.0;",
-        *(f"    dx[PF_X_{STATE_NAMES[e.states[0]]}] = pf_part_effect_rate_{i}(x, p);"
-          for i, e in stateful),
+        *calls,
         "}",
         "",
         "#endif",

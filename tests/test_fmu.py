@@ -56,6 +56,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 # the kernel code of the twins (tests/test_part_kernel.py); the FMU runs their C
 from test_part_kernel import (  # noqa: E402
     _drain_functions,
+    _drain_parameters,
     _second_order_drain,
     constant_lambda_again,
     external_leak_again,
@@ -568,6 +569,29 @@ def test_outside_parts_in_c_run_in_the_fmu_as_their_builtin_twins(outside_parts,
     assert np.max(np.abs(b["y"] - runs["no-load"]["y"])) > 1e-2
 
 
+def _drain_out_of_p_c(state: str) -> str:
+    """C code of a drain whose flow, the state ``state``, leaves chamber P at
+    its temperature to atmosphere (tests/test_part_kernel.py's drains)."""
+    return (
+        f"double e = x[PF_X_{state}];\n"
+        "out[0] = -e; out[1] = -e * x[PF_X_T_P]; out[2] = 0.0; out[3] = 0.0;\n"
+        "out[4] = e; out[5] = 0.0;"
+    )
+
+
+def _run_closed_valves(fmu, more=()) -> np.ndarray:
+    """Validate ``fmu`` and run it 1.5 s with both valves at 0 V from y = 0.2
+    m and 3 bar in both chambers: outputs p_P, m_exhaust and ``more``."""
+    assert not validate_fmu(str(fmu))
+    signal = np.array([(0.0, 0.0, 0.0), (1.5, 0.0, 0.0)],
+                      dtype=[("time", float), ("u_P", float), ("u_N", float)])  # fmt: skip
+    return fmpy.simulate_fmu(
+        str(fmu), stop_time=1.5, output_interval=H, input=signal,
+        start_values={"y_start": 0.2, "p_P_start": 3.0e5, "p_N_start": 3.0e5},
+        output=["p_P", "m_exhaust", *more],
+    )  # fmt: skip
+
+
 def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, tmp_path):
     """Analytic: a heat law the C model does not have, lambda = c sqrt(P /
     1 bar), is read back from the FMU's own outputs (lambda_P against c
@@ -584,35 +608,20 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
     as instantaneous (c t) is 25 % off at 1.5 s."""
     parts, layout = outside_parts
 
-    from pneumafit.models.layout import ParameterSpec
 
     _outside_heat_law(parts, layout, "root-p", 8, "root_p_coefficient", root_pressure_lambda,
                       "return p[PF_P_root_p_coefficient] * sqrt(pres / 1.0e5);")  # fmt: skip
-    for spec in (
-        ParameterSpec("drain_flow", "kg/s", 2e-6, 1e-9, 1e-3, "effect", "final flow"),
-        ParameterSpec("drain_time", "s", 0.3, 1e-3, 10.0, "effect", "opening time"),
-    ):
-        parts.register_parameter(spec)
     # the simulator's test of the same drain (its kernel code; the FMU runs the C)
     slot = layout.X_E0
-    drain, rate = _drain_functions(layout.P["drain_flow"], layout.P["drain_time"])
+    drain, rate = _drain_functions(*_drain_parameters("drain", 2e-6, 0.3))
     _outside_effect(
         parts, "drain", "drain_flow", ("drain_flow", "drain_time"), drain,
-        "double e = x[PF_X_e_0];\n"
-        "out[0] = -e; out[1] = -e * x[PF_X_T_P]; out[2] = 0.0; out[3] = 0.0;\n"
-        "out[4] = e; out[5] = 0.0;",
+        _drain_out_of_p_c("e_0"),
         states=(slot,), state_rate=rate,
         c_state_rate="return (p[PF_P_drain_flow] - x[PF_X_e_0]) / p[PF_P_drain_time];",
     )  # fmt: skip
     # a second drain, out of chamber N, its state in another slot (X_E2)
-    for spec in (
-        ParameterSpec("drain_n_flow", "kg/s", 1.5e-6, 1e-9, 1e-3, "effect", "final flow"),
-        ParameterSpec("drain_n_time", "s", 0.5, 1e-3, 10.0, "effect", "opening time"),
-    ):
-        parts.register_parameter(spec)
-    drain_n, rate_n = _drain_functions(
-        layout.P["drain_n_flow"], layout.P["drain_n_time"], layout.X_E2, "N"
-    )
+    drain_n, rate_n = _drain_functions(*_drain_parameters("drain_n", 1.5e-6, 0.5), layout.X_E2, "N")
     _outside_effect(
         parts, "drain_n", "drain_n_flow", ("drain_n_flow", "drain_n_time"), drain_n,
         "double e = x[PF_X_e_2];\n"
@@ -629,15 +638,7 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
                                    "drain_n_flow": 1.5e-6, "drain_n_time": 0.5}}),
         encoding="utf-8",
     )  # fmt: skip
-    fmu = build_fmu(params, tmp_path / "root-p.fmu")
-    assert not validate_fmu(str(fmu))
-    signal = np.array([(0.0, 0.0, 0.0), (1.5, 0.0, 0.0)],
-                      dtype=[("time", float), ("u_P", float), ("u_N", float)])  # fmt: skip
-    run = fmpy.simulate_fmu(
-        str(fmu), stop_time=1.5, output_interval=H, input=signal,
-        start_values={"y_start": 0.2, "p_P_start": 3.0e5, "p_N_start": 3.0e5},
-        output=["p_P", "lambda_P", "m_exhaust"],
-    )  # fmt: skip
+    run = _run_closed_valves(build_fmu(params, tmp_path / "root-p.fmu"), ["lambda_P"])
     t = run["time"]
     np.testing.assert_allclose(run["lambda_P"], 12.0 * np.sqrt(run["p_P"] / 1e5), rtol=1e-12)
     first = 2e-6 * (t - 0.3 * (1.0 - np.exp(-t / 0.3)))
@@ -659,20 +660,10 @@ def test_an_outside_effect_with_two_states_in_the_fmu(outside_parts, tmp_path):
     Not vacuous: a first-order opening of the same tau is off by over 20 %
     of the air sent (checked on the closed forms)."""
     parts, layout = outside_parts
-
-    from pneumafit.models.layout import ParameterSpec
-
-    for spec in (
-        ParameterSpec("drain2_flow", "kg/s", 2e-6, 1e-9, 1e-3, "effect", "final flow"),
-        ParameterSpec("drain2_time", "s", 0.3, 1e-3, 10.0, "effect", "opening time"),
-    ):
-        parts.register_parameter(spec)
-    drain, rate = _second_order_drain(layout.P["drain2_flow"], layout.P["drain2_time"])
+    drain, rate = _second_order_drain(*_drain_parameters("drain2", 2e-6, 0.3))
     _outside_effect(
         parts, "drain2", "drain2_flow", ("drain2_flow", "drain2_time"), drain,
-        "double e = x[PF_X_e_2];\n"
-        "out[0] = -e; out[1] = -e * x[PF_X_T_P]; out[2] = 0.0; out[3] = 0.0;\n"
-        "out[4] = e; out[5] = 0.0;",
+        _drain_out_of_p_c("e_2"),
         states=(layout.X_E2, layout.X_E0), state_rate=rate,
         c_state_rate="double tau = p[PF_P_drain2_time];\n"
         "out[0] = x[PF_X_e_0];\n"
@@ -685,15 +676,7 @@ def test_an_outside_effect_with_two_states_in_the_fmu(outside_parts, tmp_path):
                                    "drain2_time": 0.3}}),
         encoding="utf-8",
     )  # fmt: skip
-    fmu = build_fmu(params, tmp_path / "drain2.fmu")
-    assert not validate_fmu(str(fmu))
-    signal = np.array([(0.0, 0.0, 0.0), (1.5, 0.0, 0.0)],
-                      dtype=[("time", float), ("u_P", float), ("u_N", float)])  # fmt: skip
-    run = fmpy.simulate_fmu(
-        str(fmu), stop_time=1.5, output_interval=H, input=signal,
-        start_values={"y_start": 0.2, "p_P_start": 3.0e5, "p_N_start": 3.0e5},
-        output=["p_P", "m_exhaust"],
-    )  # fmt: skip
+    run = _run_closed_valves(build_fmu(params, tmp_path / "drain2.fmu"))
     t = run["time"]
     second = 2e-6 * (t - 0.6 + (0.6 + t) * np.exp(-t / 0.3))
     first = 2e-6 * (t - 0.3 * (1.0 - np.exp(-t / 0.3)))
@@ -881,6 +864,17 @@ def test_an_outside_friction_law_in_c_runs_in_the_fmu_as_lugre(outside_parts, tm
     assert np.max(np.abs(runs["switch"]["y"] - b["y"])) > 1e-3
 
 
+def _run_with_other_c_code(register, law, c_code, structure, values, tmp_path, step, outputs):
+    """Register ``law`` again with ``c_code`` (not its own), then build and
+    run the FMU of ``structure``: whether the FMU runs the part's code."""
+    from pneumafit.outputs.fmu import write_fmu
+
+    assert c_code != law.c_code
+    register(dataclasses.replace(law, c_code=c_code), replace=True)
+    fmu = write_fmu(structure, values, tmp_path / "other.fmu", integration_step=step)
+    return _run_fmu(fmu, outputs)
+
+
 #: The switch model's sliding force (physics.friction.sliding_friction) in C,
 #: as tests/test_part_kernel.py's switch_again: s the sliding direction.
 SWITCH_AGAIN_C = """
@@ -929,12 +923,11 @@ def test_an_outside_friction_law_in_the_stuck_mode_runs_in_the_fmu_as_the_switch
         fmu = write_fmu(structure, values, tmp_path / f"{name}.fmu", integration_step=step)
         assert not validate_fmu(str(fmu)), name
         runs[name] = _run_fmu(fmu, outputs)
-    doubled = SWITCH_AGAIN_C.replace("s * (f_c +", "s * (2.0 * f_c +")
-    assert doubled != SWITCH_AGAIN_C
-    parts.register_friction_law(dataclasses.replace(law, c_code=doubled), replace=True)
-    structure = ModelStructure("convection", friction="switch-again", effects=effects)
-    fmu = write_fmu(structure, values, tmp_path / "doubled.fmu", integration_step=step)
-    runs["doubled"] = _run_fmu(fmu, outputs)
+    runs["doubled"] = _run_with_other_c_code(
+        parts.register_friction_law, law, SWITCH_AGAIN_C.replace("s * (f_c +", "s * (2.0 * f_c +"),
+        ModelStructure("convection", friction="switch-again", effects=effects), values,
+        tmp_path, step, outputs,
+    )  # fmt: skip
     a, b = runs["outside"], runs["builtin"]
     assert np.sum(a["v"] == 0.0) > 100  # samples stuck
     for q, tol in (("p_P", 1e-3), ("p_N", 1e-3), ("y", 1e-9), ("F_f", 1e-6)):
@@ -1093,15 +1086,14 @@ def test_an_outside_valve_law_in_c_runs_in_the_fmu_as_iso_6358(outside_parts, tm
                         integration_step=step)  # fmt: skip
         assert not validate_fmu(str(fmu)), name
         runs[name] = _run_fmu(fmu, outputs)
-    law = parts.VALVE_LAWS["iso-again"]
     doubled = ISO_AGAIN_C.replace(
         "p[PF_P_valve_C_supply] * o[0]", "2.0 * p[PF_P_valve_C_supply] * o[0]"
     )
-    assert doubled != ISO_AGAIN_C
-    parts.register_valve_law(dataclasses.replace(law, c_code=doubled), replace=True)
-    structure = ModelStructure("convection", valve="iso-again", effects=effects)
-    fmu = write_fmu(structure, values, tmp_path / "doubled.fmu", integration_step=step)
-    runs["doubled"] = _run_fmu(fmu, outputs)
+    runs["doubled"] = _run_with_other_c_code(
+        parts.register_valve_law, parts.VALVE_LAWS["iso-again"], doubled,
+        ModelStructure("convection", valve="iso-again", effects=effects), values, tmp_path,
+        step, outputs,
+    )  # fmt: skip
     a, b = runs["outside"], runs["builtin"]
     for q, tol in (("p_P", 1e-3), ("p_N", 1e-3), ("T_P", 1e-6), ("T_N", 1e-6), ("y", 1e-9),
                    ("m_supply", 1e-12), ("m_exhaust", 1e-12)):  # fmt: skip

@@ -1352,19 +1352,35 @@ def _drain_functions(
     return drain, rate
 
 
-def _register_drain() -> None:
+def _drain_parameters(name: str, flow: float, time: float) -> tuple[int, int]:
+    """Register a drain's final flow ``NAME_flow`` (kg/s) and opening time
+    ``NAME_time`` (s) with these defaults; their indices in the vector."""
     for spec in (
-        ParameterSpec("drain_flow", "kg/s", 2e-6, 1e-9, 1e-3, "effect", "final flow"),
-        ParameterSpec("drain_time", "s", 0.3, 1e-3, 10.0, "effect", "opening time"),
+        ParameterSpec(f"{name}_flow", "kg/s", flow, 1e-9, 1e-3, "effect", "final flow"),
+        ParameterSpec(f"{name}_time", "s", time, 1e-3, 10.0, "effect", "opening time"),
     ):
-        parts.register_parameter(spec)  # fmt: skip
-    drain, rate = _drain_functions(layout.P["drain_flow"], layout.P["drain_time"])
+        parts.register_parameter(spec)
+    return layout.P[f"{name}_flow"], layout.P[f"{name}_time"]
+
+
+def _register_drain_effect(
+    name: str, flow: float, time: float, functions: Callable[..., tuple[object, object]],
+    states: tuple[int, ...], description: str,
+) -> parts.Effect:  # fmt: skip
+    """Register a drain effect: its parameters (:func:`_drain_parameters`),
+    its law and rate from ``functions(c_index, tau_index)``, its states."""
+    drain, rate = functions(*_drain_parameters(name, flow, time))
     effect = _effect(
-        "drain", "drain_flow", ("drain_flow", "drain_time"), drain,
-        (parts.FitRange("drain_flow", 1e-9, 1e-4), parts.FitRange("drain_time", 1e-2, 5.0)),
-        "a drain out of chamber P opening over time (state e in slot X_E0)",
+        name, f"{name}_flow", (f"{name}_flow", f"{name}_time"), drain,
+        (parts.FitRange(f"{name}_flow", 1e-9, 1e-4), parts.FitRange(f"{name}_time", 1e-2, 5.0)),
+        description,
     )  # fmt: skip
-    parts.register_effect(replace(effect, states=(layout.X_E0,), state_rate=rate))
+    return parts.register_effect(replace(effect, states=states, state_rate=rate))
+
+
+def _register_drain() -> None:
+    _register_drain_effect("drain", 2e-6, 0.3, _drain_functions, (layout.X_E0,),
+                           "a drain out of chamber P opening over time (state e in slot X_E0)")
 
 
 def test_an_outside_effect_with_a_state_of_its_own(registered: None) -> None:
@@ -1413,20 +1429,8 @@ def test_outside_effects_with_a_state_each_run_together(registered: None) -> Non
     # error argument, and so the same tolerance, holds for each
     drains = {"drain_n": (layout.X_E2, 2e-6, 0.5), "drain_m": (layout.X_E1, 3e-6, 1.0)}
     for name, (slot, flow, time) in drains.items():
-        for spec in (
-            ParameterSpec(f"{name}_flow", "kg/s", flow, 1e-9, 1e-3, "effect", "final flow"),
-            ParameterSpec(f"{name}_time", "s", time, 1e-3, 10.0, "effect", "opening time"),
-        ):
-            parts.register_parameter(spec)
-        drain, rate = _drain_functions(
-            layout.P[f"{name}_flow"], layout.P[f"{name}_time"], slot, "N"
-        )
-        effect = _effect(
-            name, f"{name}_flow", (f"{name}_flow", f"{name}_time"), drain,
-            (parts.FitRange(f"{name}_flow", 1e-9, 1e-4), parts.FitRange(f"{name}_time", 1e-2, 5.0)),
-            "a drain out of chamber N",
-        )  # fmt: skip
-        parts.register_effect(replace(effect, states=(slot,), state_rate=rate))
+        functions = functools.partial(_drain_functions, slot=slot, chamber="N")
+        _register_drain_effect(name, flow, time, functions, (slot,), "a drain out of chamber N")
     values = default_parameters()
     values["valve_C_leak"] = 0.0
     t = np.arange(0.0, 1.5005, 1e-3)
@@ -1485,21 +1489,6 @@ def _second_order_drain(
     return drain, rate
 
 
-def _register_second_order_drain() -> None:
-    for spec in (
-        ParameterSpec("drain2_flow", "kg/s", 2e-6, 1e-9, 1e-3, "effect", "final flow"),
-        ParameterSpec("drain2_time", "s", 0.3, 1e-3, 10.0, "effect", "opening time"),
-    ):
-        parts.register_parameter(spec)  # fmt: skip
-    drain, rate = _second_order_drain(layout.P["drain2_flow"], layout.P["drain2_time"])
-    effect = _effect(
-        "drain2", "drain2_flow", ("drain2_flow", "drain2_time"), drain,
-        (parts.FitRange("drain2_flow", 1e-9, 1e-4), parts.FitRange("drain2_time", 1e-2, 5.0)),
-        "a drain out of chamber P opening in second order (states e in X_E2, de/dt in X_E0)",
-    )  # fmt: skip
-    parts.register_effect(replace(effect, states=(layout.X_E2, layout.X_E0), state_rate=rate))
-
-
 def test_an_outside_effect_with_two_states_of_its_own(registered: None) -> None:
     """Analytic (not recovery): a drain whose flow e opens towards c as a
     critically damped second-order system (two states of one effect: e in
@@ -1518,21 +1507,11 @@ def test_an_outside_effect_with_two_states_of_its_own(registered: None) -> None:
     the same tau by over 20 % of the air sent, and each drain is a quarter
     or more of the sum (checked on the closed forms), so a rate written to
     the wrong slot, or a state left at 0, fails."""
-    _register_second_order_drain()
-    for spec in (
-        ParameterSpec("drain_n_flow", "kg/s", 1.5e-6, 1e-9, 1e-3, "effect", "final flow"),
-        ParameterSpec("drain_n_time", "s", 0.5, 1e-3, 10.0, "effect", "opening time"),
-    ):
-        parts.register_parameter(spec)
-    drain_n, rate_n = _drain_functions(
-        layout.P["drain_n_flow"], layout.P["drain_n_time"], layout.X_E1, "N"
-    )
-    effect = _effect(
-        "drain_n", "drain_n_flow", ("drain_n_flow", "drain_n_time"), drain_n,
-        (parts.FitRange("drain_n_flow", 1e-9, 1e-4), parts.FitRange("drain_n_time", 1e-2, 5.0)),
-        "a drain out of chamber N",
-    )  # fmt: skip
-    parts.register_effect(replace(effect, states=(layout.X_E1,), state_rate=rate_n))
+    _register_drain_effect("drain2", 2e-6, 0.3, _second_order_drain, (layout.X_E2, layout.X_E0),
+                           "a drain out of chamber P opening in second order")
+    functions = functools.partial(_drain_functions, slot=layout.X_E1, chamber="N")
+    _register_drain_effect("drain_n", 1.5e-6, 0.5, functions, (layout.X_E1,),
+                           "a drain out of chamber N")
     values = default_parameters()
     values["valve_C_leak"] = 0.0
     t = np.arange(0.0, 1.5005, 1e-3)

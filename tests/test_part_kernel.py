@@ -1548,9 +1548,10 @@ def test_an_effect_s_states_are_checked_at_registration(registered: None) -> Non
          "expected distinct slots among"),
         # one rate for two states, two rates for one state
         (replace(effect, name="other", states=(layout.X_E1, layout.X_E2)),
-         "state_rate: expected a tuple of 2 numbers .one per state., found a number"),
+         r"state_rate: expected a tuple of 2 numbers \(one per state, in the order of states\), "
+         "found a number"),
         (replace(effect, name="other", states=(layout.X_E1,), state_rate=two_rates),
-         "state_rate: expected one number .one state., found a tuple of 2"),
+         "state_rate: expected one number, found a tuple of 2"),
         (replace(effect, name="other", state_rate=None), "found no state_rate"),
         (replace(effect, name="other", states=()), "state_rate: expected it only with states"),
         (replace(effect, name="other", state_rate=rate.py_func),
@@ -1560,6 +1561,61 @@ def test_an_effect_s_states_are_checked_at_registration(registered: None) -> Non
         with pytest.raises(PneumafitInputError, match=message):
             parts.register_effect(bad)
     assert "other" not in parts.EFFECTS
+
+
+@njit
+def _five_terms(x, p):
+    return 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@njit
+def _two_flows(u, pres, temp, p_s, p):
+    return 0.0, 0.0
+
+
+@njit
+def _force_and_rate(v, f_s, f_c, x, p):
+    return f_c, 0.0
+
+
+@njit
+def _lambda_pair(p, pres, temp, t_wall):
+    return 1.0, 2.0
+
+
+def test_what_a_part_s_compiled_code_returns_is_checked_at_registration(
+    registered: None,
+) -> None:
+    """A part's kernel code that returns the wrong number of terms is named
+    at registration (its Python function called once on a plausible
+    operating point), not left to a typing error of the compiled simulator
+    (which the command line reported as an internal error); nothing is
+    registered. The parts of this file that return the right terms register
+    (the other tests)."""
+    leak = _effect("five", "external_leak_conductance", ("external_leak_conductance",),
+                   _five_terms, (parts.FitRange("external_leak_conductance", 1e-12, 1e-8),),
+                   "five terms instead of six")  # fmt: skip
+    iso = parts.VALVE_LAWS["iso6358"]
+    cases = [
+        (parts.register_effect, leak,
+         r"effect 'five': kernel: expected a tuple of 6 numbers \(q_P, H_P, q_N, H_N, q_atm, F\), "
+         "found a tuple of 5"),
+        (parts.register_valve_law,
+         parts.ValveLaw(name="two-flows", code=7, parameters=iso.parameters,
+                        description="two flows", kernel=_two_flows),
+         r"kernel: expected a tuple of 3 numbers \(q_net, h_in, q_supply\), found a tuple of 2"),
+        (parts.register_friction_law,
+         parts.FrictionLaw(name="pair", code=7, parameters=("friction_coulomb",),
+                           description="a pair", kernel=_force_and_rate),
+         r"kernel: expected one number \(the friction force\), found a tuple of 2"),
+        (parts.register_heat_law, _heat_law("pair", 7, _lambda_pair, "a pair"),
+         r"kernel: expected one number \(lambda\), found a tuple of 2"),
+    ]  # fmt: skip
+    for register, part, message in cases:
+        with pytest.raises(PneumafitInputError, match=message):
+            register(part)
+    assert "five" not in parts.EFFECTS and "two-flows" not in parts.VALVE_LAWS
+    assert "pair" not in parts.FRICTION_LAWS and "pair" not in parts.HEAT_LAWS
 
 
 def test_c_code_for_the_fmu_is_checked_at_registration(registered: None) -> None:

@@ -35,6 +35,7 @@ from pneumafit.models.layout import (
     NCFG,
     PART_PARAMETER_GROUPS,
     SPECS,
+    STATE_NAMES,
     LiveTuple,
     P,
     ParameterSpec,
@@ -667,13 +668,14 @@ def _check_own_code(where: str, law: Any, codes: frozenset[int]) -> None:
             f"{where}: kernel: expected a code outside {sorted(codes)} (the "
             f"kernel's own branches), found {law.code}"
         )
+    _check_law_returns(where, law)
 
 
 def _check_effect_states(where: str, effect: Effect) -> None:
     """An effect's states: distinct slots among ``EFFECT_STATE_SLOTS``, no
     other registered effect's, and a compiled rate exactly when it has some
-    (and kernel code that reads them), which returns one number per state
-    (checked by calling its Python function once when that call succeeds)."""
+    (and kernel code that reads them); what the rate returns is checked by
+    :func:`_check_effect_returns`."""
     _check_kernel(where, effect.state_rate, "state_rate")
     states = tuple(effect.states)
     if not states:
@@ -692,8 +694,6 @@ def _check_effect_states(where: str, effect: Effect) -> None:
             f"{where}: states: expected distinct slots among {list(EFFECT_STATE_SLOTS)} "
             f"(layout.X_E0 to X_E2), found {list(states)}"
         )
-    option = () if set(effect.options) == {1} else (min(effect.options),)
-    _check_rate_arity(where, effect.state_rate, len(states), option)
     taken = {s: e.name for e in _EFFECTS.values() if e.name != effect.name for s in e.states}
     clash = sorted(set(states) & set(taken))
     if clash:
@@ -703,31 +703,85 @@ def _check_effect_states(where: str, effect: Effect) -> None:
         )
 
 
-def _check_rate_arity(where: str, rate: Any, n: int, option: tuple[int, ...]) -> None:
-    """``rate(x, p, *option)`` returns a number for one state (``n`` = 1), a
-    tuple of ``n`` numbers for more. Called once in Python on a state of ones
-    and the parameters' defaults; a call that fails there (a law that
-    divides by a state, say) is left to the compiler, which types the same
-    return."""
+#: A plausible operating point on which registration calls a part's Python
+#: function once (:func:`_check_returns`): mid-stroke, moving at 50 mm/s, 3
+#: bar and 20 degC in both chambers, 2 V of command, 7 bar of supply, the
+#: friction levels 50 and 40 N; every other state 0, the parameters at their
+#: table defaults.
+_PROBE_STATE = {"y": 0.1, "v": 0.05, "p_N": 3.0e5, "p_P": 3.0e5, "T_N": 293.15,
+                "T_P": 293.15, "Tw_N": 293.15, "Tw_P": 293.15}  # fmt: skip
+_PROBE_V, _PROBE_FS, _PROBE_FC, _PROBE_U, _PROBE_PS = 0.05, 50.0, 40.0, 2.0, 7.0e5
+
+
+def _probe_vectors() -> tuple[Any, Any]:
+    """The state (every slot, the effects' included) and parameter vectors of
+    the probe operating point."""
     import numpy as np
 
-    x = np.ones(max(EFFECT_STATE_SLOTS) + 1)
+    x = np.zeros(len(STATE_NAMES))
+    for name, value in _PROBE_STATE.items():
+        x[STATE_NAMES.index(name)] = value
     p = np.empty(len(P))
     for name, index in P.items():
         p[index] = SPECS[name].default
+    return x, p
+
+
+def _check_returns(where: str, key: str, function: Any, args: tuple[Any, ...], n: int,
+                   what: str = "") -> None:  # fmt: skip
+    """A part's compiled function returns one number (``n`` = 1) or a tuple
+    of ``n``: checked by calling its Python function once on ``args`` (the
+    probe operating point), so that a wrong return is named at registration
+    rather than as a typing error of the compiled simulator. A call that
+    fails in Python (a law that divides by a state that is 0 there, say) is
+    left to the compiler, which types the same return. ``what`` names the
+    tuple's terms in the message."""
+    import numpy as np
+
     try:
         with np.errstate(all="ignore"):
-            out = rate.py_func(x, p, *option)
+            out = function.py_func(*args)
     except Exception:  # the compiler reports the law's own errors
         return
     found = len(out) if isinstance(out, tuple) else None
-    if (n == 1 and found is not None) or (n > 1 and found != n):
+    if (n == 1) != (found is None) or (n > 1 and found != n):
+        expected = "one number" if n == 1 else f"a tuple of {n} numbers"
         raise PneumafitInputError(
-            f"{where}: state_rate: expected "
-            + ("one number (one state)" if n == 1 else f"a tuple of {n} numbers (one per state)")
-            + ", found "
+            f"{where}: {key}: expected {expected}{f' ({what})' if what else ''}, found "
             + ("a number" if found is None else f"a tuple of {found}")
         )
+
+
+def _check_law_returns(where: str, law: Any) -> None:
+    """What a heat, valve or friction law's kernel code (and a friction law's
+    state rate) returns, on the probe operating point (:func:`_check_returns`)."""
+    if law.kernel is None:
+        return
+    x, p = _probe_vectors()
+    v, f_s, f_c = _PROBE_V, _PROBE_FS, _PROBE_FC
+    if isinstance(law, HeatLaw):
+        _check_returns(where, "kernel", law.kernel, (p, 5.0e5, 323.15, 293.15), 1, "lambda")
+    elif isinstance(law, ValveLaw):
+        args = (_PROBE_U, 3.0e5, 293.15, _PROBE_PS, p)
+        _check_returns(where, "kernel", law.kernel, args, 3, "q_net, h_in, q_supply")
+    elif isinstance(law, FrictionLaw):
+        args = (v, 1.0, f_s, f_c, x, p) if law.stuck else (v, f_s, f_c, x, p)
+        _check_returns(where, "kernel", law.kernel, args, 1, "the friction force")
+        if law.state_rate is not None:
+            _check_returns(where, "state_rate", law.state_rate, (v, f_s, f_c, x, p, 1.0e4), 1)
+
+
+def _check_effect_returns(where: str, effect: Effect) -> None:
+    """What an effect's kernel code and state rate return, on the probe
+    operating point (:func:`_check_returns`)."""
+    x, p = _probe_vectors()
+    args = (x, p) if set(effect.options) == {1} else (x, p, min(effect.options))
+    if effect.kernel is not None:
+        _check_returns(where, "kernel", effect.kernel, args, 6, "q_P, H_P, q_N, H_N, q_atm, F")
+    if effect.state_rate is not None and effect.states:
+        n = len(effect.states)
+        _check_returns(where, "state_rate", effect.state_rate, args, n,
+                       "one per state, in the order of states" if n > 1 else "")  # fmt: skip
 
 
 def _check_c_code(where: str, part: Any) -> None:
@@ -984,6 +1038,7 @@ def register_effect(effect: Effect, *, replace: bool = False) -> Effect:
                 f"own, found slot {effect.slot!r}"
             )
     _check_effect_states(where, effect)
+    _check_effect_returns(where, effect)
     _check_c_code(where, effect)
     if effect.slot is not None:
         if not isinstance(effect.slot, int) or not 0 <= effect.slot < NCFG:

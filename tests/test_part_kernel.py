@@ -1618,6 +1618,31 @@ def test_what_a_part_s_compiled_code_returns_is_checked_at_registration(
     assert "pair" not in parts.FRICTION_LAWS and "pair" not in parts.HEAT_LAWS
 
 
+@njit
+def _not_compilable(x, p):
+    return 0.0, 0.0, 0.0, 0.0, 0.0, NO_SUCH_NAME * p[0]  # noqa: F821 - on purpose
+
+
+def test_a_part_numba_cannot_compile_is_named_before_a_simulation(registered: None) -> None:
+    """Code that passes registration (its Python call fails, so the return
+    check leaves it to the compiler) but that numba cannot compile is named
+    as the parts' fault when the kernel's copy is built: an input error with
+    numba's own line (the command line's exit 2 and message), not a typing
+    error in the middle of a simulation that the command line reported as
+    an internal error. The broken copy is not kept: the part registered
+    again with code that compiles runs."""
+    leak = _effect("broken", "external_leak_conductance", ("external_leak_conductance",),
+                   _not_compilable, (parts.FitRange("external_leak_conductance", 1e-12, 1e-8),),
+                   "a name numba does not know")  # fmt: skip
+    parts.register_effect(leak)
+    structure = ModelStructure("convection", effects={"broken": 1})
+    with pytest.raises(PneumafitInputError, match=r"\(effect 'broken'\) does not compile with "
+                       r"numba: NameError: name 'NO_SUCH_NAME' is not defined"):  # fmt: skip
+        kernel_for(structure)
+    parts.register_effect(replace(leak, kernel=external_leak_again), replace=True)
+    assert kernel_for(structure).NX == layout.NX
+
+
 def test_c_code_for_the_fmu_is_checked_at_registration(registered: None) -> None:
     """An outside part's C code (``c_code``, ``c_state_rate``: the FMU's
     port of its kernel code, tests/test_fmu.py) is a non-empty string beside

@@ -399,7 +399,7 @@ def _copy() -> ModuleType:
     )
     module = _BUILT.get(key)
     if module is None:
-        module = _BUILT[key] = _build(heat, valve, friction, effects, len(_BUILT))
+        module = _build(heat, valve, friction, effects, len(_BUILT))
         named = [f"heat law {h.name!r}" for h in heat] + [f"valve law {v.name!r}" for v in valve]
         named += [f"friction law {f.name!r}" for f in friction]
         named += [f"effect {e.name!r}" for e in effects]
@@ -410,7 +410,52 @@ def _copy() -> ModuleType:
             "first use in this process (about 20-60 s, once)",
             ", ".join(named),
         )
+        _compile_hooks(module, (heat, valve, friction, effects), ", ".join(named))
+        _BUILT[key] = module
     return module
+
+
+def _compile_hooks(module: ModuleType, hooked: tuple[list[Any], ...], named: str) -> None:
+    """Compile the copy's hooks, and so the parts' code, by calling each once
+    on the probe operating point (``parts.registry.probe_vectors``), so that
+    code numba cannot compile is named as the parts' fault (an input error
+    with numba's own lines) before a simulation starts, not reported by the
+    command line as an internal error. The kernel's own functions compile
+    later, at their first use, on the hooks compiled here. ``hooked``: the
+    heat, valve and friction laws and the effects the copy binds."""
+    from numba.core.errors import NumbaError
+
+    from pneumafit.models.parts.registry import probe_vectors
+
+    heat, valve, friction, effects = hooked
+    x, p = probe_vectors()
+    x = np.ascontiguousarray(x[: module.NX])
+    dx = np.zeros(module.NX)
+    mask = 0
+    for effect, (shift, _width) in zip(effects, _fields_of(effects), strict=True):
+        mask |= min(effect.options) << shift
+    try:
+        for h in heat:
+            module.part_heat(int(h.code), p, 3.0e5, 293.15, 293.15)
+        for v in valve:
+            module.part_valve(int(v.code), 2.0, 3.0e5, 293.15, 7.0e5, p)
+        for f in friction:
+            module.part_friction(int(f.code), 0.05, 50.0, 40.0, x, p)
+            module.part_friction_rate(int(f.code), 0.05, 50.0, 40.0, x, p, 1.0e4)
+            module.part_friction_sliding(int(f.code), 0.05, 1.0, 50.0, 40.0, x, p)
+        if effects:
+            module.part_effects(mask, x, p)
+            module.part_effect_rates(mask, x, p, dx)
+    except NumbaError as exc:
+        lines = [
+            line for line in str(exc).splitlines()
+            if line.strip() and not line.startswith(("Failed in nopython", "During:", "File "))
+            and "source missing" not in line
+        ]  # fmt: skip
+        raise PneumafitInputError(
+            f"the compiled code of the parts from outside the package ({named}) does not "
+            f"compile with numba: {' | '.join(lines[:4]) or type(exc).__name__}"
+        ) from exc
 
 
 def _hook_source(

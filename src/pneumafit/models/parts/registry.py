@@ -713,9 +713,10 @@ _PROBE_STATE = {"y": 0.1, "v": 0.05, "p_N": 3.0e5, "p_P": 3.0e5, "T_N": 293.15,
 _PROBE_V, _PROBE_FS, _PROBE_FC, _PROBE_U, _PROBE_PS = 0.05, 50.0, 40.0, 2.0, 7.0e5
 
 
-def _probe_vectors() -> tuple[Any, Any]:
+def probe_vectors() -> tuple[Any, Any]:
     """The state (every slot, the effects' included) and parameter vectors of
-    the probe operating point."""
+    the probe operating point on which registration calls a part's Python
+    function, and :mod:`pneumafit.models.part_kernel` its compiled hooks."""
     import numpy as np
 
     x = np.zeros(len(STATE_NAMES))
@@ -757,7 +758,7 @@ def _check_law_returns(where: str, law: Any) -> None:
     state rate) returns, on the probe operating point (:func:`_check_returns`)."""
     if law.kernel is None:
         return
-    x, p = _probe_vectors()
+    x, p = probe_vectors()
     v, f_s, f_c = _PROBE_V, _PROBE_FS, _PROBE_FC
     if isinstance(law, HeatLaw):
         _check_returns(where, "kernel", law.kernel, (p, 5.0e5, 323.15, 293.15), 1, "lambda")
@@ -774,7 +775,7 @@ def _check_law_returns(where: str, law: Any) -> None:
 def _check_effect_returns(where: str, effect: Effect) -> None:
     """What an effect's kernel code and state rate return, on the probe
     operating point (:func:`_check_returns`)."""
-    x, p = _probe_vectors()
+    x, p = probe_vectors()
     args = (x, p) if set(effect.options) == {1} else (x, p, min(effect.options))
     if effect.kernel is not None:
         _check_returns(where, "kernel", effect.kernel, args, 6, "q_P, H_P, q_N, H_N, q_atm, F")

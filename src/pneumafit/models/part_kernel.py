@@ -417,7 +417,7 @@ def _copy() -> ModuleType:
 
 def _compile_hooks(module: ModuleType, hooked: tuple[list[Any], ...], named: str) -> None:
     """Compile the copy's hooks, and so the parts' code, by calling each once
-    on the probe operating point (``parts.registry.probe_vectors``), so that
+    on the probe operating point (``parts.registry.probe_point``), so that
     code numba cannot compile is named as the parts' fault (an input error
     with numba's own lines) before a simulation starts, not reported by the
     command line as an internal error. The kernel's own functions compile
@@ -425,24 +425,24 @@ def _compile_hooks(module: ModuleType, hooked: tuple[list[Any], ...], named: str
     heat, valve and friction laws and the effects the copy binds."""
     from numba.core.errors import NumbaError
 
-    from pneumafit.models.parts.registry import probe_vectors
+    from pneumafit.models.parts.registry import probe_point
 
     heat, valve, friction, effects = hooked
-    x, p = probe_vectors()
-    x = np.ascontiguousarray(x[: module.NX])
+    pt = probe_point()
+    x, p, v, f_s, f_c = pt.x[: module.NX], pt.p, pt.v, pt.f_s, pt.f_c
     dx = np.zeros(module.NX)
     mask = 0
     for effect, (shift, _width) in zip(effects, _fields_of(effects), strict=True):
         mask |= min(effect.options) << shift
     try:
         for h in heat:
-            module.part_heat(int(h.code), p, 3.0e5, 293.15, 293.15)
-        for v in valve:
-            module.part_valve(int(v.code), 2.0, 3.0e5, 293.15, 7.0e5, p)
+            module.part_heat(int(h.code), p, pt.pres, pt.temp, pt.t_wall)
+        for law in valve:
+            module.part_valve(int(law.code), pt.u, pt.pres, pt.temp, pt.p_s, p)
         for f in friction:
-            module.part_friction(int(f.code), 0.05, 50.0, 40.0, x, p)
-            module.part_friction_rate(int(f.code), 0.05, 50.0, 40.0, x, p, 1.0e4)
-            module.part_friction_sliding(int(f.code), 0.05, 1.0, 50.0, 40.0, x, p)
+            module.part_friction(int(f.code), v, f_s, f_c, x, p)
+            module.part_friction_rate(int(f.code), v, f_s, f_c, x, p, 1.0e4)
+            module.part_friction_sliding(int(f.code), v, 1.0, f_s, f_c, x, p)
         if effects:
             module.part_effects(mask, x, p)
             module.part_effect_rates(mask, x, p, dx)

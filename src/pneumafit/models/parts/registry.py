@@ -17,7 +17,7 @@ import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, NamedTuple, TypeVar
 
 from pneumafit.errors import PneumafitInputError
 from pneumafit.models.layout import (
@@ -703,29 +703,39 @@ def _check_effect_states(where: str, effect: Effect) -> None:
         )
 
 
-#: A plausible operating point on which registration calls a part's Python
-#: function once (:func:`_check_returns`): mid-stroke, moving at 50 mm/s, 3
-#: bar and 20 degC in both chambers, 2 V of command, 7 bar of supply, the
-#: friction levels 50 and 40 N; every other state 0, the parameters at their
-#: table defaults.
-_PROBE_STATE = {"y": 0.1, "v": 0.05, "p_N": 3.0e5, "p_P": 3.0e5, "T_N": 293.15,
-                "T_P": 293.15, "Tw_N": 293.15, "Tw_P": 293.15}  # fmt: skip
-_PROBE_V, _PROBE_FS, _PROBE_FC, _PROBE_U, _PROBE_PS = 0.05, 50.0, 40.0, 2.0, 7.0e5
+class ProbePoint(NamedTuple):
+    """A plausible operating point on which registration calls a part's
+    Python function once (:func:`_check_returns`) and
+    :mod:`pneumafit.models.part_kernel` its compiled hooks: mid-stroke,
+    moving at 50 mm/s, 3 bar and 20 degC in both chambers and at the walls,
+    2 V of command, 7 bar of supply, the friction levels 50 and 40 N; every
+    other state 0, the parameters at their table defaults."""
+
+    x: Any  #: state vector, every slot (the effects' included)
+    p: Any  #: parameter vector (SI, layout.P)
+    v: float = 0.05  #: piston speed (m/s)
+    f_s: float = 50.0  #: static friction level (N)
+    f_c: float = 40.0  #: Coulomb friction level (N)
+    u: float = 2.0  #: valve command (V)
+    pres: float = 3.0e5  #: chamber pressure (Pa)
+    temp: float = 293.15  #: gas temperature (K)
+    t_wall: float = 293.15  #: wall temperature (K)
+    p_s: float = 7.0e5  #: supply pressure (Pa)
 
 
-def probe_vectors() -> tuple[Any, Any]:
-    """The state (every slot, the effects' included) and parameter vectors of
-    the probe operating point on which registration calls a part's Python
-    function, and :mod:`pneumafit.models.part_kernel` its compiled hooks."""
+def probe_point() -> ProbePoint:
+    """The :class:`ProbePoint`, its vectors built from the layout now (the
+    parameters registered so far)."""
     import numpy as np
 
-    x = np.zeros(len(STATE_NAMES))
-    for name, value in _PROBE_STATE.items():
-        x[STATE_NAMES.index(name)] = value
-    p = np.empty(len(P))
+    pt = ProbePoint(np.zeros(len(STATE_NAMES)), np.empty(len(P)))
+    state = {"y": 0.1, "v": pt.v, "p_N": pt.pres, "p_P": pt.pres, "T_N": pt.temp,
+             "T_P": pt.temp, "Tw_N": pt.t_wall, "Tw_P": pt.t_wall}  # fmt: skip
+    for name, value in state.items():
+        pt.x[STATE_NAMES.index(name)] = value
     for name, index in P.items():
-        p[index] = SPECS[name].default
-    return x, p
+        pt.p[index] = SPECS[name].default
+    return pt
 
 
 def _check_returns(where: str, key: str, function: Any, args: tuple[Any, ...], n: int,
@@ -758,12 +768,13 @@ def _check_law_returns(where: str, law: Any) -> None:
     state rate) returns, on the probe operating point (:func:`_check_returns`)."""
     if law.kernel is None:
         return
-    x, p = probe_vectors()
-    v, f_s, f_c = _PROBE_V, _PROBE_FS, _PROBE_FC
+    pt = probe_point()
+    x, p, v, f_s, f_c = pt.x, pt.p, pt.v, pt.f_s, pt.f_c
     if isinstance(law, HeatLaw):
-        _check_returns(where, "kernel", law.kernel, (p, 5.0e5, 323.15, 293.15), 1, "lambda")
+        args = (p, pt.pres, pt.temp, pt.t_wall)
+        _check_returns(where, "kernel", law.kernel, args, 1, "lambda")
     elif isinstance(law, ValveLaw):
-        args = (_PROBE_U, 3.0e5, 293.15, _PROBE_PS, p)
+        args = (pt.u, pt.pres, pt.temp, pt.p_s, p)
         _check_returns(where, "kernel", law.kernel, args, 3, "q_net, h_in, q_supply")
     elif isinstance(law, FrictionLaw):
         args = (v, 1.0, f_s, f_c, x, p) if law.stuck else (v, f_s, f_c, x, p)
@@ -775,8 +786,8 @@ def _check_law_returns(where: str, law: Any) -> None:
 def _check_effect_returns(where: str, effect: Effect) -> None:
     """What an effect's kernel code and state rate return, on the probe
     operating point (:func:`_check_returns`)."""
-    x, p = probe_vectors()
-    args = (x, p) if set(effect.options) == {1} else (x, p, min(effect.options))
+    pt = probe_point()
+    args = (pt.x, pt.p) if set(effect.options) == {1} else (pt.x, pt.p, min(effect.options))
     if effect.kernel is not None:
         _check_returns(where, "kernel", effect.kernel, args, 6, "q_P, H_P, q_N, H_N, q_atm, F")
     if effect.state_rate is not None and effect.states:

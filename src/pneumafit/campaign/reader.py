@@ -39,6 +39,7 @@ from pneumafit.campaign.model import (
     Rig,
     required_channels,
 )
+from pneumafit.campaign.supply import supply_mismatch
 from pneumafit.campaign.units import (
     QUANTITY_KINDS,
     UnitError,
@@ -1550,6 +1551,7 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
             continue
         if recording is not None:
             report.recordings.append(recording)
+            _check_supply(recording, rig_values, probs)
     if rig is not None and probs.n_errors == 0:
         report.campaign = Campaign(
             path=folder,
@@ -1561,6 +1563,18 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
             warnings=report.warnings,
         )
     return report
+
+
+def _check_supply(recording: Recording, rig_values: dict[str, Any], probs: _Problems) -> None:
+    """A warning when the recording's measured supply pressure disagrees with
+    the declared one (:func:`pneumafit.campaign.supply.supply_mismatch`)."""
+    p_s = recording.channels.get("p_S")
+    supply, exhaust = rig_values.get("supply_pressure"), rig_values.get("exhaust_pressure")
+    if p_s is None or supply is None or exhaust is None:
+        return
+    found = supply_mismatch(p_s, float(supply), float(exhaust))
+    if found is not None:
+        probs.warning(recording.file, "p_S", *found)
 
 
 def validate_campaign(path: str | os.PathLike[str]) -> list[Problem]:

@@ -1,0 +1,87 @@
+"""The measured supply pressure p_S against the declared one (campaign/supply.py).
+
+The models simulate the rig's declared ``supply_pressure``; a recording's
+``p_S`` is kept but is no input. These tests check that a p_S that
+disagrees with the declaration is named (by ``pneumafit check``'s reader and
+in a fit's warnings) and that one that agrees is not. The tolerance is 1 %
+of the gauge supply (module doc: ~10 sensor noise levels on a charge).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pneumafit.campaign import inspect_campaign, read_campaign
+from pneumafit.campaign.supply import TOLERANCE, supply_mismatch, supply_warnings
+
+SUPPLY = 7.0e5  # the conftest campaign's "7 bar"
+EXHAUST = 1.013e5
+
+
+def _with_supply_channel(folder: Path, p_s_bar: list[float]) -> None:
+    """Add a p_S column (bar absolute) to the conftest campaign's step test."""
+    path = folder / "step_1.csv"
+    lines = path.read_text().splitlines()
+    rows = [i for i, line in enumerate(lines) if not line.startswith("#")]
+    lines[rows[0]] += ",p_S [bar]"
+    for i, value in zip(rows[1:], p_s_bar, strict=True):
+        lines[i] += f",{value}"
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_a_supply_within_the_tolerance_is_not_reported() -> None:
+    rng = np.random.default_rng(1)
+    span = SUPPLY - EXHAUST
+    # off by 0.8 % of the gauge supply, with 400 Pa of sensor noise
+    p_s = SUPPLY + 0.8 * TOLERANCE * span + rng.normal(0.0, 400.0, 2000)
+    assert supply_mismatch(p_s, SUPPLY, EXHAUST) is None
+
+
+def test_an_offset_supply_is_reported_with_its_median() -> None:
+    rng = np.random.default_rng(2)
+    p_s = SUPPLY - 2.0e4 + rng.normal(0.0, 400.0, 2000)  # 20 kPa low: 3.4 % of 5.99 bar
+    expected, found = supply_mismatch(p_s, SUPPLY, EXHAUST)
+    assert "declared supply_pressure 7.000 bar absolute" in expected
+    assert "median 6.800 bar" in found
+    assert "-20.0 kPa from the declared value" in found
+    assert "gauge reading" not in found  # not the gauge confusion: 8.013 bar is far
+    assert "sags" not in found  # the noise alone spans 1.3 kPa
+
+
+def test_a_gauge_supply_declared_as_absolute_is_named() -> None:
+    p_s = np.full(100, SUPPLY + EXHAUST)  # the regulator at 7 bar gauge
+    _, found = supply_mismatch(p_s, SUPPLY, EXHAUST)
+    assert "a gauge reading declared as absolute?" in found
+
+
+def test_a_sagging_supply_is_reported_as_such() -> None:
+    t = np.linspace(0.0, 2.0, 2001)
+    p_s = SUPPLY - 3.0e4 * ((t > 0.5) & (t < 1.0))  # 0.3 bar of droop for a quarter of it
+    _, found = supply_mismatch(p_s, SUPPLY, EXHAUST)
+    assert "central 90 % 6.700 bar to 7.000 bar" in found
+    assert "supply_pressure_drop" in found
+    assert "from the declared value" not in found  # the median is the declared value
+
+
+@pytest.mark.parametrize(
+    ("p_s", "warned"),
+    [([7.0, 7.0, 7.01, 6.99, 7.0], False), ([8.01, 8.02, 8.01, 8.0, 8.01], True)],
+)
+def test_the_reader_and_the_fit_warnings_name_the_recording(
+    campaign_dir: Path, p_s: list[float], warned: bool
+) -> None:
+    _with_supply_channel(campaign_dir, p_s)
+    report = inspect_campaign(campaign_dir)
+    mine = [p for p in report.problems if p.key == "p_S"]
+    assert not any(p.is_error for p in report.problems)
+    campaign = read_campaign(campaign_dir)
+    lines = supply_warnings(campaign)
+    if not warned:
+        assert mine == [] and lines == []
+        return
+    assert [(p.file, p.is_error) for p in mine] == [("step_1.csv", False)]
+    assert "median 8.010 bar" in mine[0].found
+    assert lines == [f"step_1.csv: p_S: expected {mine[0].expected}; found {mine[0].found}"]

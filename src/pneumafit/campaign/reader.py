@@ -39,7 +39,7 @@ from pneumafit.campaign.model import (
     Rig,
     required_channels,
 )
-from pneumafit.campaign.supply import supply_mismatch
+from pneumafit.campaign.supply import recording_findings
 from pneumafit.campaign.units import (
     QUANTITY_KINDS,
     UnitError,
@@ -1566,15 +1566,14 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
 
 
 def _check_supply(recording: Recording, rig_values: dict[str, Any], probs: _Problems) -> None:
-    """A warning when the recording's measured supply pressure disagrees with
-    the declared one (:func:`pneumafit.campaign.supply.supply_mismatch`)."""
-    p_s = recording.channels.get("p_S")
+    """Warnings when the recording's measured supply pressure, or a chamber
+    the piston does not compress, disagrees with the declared supply or
+    exhaust pressure (:func:`pneumafit.campaign.supply.recording_findings`)."""
     supply, exhaust = rig_values.get("supply_pressure"), rig_values.get("exhaust_pressure")
-    if p_s is None or supply is None or exhaust is None:
+    if supply is None or exhaust is None:
         return
-    found = supply_mismatch(p_s, float(supply), float(exhaust))
-    if found is not None:
-        probs.warning(recording.file, "p_S", *found)
+    for name, expected, found in recording_findings(recording, float(supply), float(exhaust)):
+        probs.warning(recording.file, name, expected, found)
 
 
 def validate_campaign(path: str | os.PathLike[str]) -> list[Problem]:

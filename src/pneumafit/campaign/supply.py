@@ -23,9 +23,25 @@ fitted parameter of the valve, heat or friction laws represents:
   effect ``supply_pressure_drop`` of ``pneumafit discover`` models it as a
   line resistance.
 
-:func:`supply_mismatch` judges one channel; the campaign reader reports it
-as a warning of ``pneumafit check`` (and of the main job's check stage), and
-the fit adds the same sentence to its warnings (:func:`supply_warnings`).
+The chamber pressures of the tests with the piston held (charge, discharge
+and flow tests) say the same without a ``p_S`` channel: with the piston
+blocked nothing compresses the gas but the valve, whose flow reverses once
+the chamber passes its upstream pressure, so such a chamber stays between
+the exhaust and the supply pressure (a moving piston may compress a
+chamber past the supply for a moment: step and free tests are not judged).
+A chamber read above the declared supply (:func:`chamber_beyond_bounds`,
+its 99th percentile more than :data:`BOUND_TOLERANCE` of the gauge supply
+above it) means a supply declared too low, most often a gauge setting
+written as absolute (``supply_pressure = "6 bar"`` on a regulator at 6 bar
+gauge: the charges plateau at 7.013 bar, and no valve law can fill the
+model's chambers past its 6 bar, so the fit fails on every charge test
+without saying why); one read below the exhaust pressure, a pressure
+channel in gauge declared as absolute.
+
+:func:`supply_mismatch` and :func:`chamber_beyond_bounds` judge one
+channel; the campaign reader reports them as warnings of ``pneumafit check``
+(and of the main job's check stage), and the fit adds the same sentences to
+its warnings (:func:`supply_warnings`).
 """
 
 from __future__ import annotations
@@ -37,7 +53,17 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign, Recording
 
-__all__ = ["SPREAD_QUANTILES", "TOLERANCE", "supply_mismatch", "supply_warnings"]
+__all__ = [
+    "BOUND_QUANTILES",
+    "BOUND_TOLERANCE",
+    "HELD_KINDS",
+    "SPREAD_QUANTILES",
+    "TOLERANCE",
+    "chamber_beyond_bounds",
+    "recording_findings",
+    "supply_mismatch",
+    "supply_warnings",
+]
 
 #: Largest difference, as a share of the gauge supply P_S - P_e, between the
 #: measured supply pressure (its median, or the width of its central 90 %)
@@ -48,6 +74,20 @@ TOLERANCE = 0.01
 #: 90 % (white sensor noise of standard deviation s alone spans 3.3 s, 1.3
 #: kPa for the 400-Pa sensors of the virtual rig, a fifth of 1 % of 6 bar).
 SPREAD_QUANTILES = (0.05, 0.95)
+
+
+#: Kinds of tests whose chambers the piston does not compress (module doc).
+HELD_KINDS = ("charge", "discharge", "flow")
+#: How far (share of the gauge supply) a held chamber's pressure may pass the
+#: declared supply or exhaust pressure before it is reported: 2 %, 12 kPa on
+#: a 7-bar rig, above a sensor's offset (the virtual rig draws them with a
+#: standard deviation of 1.5 kPa; 0.1 % of a 10-bar sensor's span is 1 kPa)
+#: and its noise at the quantiles below, and far below the 101 kPa of a
+#: gauge value written as absolute.
+BOUND_TOLERANCE = 0.02
+#: Quantiles of a held chamber's pressure compared with the bounds: the
+#: extremes of the bulk, not single noisy samples.
+BOUND_QUANTILES = (0.01, 0.99)
 
 
 def _bar(pressure: float) -> str:
@@ -112,9 +152,90 @@ def supply_mismatch(
     return expected, found + ": " + "; ".join(causes)
 
 
+def chamber_beyond_bounds(
+    pressure: NDArray[np.float64], supply: float, exhaust: float
+) -> tuple[str, str] | None:
+    """What a held chamber's pressure should be and what it is, or None.
+
+    Parameters
+    ----------
+    pressure : ndarray
+        A chamber pressure channel of a charge, discharge or flow test (Pa
+        absolute).
+    supply, exhaust : float
+        The rig's declared supply and exhaust pressures (Pa absolute).
+
+    Returns
+    -------
+    (expected, found) or None
+        None when the channel's 1st and 99th percentiles lie within
+        :data:`BOUND_TOLERANCE` of the gauge supply of [exhaust, supply];
+        else the two halves of a problem message (module doc).
+    """
+    x = np.asarray(pressure, dtype=float)
+    x = x[np.isfinite(x)]
+    span = supply - exhaust
+    if x.size < 2 or not span > 0.0:
+        return None
+    allowed = BOUND_TOLERANCE * span
+    lo, hi = (float(q) for q in np.quantile(x, BOUND_QUANTILES))
+    if exhaust - allowed <= lo and hi <= supply + allowed:
+        return None
+    expected = (
+        f"a chamber the piston does not compress between the declared exhaust_pressure "
+        f"{_bar(exhaust)} and supply_pressure {_bar(supply)} absolute (within "
+        f"{100 * BOUND_TOLERANCE:g} % of the gauge supply, {allowed / 1e3:.3g} kPa, for the "
+        "sensor's offset)"
+    )
+    found = []
+    if hi > supply + allowed:
+        gauge = (
+            f"; {_bar(supply)} gauge is {_bar(supply + exhaust)} absolute: a gauge setting "
+            "declared as absolute?"
+            if abs(hi - (supply + exhaust)) <= allowed
+            else ""
+        )
+        found.append(
+            f"99th percentile {_bar(hi)}, {(hi - supply) / 1e3:.1f} kPa above the supply: "
+            f"no valve fills the models' chamber past the declared supply_pressure, correct "
+            f"it in campaign.toml if the rig's supply was higher{gauge}"
+        )
+    if lo < exhaust - allowed:
+        found.append(
+            f"1st percentile {_bar(lo)}, {(exhaust - lo) / 1e3:.1f} kPa below the exhaust: "
+            "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
+            'reference = "gauge" in HDF5)'
+        )
+    return expected, "; ".join(found)
+
+
+def recording_findings(
+    recording: Recording, supply: float, exhaust: float
+) -> list[tuple[str, str, str]]:
+    """Every finding of this module on one recording: (channel, expected,
+    found), its ``p_S`` first (:func:`supply_mismatch`), then the chambers of
+    a test with the piston held (:func:`chamber_beyond_bounds`)."""
+    out = []
+    p_s = recording.channels.get("p_S")
+    if p_s is not None:
+        found = supply_mismatch(p_s, supply, exhaust)
+        if found is not None:
+            out.append(("p_S", *found))
+    if recording.kind in HELD_KINDS:
+        for name in ("p_P", "p_N"):
+            channel = recording.channels.get(name)
+            if channel is None:
+                continue
+            found = chamber_beyond_bounds(channel, supply, exhaust)
+            if found is not None:
+                out.append((name, *found))
+    return out
+
+
 def supply_warnings(campaign: Campaign, recordings: Sequence[Recording] | None = None) -> list[str]:
-    """One sentence per recording whose ``p_S`` disagrees with the rig's
-    declared supply pressure (:func:`supply_mismatch`), in campaign order.
+    """One sentence per finding of :func:`recording_findings` (a ``p_S``
+    that disagrees with the declared supply pressure, a held chamber beyond
+    the declared supply or exhaust pressure), in campaign order.
 
     Parameters
     ----------
@@ -125,10 +246,8 @@ def supply_warnings(campaign: Campaign, recordings: Sequence[Recording] | None =
     rig = campaign.rig
     out = []
     for rec in campaign.recordings if recordings is None else recordings:
-        p_s = rec.channels.get("p_S")
-        if p_s is None:
-            continue
-        found = supply_mismatch(p_s, rig.supply_pressure, rig.exhaust_pressure)
-        if found is not None:
-            out.append(f"{rec.file}: p_S: expected {found[0]}; found {found[1]}")
+        for name, expected, found in recording_findings(
+            rec, rig.supply_pressure, rig.exhaust_pressure
+        ):
+            out.append(f"{rec.file}: {name}: expected {expected}; found {found}")
     return out

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from pneumafit.campaign.consistency import recording_findings
 from pneumafit.campaign.errors import CampaignError, PneumafitInputError, Problem
 from pneumafit.campaign.model import (
     CHAMBERS,
@@ -39,7 +40,6 @@ from pneumafit.campaign.model import (
     Rig,
     required_channels,
 )
-from pneumafit.campaign.supply import recording_findings
 from pneumafit.campaign.units import (
     QUANTITY_KINDS,
     UnitError,
@@ -1551,7 +1551,7 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
             continue
         if recording is not None:
             report.recordings.append(recording)
-            _check_supply(recording, rig_values, probs)
+            _check_consistency(recording, rig_values, probs)
     if rig is not None and probs.n_errors == 0:
         report.campaign = Campaign(
             path=folder,
@@ -1565,15 +1565,19 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
     return report
 
 
-def _check_supply(recording: Recording, rig_values: dict[str, Any], probs: _Problems) -> None:
-    """Warnings when the recording's measured supply pressure, or a chamber
-    the piston does not compress, disagrees with the declared supply or
-    exhaust pressure (:func:`pneumafit.campaign.supply.recording_findings`)."""
+def _check_consistency(recording: Recording, rig_values: dict[str, Any], probs: _Problems) -> None:
+    """Warnings when the recording disagrees with the declared rig: its
+    measured supply pressure, a chamber the piston does not compress, its
+    position (:func:`pneumafit.campaign.consistency.recording_findings`)."""
     supply, exhaust = rig_values.get("supply_pressure"), rig_values.get("exhaust_pressure")
     if supply is None or exhaust is None:
         return
-    for name, expected, found in recording_findings(recording, float(supply), float(exhaust)):
-        probs.warning(recording.file, name, expected, found)
+    stroke = rig_values.get("stroke")
+    found = recording_findings(
+        recording, float(supply), float(exhaust), None if stroke is None else float(stroke)
+    )
+    for name, expected, text in found:
+        probs.warning(recording.file, name, expected, text)
 
 
 def validate_campaign(path: str | os.PathLike[str]) -> list[Problem]:

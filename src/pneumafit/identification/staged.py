@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
+from pneumafit.campaign.consistency import consistency_warnings
 from pneumafit.campaign.model import Campaign, Recording
-from pneumafit.campaign.supply import supply_warnings
 from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.identification.coverage import (
     centre_measured,
@@ -1210,7 +1210,7 @@ def identify(
             f"campaign {campaign.name!r}: expected recordings with role 'fit', found none"
         )
     values = params.values()
-    for line in [*supply_warnings(campaign), *uncovered_commands(campaign, values)]:
+    for line in [*consistency_warnings(campaign), *uncovered_commands(campaign, values)]:
         warns.append(line)
         say(f"warning: {line}")
 

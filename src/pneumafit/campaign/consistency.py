@@ -1,5 +1,10 @@
-"""Does a recording's measured supply pressure agree with the declared one?
+"""Do the recordings agree with the declared rig? Supply, exhaust, stroke.
 
+Three consistency checks of a campaign's recordings against its ``[rig]``
+table, each a warning (not an error: a sensor may be off) that names the
+recording, the channel, what the declaration implies and what was read.
+
+**The measured supply pressure.**
 The models take the supply pressure as a constant, the rig's declared
 ``supply_pressure``; a recording's ``p_S`` channel (the measured supply
 pressure, optional in the campaign format) is read and kept but is not an
@@ -23,8 +28,8 @@ fitted parameter of the valve, heat or friction laws represents:
   effect ``supply_pressure_drop`` of ``pneumafit discover`` models it as a
   line resistance.
 
-The chamber pressures of the tests with the piston held (charge, discharge
-and flow tests) say the same without a ``p_S`` channel: with the piston
+**The held chambers.** The chamber pressures of the tests with the piston
+held (charge, discharge and flow tests) say the same without a ``p_S`` channel: with the piston
 blocked nothing compresses the gas but the valve, whose flow reverses once
 the chamber passes its upstream pressure, so such a chamber stays between
 the exhaust and the supply pressure (a moving piston may compress a
@@ -38,10 +43,19 @@ model's chambers past its 6 bar, so the fit fails on every charge test
 without saying why); one read below the exhaust pressure, a pressure
 channel in gauge declared as absolute.
 
-:func:`supply_mismatch` and :func:`chamber_beyond_bounds` judge one
-channel; the campaign reader reports them as warnings of ``pneumafit check``
-(and of the main job's check stage), and the fit adds the same sentences to
-its warnings (:func:`supply_warnings`).
+**The position.** The format's piston position runs from 0 (retracted) to
+the stroke; the end stops hold it there. A recording whose position passes
+either end by more than :data:`STROKE_TOLERANCE` of the stroke
+(:func:`position_beyond_stroke`) has a stroke declared too short, a
+position in other units than its header says, a sensor counting the other
+way (negative positions; the ``[read]`` table's ``reversed = true`` negates
+it) or its zero elsewhere than at the retracted end.
+
+:func:`supply_mismatch`, :func:`chamber_beyond_bounds` and
+:func:`position_beyond_stroke` judge one channel; the campaign reader
+reports them as warnings of ``pneumafit check`` (and of the main job's check
+stage), and the fit adds the same sentences to its warnings
+(:func:`consistency_warnings`).
 """
 
 from __future__ import annotations
@@ -58,11 +72,13 @@ __all__ = [
     "BOUND_TOLERANCE",
     "HELD_KINDS",
     "SPREAD_QUANTILES",
+    "STROKE_TOLERANCE",
     "TOLERANCE",
     "chamber_beyond_bounds",
+    "consistency_warnings",
+    "position_beyond_stroke",
     "recording_findings",
     "supply_mismatch",
-    "supply_warnings",
 ]
 
 #: Largest difference, as a share of the gauge supply P_S - P_e, between the
@@ -88,6 +104,12 @@ BOUND_TOLERANCE = 0.02
 #: Quantiles of a held chamber's pressure compared with the bounds: the
 #: extremes of the bulk, not single noisy samples.
 BOUND_QUANTILES = (0.01, 0.99)
+#: How far (share of the stroke) a recorded position may pass either end
+#: before it is reported: 2 %, 10 mm of a 0.5-m stroke, above an encoder
+#: zeroed a little off the end stop and the end stops' compliance, far below
+#: a position read in the wrong unit or from the other end of a longer
+#: travel.
+STROKE_TOLERANCE = 0.02
 
 
 def _bar(pressure: float) -> str:
@@ -209,12 +231,50 @@ def chamber_beyond_bounds(
     return expected, "; ".join(found)
 
 
+def position_beyond_stroke(position: NDArray[np.float64], stroke: float) -> tuple[str, str] | None:
+    """What a recorded piston position should be and what it is, or None.
+
+    Parameters
+    ----------
+    position : ndarray
+        The recording's ``y`` channel (m).
+    stroke : float
+        The rig's declared stroke (m).
+
+    Returns
+    -------
+    (expected, found) or None
+        None when every sample lies within :data:`STROKE_TOLERANCE` of the
+        stroke of [0, stroke]; else the two halves of a problem message.
+    """
+    x = np.asarray(position, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0 or not stroke > 0.0:
+        return None
+    allowed = STROKE_TOLERANCE * stroke
+    lo, hi = float(x.min()), float(x.max())
+    if -allowed <= lo and hi <= stroke + allowed:
+        return None
+    expected = (
+        f"a piston position from 0 (retracted) to the declared stroke {1e3 * stroke:.4g} mm "
+        f"(within {100 * STROKE_TOLERANCE:g} % of it, {1e3 * allowed:.3g} mm)"
+    )
+    found = (
+        f"positions from {1e3 * lo:.6g} to {1e3 * hi:.6g} mm: a stroke declared too short, a "
+        "position in another unit than its header says, a sensor counting the other way "
+        "(the [read] table's reversed = true negates it) or its zero elsewhere than at the "
+        "retracted end"
+    )
+    return expected, found
+
+
 def recording_findings(
-    recording: Recording, supply: float, exhaust: float
+    recording: Recording, supply: float, exhaust: float, stroke: float | None = None
 ) -> list[tuple[str, str, str]]:
     """Every finding of this module on one recording: (channel, expected,
     found), its ``p_S`` first (:func:`supply_mismatch`), then the chambers of
-    a test with the piston held (:func:`chamber_beyond_bounds`)."""
+    a test with the piston held (:func:`chamber_beyond_bounds`), then its
+    position (:func:`position_beyond_stroke`, when ``stroke`` is given)."""
     out = []
     p_s = recording.channels.get("p_S")
     if p_s is not None:
@@ -229,13 +289,21 @@ def recording_findings(
             found = chamber_beyond_bounds(channel, supply, exhaust)
             if found is not None:
                 out.append((name, *found))
+    y = recording.channels.get("y")
+    if y is not None and stroke is not None:
+        found = position_beyond_stroke(y, stroke)
+        if found is not None:
+            out.append(("y", *found))
     return out
 
 
-def supply_warnings(campaign: Campaign, recordings: Sequence[Recording] | None = None) -> list[str]:
+def consistency_warnings(
+    campaign: Campaign, recordings: Sequence[Recording] | None = None
+) -> list[str]:
     """One sentence per finding of :func:`recording_findings` (a ``p_S``
     that disagrees with the declared supply pressure, a held chamber beyond
-    the declared supply or exhaust pressure), in campaign order.
+    the declared supply or exhaust pressure, a position beyond the stroke),
+    in campaign order.
 
     Parameters
     ----------
@@ -247,7 +315,7 @@ def supply_warnings(campaign: Campaign, recordings: Sequence[Recording] | None =
     out = []
     for rec in campaign.recordings if recordings is None else recordings:
         for name, expected, found in recording_findings(
-            rec, rig.supply_pressure, rig.exhaust_pressure
+            rec, rig.supply_pressure, rig.exhaust_pressure, rig.stroke
         ):
             out.append(f"{rec.file}: {name}: expected {expected}; found {found}")
     return out

@@ -1,18 +1,19 @@
-"""The declared supply and exhaust pressures against the recordings
-(campaign/supply.py): a measured supply pressure p_S, and the chambers of
-the tests whose piston is held.
+"""The declared rig against the recordings (campaign/consistency.py): a
+measured supply pressure p_S, the chambers of the tests whose piston is
+held, and the position against the stroke.
 
 The models simulate the rig's declared ``supply_pressure``; a recording's
 ``p_S`` is kept but is no input, and a chamber the piston does not compress
 stays between the exhaust and the supply pressure. These tests check that
 a recording that contradicts the declaration is named (by ``pneumafit
 check``'s reader and in a fit's warnings) and that one that agrees is not.
-The tolerances are 1 % of the gauge supply for p_S and 2 % for the chambers
-(module doc). They are unit tests of a consistency check on hand-made
-signals, not recoveries; that the virtual rig's campaigns raise none of
-these warnings was measured over 129 campaigns (every preset and protocol,
-seeds 1-3; the largest excess over the supply 0.19 % of the gauge supply,
-below the exhaust 0.32 %: docs/campaign-format.md).
+The tolerances are 1 % of the gauge supply for p_S, 2 % for the chambers
+and 2 % of the stroke for the position (module doc). They are unit tests
+of a consistency check on hand-made signals, not recoveries; that the
+virtual rig's campaigns raise none of these warnings was measured over 129
+campaigns (every preset and protocol, seeds 1-3; the largest excess over
+the supply 0.19 % of the gauge supply, below the exhaust 0.32 %, positions
+from 0.20 to 0.95 of the stroke: docs/campaign-format.md).
 """
 
 from __future__ import annotations
@@ -23,11 +24,12 @@ import numpy as np
 import pytest
 
 from pneumafit.campaign import inspect_campaign, read_campaign
-from pneumafit.campaign.supply import (
+from pneumafit.campaign.consistency import (
     TOLERANCE,
     chamber_beyond_bounds,
+    consistency_warnings,
+    position_beyond_stroke,
     supply_mismatch,
-    supply_warnings,
 )
 
 SUPPLY = 7.0e5  # the conftest campaign's "7 bar"
@@ -91,7 +93,7 @@ def test_the_reader_and_the_fit_warnings_name_the_recording(
     mine = [p for p in report.problems if p.key == "p_S"]
     assert not any(p.is_error for p in report.problems)
     campaign = read_campaign(campaign_dir)
-    lines = supply_warnings(campaign)
+    lines = consistency_warnings(campaign)
     if not warned:
         assert mine == [] and lines == []
         return
@@ -148,5 +150,43 @@ def test_the_reader_judges_held_chambers_only(campaign_dir: Path) -> None:
     assert not any(p.is_error for p in report.problems)
     found = next(p.found for p in report.problems if p.key == "p_P")
     assert "a gauge setting declared as absolute?" in found
-    lines = supply_warnings(read_campaign(campaign_dir))
+    lines = consistency_warnings(read_campaign(campaign_dir))
     assert len(lines) == 1 and lines[0].startswith("charge_P_1.h5: p_P: expected a chamber")
+
+
+# --- the position against the stroke
+
+
+def test_a_position_within_the_stroke_is_not_reported() -> None:
+    # the end stops' compliance and an encoder zeroed 1 % off the stop
+    y = np.r_[-0.005, np.linspace(0.0, 0.5, 100), 0.505]
+    assert position_beyond_stroke(y, 0.5) is None
+
+
+@pytest.mark.parametrize(
+    ("y", "shown"),
+    [
+        (np.linspace(100.0, 400.0, 50), "from 100000 to 400000 mm"),  # mm written as m
+        (-np.linspace(0.1, 0.4, 50), "from -400 to -100 mm"),  # a sensor counting backwards
+    ],
+)
+def test_a_position_beyond_the_stroke_is_named(y: np.ndarray, shown: str) -> None:
+    expected, found = position_beyond_stroke(y, 0.5)
+    assert "the declared stroke 500 mm" in expected
+    assert shown in found
+
+
+def test_the_reader_and_the_fit_name_a_position_beyond_the_stroke(campaign_dir: Path) -> None:
+    """The conftest's step test, its position header in cm instead of mm:
+    1000 to 1050 mm on a 500-mm stroke."""
+    step = campaign_dir / "step_1.csv"
+    step.write_text(step.read_text().replace("Pos [mm]", "Pos [cm]"))
+    toml = campaign_dir / "campaign.toml"
+    toml.write_text(toml.read_text().replace('"Pos [mm]" = "y"', '"Pos [cm]" = "y"'))
+    report = inspect_campaign(campaign_dir)
+    mine = [(p.file, p.key, p.found) for p in report.problems if p.key == "y"]
+    assert [m[:2] for m in mine] == [("step_1.csv", "y")]
+    assert "positions from 1000 to 1050 mm" in mine[0][2]
+    assert not any(p.is_error for p in report.problems)
+    lines = consistency_warnings(read_campaign(campaign_dir))
+    assert any(line.startswith("step_1.csv: y: expected a piston position") for line in lines)

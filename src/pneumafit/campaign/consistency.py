@@ -116,6 +116,17 @@ def _bar(pressure: float) -> str:
     return f"{pressure / 1e5:.3f} bar"
 
 
+def _finite(
+    values: NDArray[np.float64], supply: float, exhaust: float
+) -> tuple[NDArray[np.float64], float] | None:
+    """A pressure channel's finite samples and the gauge supply (Pa), or
+    None when fewer than two samples or no positive gauge supply remain."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    span = supply - exhaust
+    return (x, span) if x.size >= 2 and span > 0.0 else None
+
+
 def supply_mismatch(
     p_s: NDArray[np.float64], supply: float, exhaust: float
 ) -> tuple[str, str] | None:
@@ -136,11 +147,10 @@ def supply_mismatch(
         than that; else the two halves of a problem message (the module doc
         says what each case usually means).
     """
-    x = np.asarray(p_s, dtype=float)
-    x = x[np.isfinite(x)]
-    span = supply - exhaust
-    if x.size < 2 or not span > 0.0:
+    ready = _finite(p_s, supply, exhaust)
+    if ready is None:
         return None
+    x, span = ready
     allowed = TOLERANCE * span
     median = float(np.median(x))
     lo, hi = (float(q) for q in np.quantile(x, SPREAD_QUANTILES))
@@ -194,11 +204,10 @@ def chamber_beyond_bounds(
         :data:`BOUND_TOLERANCE` of the gauge supply of [exhaust, supply];
         else the two halves of a problem message (module doc).
     """
-    x = np.asarray(pressure, dtype=float)
-    x = x[np.isfinite(x)]
-    span = supply - exhaust
-    if x.size < 2 or not span > 0.0:
+    ready = _finite(pressure, supply, exhaust)
+    if ready is None:
         return None
+    x, span = ready
     allowed = BOUND_TOLERANCE * span
     lo, hi = (float(q) for q in np.quantile(x, BOUND_QUANTILES))
     if exhaust - allowed <= lo and hi <= supply + allowed:

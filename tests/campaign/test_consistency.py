@@ -1,6 +1,7 @@
 """The declared rig against the recordings (campaign/consistency.py): a
 measured supply pressure p_S, the chambers of the tests whose piston is
-held, and the position against the stroke.
+held, the position against the stroke and the commands against the
+declared controller.
 
 The models simulate the rig's declared ``supply_pressure``; a recording's
 ``p_S`` is kept but is no input, and a chamber the piston does not compress
@@ -28,9 +29,11 @@ from pneumafit.campaign.consistency import (
     TOLERANCE,
     chamber_beyond_bounds,
     consistency_warnings,
+    controller_mismatch,
     position_beyond_stroke,
     supply_mismatch,
 )
+from pneumafit.campaign.model import PDController, Recording
 
 SUPPLY = 7.0e5  # the conftest campaign's "7 bar"
 EXHAUST = 1.013e5
@@ -190,3 +193,80 @@ def test_the_reader_and_the_fit_name_a_position_beyond_the_stroke(campaign_dir: 
     assert not any(p.is_error for p in report.problems)
     lines = consistency_warnings(read_campaign(campaign_dir))
     assert any(line.startswith("step_1.csv: y: expected a piston position") for line in lines)
+
+
+# --- the commands against the declared controller
+
+
+def _pd_step(kp: float, kd: float, declared: PDController) -> Recording:
+    """A closed-loop step whose commands a PD law with gains kp, kd produced,
+    on a made-up motion (an underdamped approach to a 100-mm step, 20 %
+    overshoot, read by a 10-um encoder), declared with ``declared``."""
+    t = np.arange(0.0, 2.0, 0.001)
+    y_ref = np.where(t < 0.2, 0.2, 0.3)
+    tau = np.clip(t - 0.2, 0.0, None)
+    w, zeta = 15.0, 0.45
+    wd = w * np.sqrt(1.0 - zeta**2)
+    y = 0.3 - 0.1 * np.exp(-zeta * w * tau) * (np.cos(wd * tau) + zeta * w / wd * np.sin(wd * tau))
+    y = np.where(t < 0.2, 0.2, y)
+    y_read = np.round(y / 1e-5) * 1e-5
+    v = np.gradient(y, t)
+    u = np.clip(kp * (y_ref - y) - kd * v, -10.0, 10.0)
+    return Recording.from_arrays(
+        t, {"y": y_read, "y_ref": y_ref, "u_P": u, "u_N": -u}, kind="step",
+        file="step.csv", controller=declared,
+    )  # fmt: skip
+
+
+def test_commands_that_follow_the_declared_law_are_not_reported() -> None:
+    declared = PDController(kp=60.0, kd=4.0, u0=0.0, umax=10.0)
+    assert controller_mismatch(_pd_step(60.0, 4.0, declared)) is None
+
+
+def test_gains_a_first_order_motion_cannot_split_are_judged_by_the_law() -> None:
+    """Along a first-order approach y_ref - y and v are proportional: the
+    commands of kp 40 and kd 4 (13.3 (y_ref - y) with v = (y_ref - y) /
+    0.15 s) are those of kp 60 and kd 7 there, so the gains are not judged
+    one by one, and the declared law (60, 7) is not reported."""
+    t = np.arange(0.0, 2.0, 0.001)
+    y = 0.3 - 0.1 * np.exp(-t / 0.15)
+    y_ref = np.full_like(t, 0.3)
+    v = np.gradient(y, t)
+    u = 40.0 * (y_ref - y) - 4.0 * v
+    rec = Recording.from_arrays(
+        t, {"y": y, "y_ref": y_ref, "u_P": u}, kind="step", file="s.csv",
+        controller=PDController(kp=60.0, kd=7.0, u0=0.0, umax=10.0),
+    )  # fmt: skip
+    assert controller_mismatch(rec) is None
+
+
+@pytest.mark.parametrize(
+    ("kp", "kd", "shown"),
+    [(40.0, 4.0, "follow kp 40"), (60.0, 12.0, "kd 12")],
+)
+def test_commands_of_other_gains_are_named_with_the_gains_they_follow(
+    kp: float, kd: float, shown: str
+) -> None:
+    declared = PDController(kp=60.0, kd=4.0, u0=0.0, umax=10.0)
+    expected, found = controller_mismatch(_pd_step(kp, kd, declared))
+    assert "kp 60 V/m, kd 4 V s/m" in expected
+    assert shown in found
+
+
+def test_a_gain_in_v_per_mm_is_named_by_the_reader(campaign_dir: Path) -> None:
+    """The conftest's campaign with a 2-s step test whose commands follow
+    60 V/m, declared as 60 V/mm."""
+    rec = _pd_step(60.0, 4.0, PDController(kp=60.0, kd=4.0, u0=0.0, umax=10.0))
+    lines = ["time [s],Pos [mm],y_ref [mm],u_P [V]"] + [
+        f"{t:.4f},{1e3 * y:.3f},{1e3 * r:.1f},{u:.6f}"
+        for t, y, r, u in zip(
+            rec.time, rec.channels["y"], rec.channels["y_ref"], rec.channels["u_P"], strict=True
+        )
+    ]
+    (campaign_dir / "step_1.csv").write_text("\n".join(lines) + "\n")
+    toml = campaign_dir / "campaign.toml"
+    toml.write_text(toml.read_text().replace('kp = "60 V/m"', 'kp = "60 V/mm"'))
+    report = inspect_campaign(campaign_dir)
+    mine = [p for p in report.problems if p.file == "step_1.csv" and p.key == "u_P"]
+    assert len(mine) == 1 and not mine[0].is_error
+    assert "kp 6e+04 V/m" in mine[0].expected and "follow kp 60" in mine[0].found

@@ -383,7 +383,21 @@ def recording_findings(
     found), its ``p_S`` first (:func:`supply_mismatch`), then the chambers of
     a test with the piston held (:func:`chamber_beyond_bounds`), then its
     position (:func:`position_beyond_stroke`, when ``stroke`` is given),
-    then its commands against its controller (:func:`controller_mismatch`)."""
+    then its commands against its controller (:func:`controller_mismatch`).
+
+    Parameters
+    ----------
+    recording : Recording
+    supply, exhaust : float
+        The rig's declared supply and exhaust pressures (Pa absolute).
+    stroke : float, optional
+        The rig's declared stroke (m); None skips the position's check.
+
+    Returns
+    -------
+    list of (str, str, str)
+        The channel judged, what the declaration implies, what was read.
+    """
     out = []
     p_s = recording.channels.get("p_S")
     if p_s is not None:

@@ -1566,9 +1566,10 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
 
 
 def _check_consistency(recording: Recording, rig_values: dict[str, Any], probs: _Problems) -> None:
-    """Warnings when the recording disagrees with the declared rig: its
-    measured supply pressure, a chamber the piston does not compress, its
-    position (:func:`pneumafit.campaign.consistency.recording_findings`)."""
+    """Warnings when the recording disagrees with the declared rig or
+    controller: its measured supply pressure, a chamber the piston does not
+    compress, its position, its commands
+    (:func:`pneumafit.campaign.consistency.recording_findings`)."""
     supply, exhaust = rig_values.get("supply_pressure"), rig_values.get("exhaust_pressure")
     if supply is None or exhaust is None:
         return

@@ -62,8 +62,8 @@ def test_an_offset_supply_is_reported_with_its_median() -> None:
     rng = np.random.default_rng(2)
     p_s = SUPPLY - 2.0e4 + rng.normal(0.0, 400.0, 2000)  # 20 kPa low: 3.4 % of 5.99 bar
     expected, found = supply_mismatch(p_s, SUPPLY, EXHAUST)
-    assert "declared supply_pressure 7.000 bar absolute" in expected
-    assert "median 6.800 bar" in found
+    assert "declared supply_pressure 700.0 kPa absolute" in expected
+    assert "median 680.0 kPa" in found
     assert "-20.0 kPa from the declared value" in found
     assert "gauge reading" not in found  # not the gauge confusion: 8.013 bar is far
     assert "sags" not in found  # the noise alone spans 1.3 kPa
@@ -79,7 +79,7 @@ def test_a_sagging_supply_is_reported_as_such() -> None:
     t = np.linspace(0.0, 2.0, 2001)
     p_s = SUPPLY - 3.0e4 * ((t > 0.5) & (t < 1.0))  # 0.3 bar of droop for a quarter of it
     _, found = supply_mismatch(p_s, SUPPLY, EXHAUST)
-    assert "central 90 % 6.700 bar to 7.000 bar" in found
+    assert "central 90 % 670.0 kPa to 700.0 kPa" in found
     assert "supply_pressure_drop" in found
     assert "from the declared value" not in found  # the median is the declared value
 
@@ -101,7 +101,7 @@ def test_the_reader_and_the_fit_warnings_name_the_recording(
         assert mine == [] and lines == []
         return
     assert [(p.file, p.is_error) for p in mine] == [("step_1.csv", False)]
-    assert "median 8.010 bar" in mine[0].found
+    assert "median 801.0 kPa" in mine[0].found
     assert lines == [f"step_1.csv: p_S: expected {mine[0].expected}; found {mine[0].found}"]
 
 
@@ -126,8 +126,8 @@ def test_a_chamber_above_a_supply_declared_in_gauge_is_named() -> None:
     t = np.linspace(0.0, 2.0, 2001)
     p = EXHAUST + 6.0e5 * (1.0 - np.exp(-t / 0.1))  # the charge plateaus at 7.013 bar
     expected, found = chamber_beyond_bounds(p, supply, EXHAUST)
-    assert "supply_pressure 6.000 bar absolute" in expected
-    assert "99th percentile 7.013 bar, 101.3 kPa above the supply" in found
+    assert "supply_pressure 600.0 kPa absolute" in expected
+    assert "99th percentile 701.3 kPa, 101.3 kPa above the supply" in found
     assert "a gauge setting declared as absolute?" in found
 
 

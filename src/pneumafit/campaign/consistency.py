@@ -81,6 +81,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign, Recording
+from pneumafit.campaign.units import DISPLAY_UNITS
 
 __all__ = [
     "BOUND_QUANTILES",
@@ -150,8 +151,10 @@ MIN_CONTROL_SAMPLES = 20
 MAX_GAIN_CORRELATION = 0.9
 
 
-def _bar(pressure: float) -> str:
-    return f"{pressure / 1e5:.3f} bar"
+def _pressure(pressure: float) -> str:
+    """A pressure (Pa) in the one display unit (:data:`DISPLAY_UNITS`)."""
+    factor, unit = DISPLAY_UNITS["pressure"]
+    return f"{pressure * factor:.1f} {unit}"
 
 
 def _finite(
@@ -198,14 +201,14 @@ def supply_mismatch(
         return None
     expected = (
         f"a measured supply pressure within {100 * TOLERANCE:g} % of the gauge supply "
-        f"({allowed / 1e3:.3g} kPa) of the declared supply_pressure {_bar(supply)} absolute "
+        f"({allowed / 1e3:.3g} kPa) of the declared supply_pressure {_pressure(supply)} absolute "
         "(the models simulate the declared value; p_S is not an input)"
     )
-    found = f"median {_bar(median)}, central 90 % {_bar(lo)} to {_bar(hi)}"
+    found = f"median {_pressure(median)}, central 90 % {_pressure(lo)} to {_pressure(hi)}"
     causes = []
     if abs(off) > allowed:
         hint = (
-            f" (the declared value plus the exhaust pressure is {_bar(supply + exhaust)}: a "
+            f" (the declared value plus the exhaust pressure is {_pressure(supply + exhaust)}: a "
             "gauge reading declared as absolute?)"
             if abs(median - (supply + exhaust)) <= allowed
             else ""
@@ -252,26 +255,26 @@ def chamber_beyond_bounds(
         return None
     expected = (
         f"a chamber the piston does not compress between the declared exhaust_pressure "
-        f"{_bar(exhaust)} and supply_pressure {_bar(supply)} absolute (within "
+        f"{_pressure(exhaust)} and supply_pressure {_pressure(supply)} absolute (within "
         f"{100 * BOUND_TOLERANCE:g} % of the gauge supply, {allowed / 1e3:.3g} kPa, for the "
         "sensor's offset)"
     )
     found = []
     if hi > supply + allowed:
         gauge = (
-            f"; {_bar(supply)} gauge is {_bar(supply + exhaust)} absolute: a gauge setting "
-            "declared as absolute?"
+            f"; {_pressure(supply)} gauge is {_pressure(supply + exhaust)} absolute: a gauge "
+            "setting declared as absolute?"
             if abs(hi - (supply + exhaust)) <= allowed
             else ""
         )
         found.append(
-            f"99th percentile {_bar(hi)}, {(hi - supply) / 1e3:.1f} kPa above the supply: "
+            f"99th percentile {_pressure(hi)}, {(hi - supply) / 1e3:.1f} kPa above the supply: "
             f"no valve fills the models' chamber past the declared supply_pressure, correct "
             f"it in campaign.toml if the rig's supply was higher{gauge}"
         )
     if lo < exhaust - allowed:
         found.append(
-            f"1st percentile {_bar(lo)}, {(exhaust - lo) / 1e3:.1f} kPa below the exhaust: "
+            f"1st percentile {_pressure(lo)}, {(exhaust - lo) / 1e3:.1f} kPa below the exhaust: "
             "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
             'reference = "gauge" in HDF5)'
         )

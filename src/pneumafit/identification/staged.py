@@ -1217,6 +1217,8 @@ def identify(
             f"campaign {campaign.name!r}: expected recordings with role 'fit', found none"
         )
     values = params.values()
+    # judged again, not read from campaign.warnings: a Campaign built in
+    # Python (a rig's, a test's) was never read, and the checks take ~5 ms
     for line in [*consistency_warnings(campaign), *uncovered_commands(campaign, values)]:
         warns.append(line)
         say(f"warning: {line}")

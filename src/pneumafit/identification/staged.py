@@ -158,7 +158,7 @@ DEFAULT_CHANNELS: tuple[str, ...] = ("p_P", "p_N", "y", "qm_P", "qm_N")
 #: from a wide start) on the demo, so these are 50 tau plus burn-in.
 DEFAULT_STEPS = {"valve": 2500, "heat": 1000, "friction": 2000}
 #: With ``FitOptions.early_stop``, a chain is checked every
-#: DEFAULT_STEPS / MCMC_CHECKS steps (heat 25, friction 50) after its
+#: DEFAULT_STEPS / MCMC_CHECKS steps (heat 50, friction 100) after its
 #: adaptation phase (:data:`ADAPT_FRACTION`), also while it is extended, and
 #: stops at the first check where it is >= 50 tau long with every R-hat
 #: <= 1.01. R-hat over the walkers as chains is about sqrt(1 + 2 tau / N) for
@@ -166,15 +166,8 @@ DEFAULT_STEPS = {"valve": 2500, "heat": 1000, "friction": 2000}
 #: so R-hat <= 1.01 asks for ~100 tau, twice the 50 tau: on the demo
 #: (2026-11-25, DE moves alone, tau 30-40) the friction chains reached 50 tau
 #: at ~2000 steps and R-hat 1.01 at 3200-3800; with the adapted independence
-#: proposal (tau ~3) both hold after a few hundred steps. A check (ArviZ
-#: R-hat and ESS of every parameter) costs ~25 ms, 0.3 % of the 50 friction
-#: steps between two, so the checks are frequent: at 20 per default length
-#: the demo's convection chains stopped at 475 (heat) and 500 (friction)
-#: steps, at 40 at 400 and 450 (``python benchmarks/bench_fit.py --seed 0``,
-#: 2026-12-03), both >= 85 tau with R-hat <= 1.010. More frequent still, the
-#: stop would favour a chance dip of R-hat below 1.01 and the window that
-#: judges the proposal's acceptance (``check`` steps) would be shorter.
-MCMC_CHECKS = 40
+#: proposal (tau ~3) both hold after a few hundred steps.
+MCMC_CHECKS = 20
 #: Share of a sampled stage's default length run with the DE moves before
 #: the independence proposal is fitted to the walkers (``run_mcmc(adapt=)``,
 #: module doc of :mod:`pneumafit.identification.sampling`): friction 300

@@ -151,10 +151,10 @@ MIN_CONTROL_SAMPLES = 20
 MAX_GAIN_CORRELATION = 0.9
 
 
-def _pressure(pressure: float) -> str:
-    """A pressure (Pa) in the one display unit (:data:`DISPLAY_UNITS`)."""
-    factor, unit = DISPLAY_UNITS["pressure"]
-    return f"{pressure * factor:.1f} {unit}"
+def _shown(value: float, kind: str = "pressure", spec: str = ".1f") -> str:
+    """An SI value of ``kind`` in its one display unit (:data:`DISPLAY_UNITS`)."""
+    factor, unit = DISPLAY_UNITS[kind]
+    return f"{value * factor:{spec}} {unit}"
 
 
 def _finite(
@@ -201,21 +201,21 @@ def supply_mismatch(
         return None
     expected = (
         f"a measured supply pressure within {100 * TOLERANCE:g} % of the gauge supply "
-        f"({allowed / 1e3:.3g} kPa) of the declared supply_pressure {_pressure(supply)} absolute "
-        "(the models simulate the declared value; p_S is not an input)"
+        f"({_shown(allowed, spec='.3g')}) of the declared supply_pressure {_shown(supply)} "
+        "absolute (the models simulate the declared value; p_S is not an input)"
     )
-    found = f"median {_pressure(median)}, central 90 % {_pressure(lo)} to {_pressure(hi)}"
+    found = f"median {_shown(median)}, central 90 % {_shown(lo)} to {_shown(hi)}"
     causes = []
     if abs(off) > allowed:
         hint = (
-            f" (the declared value plus the exhaust pressure is {_pressure(supply + exhaust)}: a "
+            f" (the declared value plus the exhaust pressure is {_shown(supply + exhaust)}: a "
             "gauge reading declared as absolute?)"
             if abs(median - (supply + exhaust)) <= allowed
             else ""
         )
         causes.append(
-            f"{off / 1e3:+.1f} kPa from the declared value{hint}: correct supply_pressure in "
-            "campaign.toml if the rig ran there"
+            f"{_shown(off, spec='+.1f')} from the declared value{hint}: correct supply_pressure "
+            "in campaign.toml if the rig ran there"
         )
     if wide:
         causes.append(
@@ -255,26 +255,26 @@ def chamber_beyond_bounds(
         return None
     expected = (
         f"a chamber the piston does not compress between the declared exhaust_pressure "
-        f"{_pressure(exhaust)} and supply_pressure {_pressure(supply)} absolute (within "
-        f"{100 * BOUND_TOLERANCE:g} % of the gauge supply, {allowed / 1e3:.3g} kPa, for the "
-        "sensor's offset)"
+        f"{_shown(exhaust)} and supply_pressure {_shown(supply)} absolute (within "
+        f"{100 * BOUND_TOLERANCE:g} % of the gauge supply, {_shown(allowed, spec='.3g')}, for "
+        "the sensor's offset)"
     )
     found = []
     if hi > supply + allowed:
         gauge = (
-            f"; {_pressure(supply)} gauge is {_pressure(supply + exhaust)} absolute: a gauge "
+            f"; {_shown(supply)} gauge is {_shown(supply + exhaust)} absolute: a gauge "
             "setting declared as absolute?"
             if abs(hi - (supply + exhaust)) <= allowed
             else ""
         )
         found.append(
-            f"99th percentile {_pressure(hi)}, {(hi - supply) / 1e3:.1f} kPa above the supply: "
+            f"99th percentile {_shown(hi)}, {_shown(hi - supply)} above the supply: "
             f"no valve fills the models' chamber past the declared supply_pressure, correct "
             f"it in campaign.toml if the rig's supply was higher{gauge}"
         )
     if lo < exhaust - allowed:
         found.append(
-            f"1st percentile {_pressure(lo)}, {(exhaust - lo) / 1e3:.1f} kPa below the exhaust: "
+            f"1st percentile {_shown(lo)}, {_shown(exhaust - lo)} below the exhaust: "
             "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
             'reference = "gauge" in HDF5)'
         )
@@ -306,12 +306,14 @@ def position_beyond_stroke(position: NDArray[np.float64], stroke: float) -> tupl
     if -allowed <= lo and hi <= stroke + allowed:
         return None
     expected = (
-        f"a piston position from 0 (retracted) to the declared stroke {1e3 * stroke:.4g} mm "
-        f"(within {100 * STROKE_TOLERANCE:g} % of it, {1e3 * allowed:.3g} mm)"
+        "a piston position from 0 (retracted) to the declared stroke "
+        f"{_shown(stroke, 'length', '.4g')} (within {100 * STROKE_TOLERANCE:g} % of it, "
+        f"{_shown(allowed, 'length', '.3g')})"
     )
+    factor, unit = DISPLAY_UNITS["length"]
     found = (
-        f"positions from {1e3 * lo:.6g} to {1e3 * hi:.6g} mm: a stroke declared too short, a "
-        "position in another unit than its header says, a sensor counting the other way "
+        f"positions from {factor * lo:.6g} to {factor * hi:.6g} {unit}: a stroke declared too "
+        "short, a position in another unit than its header says, a sensor counting the other way "
         "(the [read] table's reversed = true negates it) or its zero elsewhere than at the "
         "retracted end"
     )

@@ -44,8 +44,10 @@ there and the phase goes on with it (:func:`_phase_plan`).
 
 The t is fitted again (at most :data:`MAX_READAPT` times) when a check
 window after the adaptation accepts fewer than :data:`READAPT_ACCEPTANCE`
-of its walker-steps: the phase then ended (at its full length) on walkers
-that were still climbing, and the t misses the posterior. The steps since
+of its walker-steps (the phase then ended, at its full length, on walkers
+that were still climbing, and the t misses the posterior), or when a walker
+held still for :data:`HELD_SHARE` of a window (the t misses a part of the
+posterior, where its draws are nearly all refused). The steps since
 the last fit are its sample and become burn-in. On the sparse plan of the
 fitted laws' own truth (seed 1) the friction chain accepted 0.04 and ended
 unconverged at its 4000-step limit (36 tau, R-hat 1.03, 50 s); fitted again
@@ -126,6 +128,23 @@ READAPT_ACCEPTANCE = 0.15
 #: and its chain needed 1150 steps instead of 600. A t that fits accepts
 #: 0.5-0.8 there.
 PHASE_MIXED = 0.3
+#: After the adaptation, a check window in which one walker held its position
+#: for at least this share of the window's steps in a row also says that the
+#: t misses the posterior, in part: the walker sits where the posterior's
+#: density is far above the t's, where nearly every draw is refused (an
+#: independence sampler's "sticky" region), while the others move freely.
+#: Measured on stored chains (``run_mcmc``'s HDF5 groups): the demo's
+#: polytropic friction chain (18 walkers, checks every 100 steps, moved 0.62)
+#: held a walker at most 10-17 steps per window, its heat chain (checks every
+#: 50) 2-5, NAP310's friction fit (checks every 150, moved 0.40) 19-29; the
+#: sparse plan of the ``lugre-pressure`` truth (seed 1, 2026-12-03) held one
+#: 50 steps in its first window and walkers still for whole windows in 13 of
+#: its 38 after, and ran unconverged to its 4000-step limit (static friction
+#: tau 99 steps). There 1 % of its posterior draws were accepted away from
+#: with probability below 0.0002 under the t fitted at the phase's end, and
+#: 0.014 under one fitted to the 100 steps after it (importance weights of
+#: the stored draws).
+HELD_SHARE = 0.5
 #: Fits of the t after the first, at most (a posterior that no t fits keeps
 #: a low acceptance whatever the fit: the chain then goes on with the last).
 MAX_READAPT = 2
@@ -485,7 +504,8 @@ def run_mcmc(
         start ``min_steps`` steps after them, and ``n_steps`` and
         ``max_steps`` count them. ``moves`` applies to the adaptation phase.
         With ``min_steps``, a check whose window accepted fewer than
-        :data:`READAPT_ACCEPTANCE` of its steps fits the proposal again
+        :data:`READAPT_ACCEPTANCE` of its steps, or in which one walker held
+        still for :data:`HELD_SHARE` of its steps, fits the proposal again
         (module doc; ``MCMCResult.readapted_after``).
     adapt_check : int
         With ``adapt``, end the adaptation phase early: checked every
@@ -659,17 +679,24 @@ def run_mcmc(
         )
         if converged or target >= limit:
             break
-        moved = _moved_fraction(chain, target - check) if adapt and check else math.nan
-        if moved < READAPT_ACCEPTANCE and len(readapted) < MAX_READAPT and target - check >= burn:
-            # the t misses the posterior: fitted again to the steps since the
-            # last fit, a function of the stored chain (a resumed run decides
-            # the same here and samples on with the same proposal)
+        # read only after an adaptation, at checks (a window of ``check`` steps)
+        watched = bool(adapt and check)
+        moved = _moved_fraction(chain, target - check) if watched else math.nan
+        held = _longest_hold(chain, target - check) if watched else 0
+        missed = watched and (moved < READAPT_ACCEPTANCE or held >= HELD_SHARE * check)
+        if missed and len(readapted) < MAX_READAPT and target - check >= burn:
+            # the t misses the posterior (everywhere: few moves; in part: a
+            # walker held): fitted again to the steps since the last fit, a
+            # function of the stored chain (a resumed run decides the same
+            # here and samples on with the same proposal)
             sampler = sampler_with(_adapted_moves(chain[burn:], lp[burn:]))
             adapted = True
             last = None
             if log is not None:
+                why = (f"acceptance {moved:.2f}" if moved < READAPT_ACCEPTANCE
+                       else f"a walker held still for {held} steps in a row")  # fmt: skip
                 log(
-                    f"mcmc {name}: acceptance {moved:.2f} over steps {target - check}-{target}: "
+                    f"mcmc {name}: {why} over steps {target - check}-{target}: "
                     f"the proposal misses the posterior; fitted again to steps {burn}-{target}"
                 )
             readapted.append(target)
@@ -702,6 +729,19 @@ def _moved(chain: NDArray[np.float64], start: int) -> NDArray[np.bool_]:
     read from the stored chain (a refused proposal repeats the position
     exactly; emcee's own counts start at step 0)."""
     return np.any(np.diff(chain[max(start - 1, 0) :], axis=0) != 0.0, axis=2)
+
+
+def _longest_hold(chain: NDArray[np.float64], start: int) -> int:
+    """The most steps in a row, from step ``start`` on, that one walker of
+    ``chain`` (steps, walkers, n) spent without moving (:func:`_moved`); 0
+    without a step."""
+    moved = _moved(chain, start)
+    longest = 0
+    for column in moved.T:
+        # lengths of the runs of refusals: gaps between the moves
+        at = np.flatnonzero(np.concatenate([[True], column, [True]]))
+        longest = max(longest, int(np.max(np.diff(at))) - 1)
+    return longest
 
 
 def _moved_fraction(chain: NDArray[np.float64], start: int) -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -33,23 +34,31 @@ class Interrupt(Exception):
 
 
 def _resumed_after_interrupt(
-    path: Path, cut: int, start: np.ndarray, cov: np.ndarray | None, **kw: object
+    path: Path,
+    cut: int,
+    start: np.ndarray,
+    cov: np.ndarray | None,
+    log_prob: Callable[[np.ndarray], np.ndarray] = gaussian,
+    ps: ParameterSet | None = None,
+    **kw: object,
 ) -> MCMCResult:
-    """A run of :func:`gaussian` stopped at its ``cut``-th log-posterior call
-    (one call per step once the walkers are placed), then the same run
-    resumed from its backend ``path``: what a user gets after Ctrl-C."""
+    """A run of ``log_prob`` (default :func:`gaussian` on :func:`params`)
+    stopped at its ``cut``-th log-posterior call (one call per step once the
+    walkers are placed), then the same run resumed from its backend ``path``:
+    what a user gets after Ctrl-C."""
     calls = 0
+    ps = params() if ps is None else ps
 
     def flaky(z: np.ndarray) -> np.ndarray:
         nonlocal calls
         calls += 1
         if calls == cut:
             raise Interrupt
-        return gaussian(z)
+        return log_prob(z)
 
     with pytest.raises(Interrupt):
-        run_mcmc(flaky, params(), start, cov, backend=path, **kw)  # type: ignore[arg-type]
-    return run_mcmc(gaussian, params(), start, cov, backend=path, **kw)  # type: ignore[arg-type]
+        run_mcmc(flaky, ps, start, cov, backend=path, **kw)  # type: ignore[arg-type]
+    return run_mcmc(log_prob, ps, start, cov, backend=path, **kw)  # type: ignore[arg-type]
 
 
 def test_same_seed_same_chain_and_seed_matters() -> None:
@@ -551,18 +560,9 @@ def test_a_walker_held_in_the_tail_fits_the_proposal_again(
         se = np.sqrt(q * (1 - q) / ess) / exact.pdf(exact.ppf(q))
         assert abs(np.quantile(kept, q) - exact.ppf(q)) < 4 * se
 
-    calls = 0
-
-    def flaky(z: np.ndarray) -> np.ndarray:
-        nonlocal calls
-        calls += 1
-        if calls == cut:
-            raise Interrupt
-        return skewed(z)
-
-    with pytest.raises(Interrupt):
-        run_mcmc(flaky, ps, start, tiny, backend=tmp_path / "cut.h5", **kw)
-    resumed = run_mcmc(skewed, ps, start, tiny, backend=tmp_path / "cut.h5", **kw)
+    resumed = _resumed_after_interrupt(
+        tmp_path / "cut.h5", cut, start, tiny, log_prob=skewed, ps=ps, **kw
+    )
     assert resumed.readapted_after == full.readapted_after
     assert np.array_equal(resumed.chain, full.chain)
 

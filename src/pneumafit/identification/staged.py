@@ -8,10 +8,7 @@ c. **friction**: static, Coulomb, viscous friction and Stribeck velocity
    from the step tests, valve and heat held at (a), (b);
 d. **joint**: every ``fit`` recording at once, valve, heat, friction and
    the recordings' initial states free, starting from (a)-(c), refitted
-   after the solver's defect correction. When (c) compared the LuGre and
-   switch laws, the other law is solved jointly too and the better kept
-   (the same BIC rule): (c) chose on the step tests with valve and heat
-   held, and the chosen law's joint optimum can be the poorer one.
+   after the solver's defect correction.
 
 Each stage is a :class:`~pneumafit.identification.problem.Problem`, a
 :class:`~pneumafit.identification.likelihood.LogLikelihood` and a
@@ -1558,9 +1555,6 @@ def identify(
 
     # ---------------------------------------------------------- (c) friction
     stage = StageResult("friction", [r.file for r in steps], friction_names)
-    # the kernel law not chosen at this stage and its estimates there: the
-    # joint stage solves it too and keeps the better (_revisit_friction_law)
-    runner_up: tuple[str, dict[str, float]] | None = None
     if steps and opts.friction == "auto" and not isinstance(model, ModelStructure):
         # both laws on the step tests, the better by BIC (the chamber tests do
         # not see friction): LuGre's two bristle parameters must buy more than
@@ -1642,9 +1636,6 @@ def identify(
         gain = lls["lugre"] - lls["switch"]
         law = "lugre" if math.isfinite(gain) and gain / over > penalty else "switch"
         stage, chosen, _, _ = tried[law]
-        other = "switch" if law == "lugre" else "lugre"
-        if math.isfinite(lls[other]):
-            runner_up = (other, dict(tried[other][1]))
         stage.seconds = seconds
         stage.note = (
             f"friction law {law}: LuGre log-likelihood gain {gain:.1f} / {over:.3g} (residual "
@@ -1664,8 +1655,6 @@ def identify(
             law, stage, chosen = _lower_bic(
                 (law, stage, chosen), (cand, trial, solved), over, penalty, say
             )
-        if law not in ("lugre", "switch"):
-            runner_up = None
         stage.seconds = seconds
         values.update(chosen)
         structure = replace(structure, friction=law)
@@ -1785,61 +1774,6 @@ def identify(
     joint_problem = run_stage(
         stage, all_fit, joint_free, [dict(values)], seeds[3], explicit_initial=True
     )
-    if runner_up is not None and stage.estimate is not None:
-        # the friction law of stage (c) was chosen on the step tests with the
-        # valve and heat held: the joint stage can end in a poorer optimum of
-        # that law than the other law's (seed 5 of the calibration campaigns:
-        # LuGre at -18457, the switch law at -16768). The other law is solved
-        # jointly from its stage-(c) estimates and kept by the same BIC rule
-        law, solved = runner_up
-        kept_state = (structure, params, joint_free, friction_names, dict(values), joint_stall)
-        kept_est, kept_seconds = stage.estimate, stage.seconds
-        own = tuple(structure.friction_parameter_names)  # the kept law's (no seal term)
-        structure = replace(structure, friction=law)
-        params = _with_law(params, structure, rig, nuisance)
-        law_names = tuple(structure.friction_parameter_names)
-        # the seal friction, when stage (c) kept it, stays with either law
-        names = law_names + tuple(n for n in friction_names if n not in own)
-        free = tuple(n for n in joint_free if n not in own) + law_names
-        start = {**values, **{n: solved[n] for n in law_names if n in solved}}
-        start = {k: v for k, v in start.items() if k in law_names or k not in own}
-        values.clear()
-        values.update(start)
-        trial = StageResult("joint", [r.file for r in all_fit], free)
-        prob = run_stage(trial, all_fit, free, [start], seeds[3], explicit_initial=True,
-                         label=f"joint ({law} friction)")  # fmt: skip
-        lugre_est, lugre_prob, switch_est = (
-            (kept_est, joint_problem, trial.estimate) if law == "switch"
-            else (trial.estimate, prob, kept_est)
-        )  # fmt: skip
-        gain = lugre_est.log_likelihood - switch_est.log_likelihood
-        over = _overcount(lugre_prob, lugre_est) if math.isfinite(gain) else math.nan
-        penalty = math.log(max(lugre_prob.n_data / over, 2.0)) if math.isfinite(over) else math.nan
-        better = "lugre" if not math.isfinite(gain) or gain / over > penalty else "switch"
-        if not math.isfinite(switch_est.log_likelihood):
-            better = "lugre"
-        if not math.isfinite(lugre_est.log_likelihood):
-            better = "switch"
-        line = (
-            f"friction law {better} kept jointly: LuGre log-likelihood "
-            f"{lugre_est.log_likelihood:.1f}, the switch model's {switch_est.log_likelihood:.1f} "
-            f"(gain / residual correlation {gain / over:.1f} against ln n_eff = {penalty:.1f})"
-        )
-        say(f"joint: {line}")
-        if better == law:
-            # the other law: its joint optimum is the fit's
-            trial.seconds += kept_seconds
-            trial.note = "; ".join(x for x in (stage.note, line) if x)
-            stage, joint_free, friction_names, joint_problem = trial, free, names, prob
-            stages[-1].note = "; ".join(
-                x for x in (stages[-1].note, f"replaced in the joint stage: {line}") if x
-            )
-        else:
-            structure, params, joint_free, friction_names, before, joint_stall = kept_state
-            values.clear()
-            values.update(before)
-            stage.seconds = kept_seconds + trial.seconds
-            stage.note = "; ".join(x for x in (stage.note, line) if x)
     if not flows and structure.valve == "iso6358" and valve_free:
         # without a flow test the valve law's shape comes from the tests that
         # open its paths: the extensions of stage (a), each kept by a

@@ -38,27 +38,7 @@ def test_every_catalog_effect_has_a_loop_case() -> None:
 # samples (2026-11-28): the base fit was poor (LuGre, F_s = F_c = 29 N,
 # position RMSE 2.5 mm) and the refit ended with a worse BIC. Held, it is
 # kept, held-out p_P / p_N 7847 / 9942 -> 3408 / 5120 Pa (docs/effects.md).
-#: Loop cases known to fail on some hosts (the fit's end point depends on the
-#: CPU's rounding; docs/effects.md): marked, not removed, so that a pass shows.
-HOST_DEPENDENT = {
-    "external_leakage": (
-        "known defect, open (2026-12-03): on an AMD EPYC host (this project's CI host and the "
-        "development machine gave the same numbers) the leakage is selected and kept but the "
-        "held-out pressure RMSE goes 3405 -> 2055 Pa (0.60 of it, the criterion is 0.5); it "
-        "passed on the CI host of 2026-12-02 (367a399, the same code path: no MCMC here)"
-    ),
-}
-
-
-@pytest.mark.parametrize(
-    "effect",
-    [
-        pytest.param(e, marks=pytest.mark.xfail(raises=AssertionError, strict=False,
-                                                 reason=HOST_DEPENDENT[e]))
-        if e in HOST_DEPENDENT else e
-        for e in sorted(LOOP_EFFECTS)
-    ],
-)  # fmt: skip
+@pytest.mark.parametrize("effect", sorted(LOOP_EFFECTS))
 def test_hidden_effect_is_found_and_halves_the_validation_error(
     discovery_cases: object, effect: str
 ) -> None:

@@ -608,7 +608,6 @@ def test_an_outside_heat_law_and_a_state_of_one_s_own_in_the_fmu(outside_parts, 
     as instantaneous (c t) is 25 % off at 1.5 s."""
     parts, layout = outside_parts
 
-
     _outside_heat_law(parts, layout, "root-p", 8, "root_p_coefficient", root_pressure_lambda,
                       "return p[PF_P_root_p_coefficient] * sqrt(pres / 1.0e5);")  # fmt: skip
     # the simulator's test of the same drain (its kernel code; the FMU runs the C)

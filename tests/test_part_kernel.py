@@ -681,8 +681,10 @@ def test_a_law_in_the_stuck_mode_is_checked_and_named(registered: None) -> None:
     cases = [
         (replace(law, name="s1", code=10, kernel=None), "found no kernel"),
         (replace(law, name="s2", code=11, state_rate=lugre_again_rate), "found a state_rate"),
-        (replace(law, name="s3", code=12, c_state_rate="return 0.0;", c_code="return 0.0;"),
-         "c_state_rate: expected it only with a state of its own"),
+        (
+            replace(law, name="s3", code=12, c_state_rate="return 0.0;", c_code="return 0.0;"),
+            "c_state_rate: expected it only with a state of its own",
+        ),
         (replace(law, name="s4", code=13, stuck="yes"), "expected True or False"),
     ]
     for bad, message in cases:
@@ -1379,8 +1381,14 @@ def _register_drain_effect(
 
 
 def _register_drain() -> None:
-    _register_drain_effect("drain", 2e-6, 0.3, _drain_functions, (layout.X_E0,),
-                           "a drain out of chamber P opening over time (state e in slot X_E0)")
+    _register_drain_effect(
+        "drain",
+        2e-6,
+        0.3,
+        _drain_functions,
+        (layout.X_E0,),
+        "a drain out of chamber P opening over time (state e in slot X_E0)",
+    )
 
 
 def test_an_outside_effect_with_a_state_of_its_own(registered: None) -> None:
@@ -1507,11 +1515,18 @@ def test_an_outside_effect_with_two_states_of_its_own(registered: None) -> None:
     the same tau by over 20 % of the air sent, and each drain is a quarter
     or more of the sum (checked on the closed forms), so a rate written to
     the wrong slot, or a state left at 0, fails."""
-    _register_drain_effect("drain2", 2e-6, 0.3, _second_order_drain, (layout.X_E2, layout.X_E0),
-                           "a drain out of chamber P opening in second order")
+    _register_drain_effect(
+        "drain2",
+        2e-6,
+        0.3,
+        _second_order_drain,
+        (layout.X_E2, layout.X_E0),
+        "a drain out of chamber P opening in second order",
+    )
     functions = functools.partial(_drain_functions, slot=layout.X_E1, chamber="N")
-    _register_drain_effect("drain_n", 1.5e-6, 0.5, functions, (layout.X_E1,),
-                           "a drain out of chamber N")
+    _register_drain_effect(
+        "drain_n", 1.5e-6, 0.5, functions, (layout.X_E1,), "a drain out of chamber N"
+    )
     values = default_parameters()
     values["valve_C_leak"] = 0.0
     t = np.arange(0.0, 1.5005, 1e-3)

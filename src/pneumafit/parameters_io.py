@@ -54,9 +54,7 @@ from pneumafit.models.structure import EFFECT_SLOTS, MODELS, ModelStructure
 PARAMETER_FILE_KEYS = ("model", "friction", "effects", "parameters", "structure", "description")
 
 
-def _to_si(
-    value: Any, name: str, where: str, exhaust_pressure: float | None = None
-) -> float:
+def _to_si(value: Any, name: str, where: str, exhaust_pressure: float | None = None) -> float:
     spec = SPECS.get(name)
     if spec is None:
         raise PneumafitInputError(

@@ -106,7 +106,7 @@ def test_split_header(cell: str, parts: tuple[str, str] | None) -> None:
 
 
 def test_parameter_files_and_options_read_units_as_campaigns_do() -> None:
-    """"32mm" and "7 barg" are accepted in a parameter file (and an option)
+    """ "32mm" and "7 barg" are accepted in a parameter file (and an option)
     exactly as in a campaign; a unit of another dimension is named."""
     from pneumafit.campaign.units import UnitError, parse_quantity, parse_value
     from pneumafit.parameters_io import parse_parameters

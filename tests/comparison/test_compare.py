@@ -262,9 +262,7 @@ def test_report_from_python_reads_what_it_saved(
     fits = [pf.load_fit(blocked_fits[m]) for m in MODELS]
     comparison = pf.compare(campaign, fits)
     found = pf.discover(campaign, fits[0], rounds=1)
-    html = pf.report(
-        tmp_path / "run", campaign, fits=fits, comparison=comparison, discovery=found
-    )
+    html = pf.report(tmp_path / "run", campaign, fits=fits, comparison=comparison, discovery=found)
     assert html == tmp_path / "run" / "report.html" and html.is_file()
     for m in MODELS:
         assert (tmp_path / "run" / "fits" / m / "fit.json").is_file()
@@ -308,4 +306,3 @@ def test_a_failing_residual_analysis_does_not_fail_the_comparison(
     assert (out / "comparison.json").is_file() and comparison.models == list(MODELS)
     assert not (out / RESIDUALS_FILE).exists()
     assert any("residual analysis not saved (TypeError: made to fail)" in line for line in said)
-

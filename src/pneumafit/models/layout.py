@@ -57,6 +57,7 @@ def state_size(slots: Iterable[int] = ()) -> int:
     the highest slot claimed."""
     return max([NX, *(int(s) + 1 for s in slots)])
 
+
 # ----------------------------------------------------------------------------
 # Output channels (simulated, at the recording's sample times)
 # ----------------------------------------------------------------------------

@@ -398,12 +398,15 @@ def parts_header(structure: ModelStructure) -> str:
     for i, e in stateful:
         names = [STATE_NAMES[slot] for slot in e.states]
         one = len(names) == 1  # one state: its rate returned; more: out[k], in order
-        lines += [
-            f"/* the rate of effect {e.name!r}'s state{'' if one else 's'} "
-            f"({', '.join(names)}) */",
+        signature = (
             f"static double pf_part_effect_rate_{i}(const double *x, const double *p)"
-            if one else
-            f"static void pf_part_effect_rate_{i}(const double *x, const double *p, double *out)",
+            if one
+            else f"static void pf_part_effect_rate_{i}("
+            "const double *x, const double *p, double *out)"
+        )
+        lines += [
+            f"/* the rate of effect {e.name!r}'s state{'' if one else 's'} ({', '.join(names)}) */",
+            signature,
             "{",
             *_option_line(structure, e),
             "    (void)x; (void)p;",

@@ -1582,8 +1582,9 @@ def identify(
 
     # ---------------------------------------------------------- (c) friction
     stage = StageResult("friction", [r.file for r in steps], friction_names)
-    # the kernel law not chosen at this stage and its estimates there: the
-    # joint stage solves it too and keeps the better (_revisit_friction_law)
+    # the kernel law not chosen at this stage and its estimates there: when
+    # LuGre was chosen and its joint bristles end at their limit
+    # (_bristles_at_limit), the joint stage solves the switch law from them
     runner_up: tuple[str, dict[str, float]] | None = None
     if steps and opts.friction == "auto" and not isinstance(model, ModelStructure):
         # both laws on the step tests, the better by BIC (the chamber tests do

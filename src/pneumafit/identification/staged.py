@@ -417,6 +417,21 @@ def _without_seal(problem: Problem, trial: PointEstimate, before: Mapping[str, f
     return max(like.at_values({**point, SEAL: 0.0}) for point in (before, fitted))
 
 
+def _ln_n_eff(n_data: int, over: float) -> float:
+    """BIC's penalty per parameter in effective samples, ln n_eff (n_eff =
+    ``n_data`` / ``over``, at least 2): the residuals of a model that is not
+    the rig's are correlated, and ``over`` (:func:`_overcount`) is how many
+    times each sample is counted over. NaN when ``over`` is not finite."""
+    return math.log(max(n_data / over, 2.0)) if math.isfinite(over) else math.nan
+
+
+def _lugre_kept(gain: float, over: float, penalty: float) -> bool:
+    """The friction-law rule between LuGre and the switch model (LuGre's two
+    more parameters): LuGre's log-likelihood ``gain`` in effective samples
+    (divided by ``over``) must exceed 2 x ``penalty`` / 2 = ln n_eff."""
+    return math.isfinite(gain) and gain / over > penalty
+
+
 def _passes(gain: float, over: float, n_extra: int, confidence: float) -> bool:
     """The likelihood-ratio test in effective samples: 2 gain / ``over`` above
     the chi-square quantile at ``confidence`` for ``n_extra`` parameters."""
@@ -1582,10 +1597,10 @@ def identify(
 
     # ---------------------------------------------------------- (c) friction
     stage = StageResult("friction", [r.file for r in steps], friction_names)
-    # the kernel law not chosen at this stage and its estimates there: when
-    # LuGre was chosen and its joint bristles end at their limit
-    # (_bristles_at_limit), the joint stage solves the switch law from them
-    runner_up: tuple[str, dict[str, float]] | None = None
+    # the switch law's estimates at this stage, kept when LuGre was chosen:
+    # when LuGre's joint bristles end at their limit (_bristles_at_limit), the
+    # joint stage solves the switch law from them
+    runner_up: dict[str, float] | None = None
     if steps and opts.friction == "auto" and not isinstance(model, ModelStructure):
         # both laws on the step tests, the better by BIC (the chamber tests do
         # not see friction): LuGre's two bristle parameters must buy more than
@@ -1662,14 +1677,13 @@ def identify(
                 # overcount at the LuGre optimum (correlated residuals of a
                 # model that is not the rig's count each sample many times over)
                 over = _overcount(prob, trial.estimate)
-                penalty = math.log(max(prob.n_data / over, 2.0))
+                penalty = _ln_n_eff(prob.n_data, over)
         lls = {k: t[0].estimate.log_likelihood for k, t in tried.items()}
         gain = lls["lugre"] - lls["switch"]
-        law = "lugre" if math.isfinite(gain) and gain / over > penalty else "switch"
+        law = "lugre" if _lugre_kept(gain, over, penalty) else "switch"
         stage, chosen, _, _ = tried[law]
-        other = "switch" if law == "lugre" else "lugre"
-        if math.isfinite(lls[other]):
-            runner_up = (other, dict(tried[other][1]))
+        if law == "lugre" and math.isfinite(lls["switch"]):
+            runner_up = dict(tried["switch"][1])
         stage.seconds = seconds
         stage.note = (
             f"friction law {law}: LuGre log-likelihood gain {gain:.1f} / {over:.3g} (residual "
@@ -1727,7 +1741,7 @@ def identify(
         base = _without_seal(prob, trial.estimate, before)
         gain = trial.estimate.log_likelihood - base
         over = _overcount(prob, trial.estimate)
-        penalty = 0.5 * math.log(max(prob.n_data / over, 2.0))
+        penalty = 0.5 * _ln_n_eff(prob.n_data, over)
         held = [r for r in campaign.by_role("validate") if r.kind in ("step", "free")]
         rms_without = _pressure_rms(held, plain[0], before, opts)
         rms_with = _pressure_rms(held, structure, values, opts)
@@ -1821,7 +1835,7 @@ def identify(
         # of the calibration campaigns: LuGre at -18457, the switch law at
         # -16768). The switch model is solved jointly from its stage-(c)
         # estimates and the better kept by the same BIC rule
-        law, solved = runner_up
+        law, solved = "switch", runner_up
         stiffness = values["friction_stiffness"]
         kept_state = (structure, params, joint_free, friction_names, dict(values), joint_stall)
         kept_est, kept_seconds = stage.estimate, stage.seconds
@@ -1839,14 +1853,12 @@ def identify(
         trial = StageResult("joint", [r.file for r in all_fit], free)
         prob = run_stage(trial, all_fit, free, [start], seeds[3], explicit_initial=True,
                          label=f"joint ({law} friction)")  # fmt: skip
-        lugre_est, lugre_prob, switch_est = (
-            (kept_est, joint_problem, trial.estimate) if law == "switch"
-            else (trial.estimate, prob, kept_est)
-        )  # fmt: skip
+        lugre_est, switch_est = kept_est, trial.estimate
         gain = lugre_est.log_likelihood - switch_est.log_likelihood
-        over = _overcount(lugre_prob, lugre_est) if math.isfinite(gain) else math.nan
-        penalty = math.log(max(lugre_prob.n_data / over, 2.0)) if math.isfinite(over) else math.nan
-        better = "lugre" if not math.isfinite(gain) or gain / over > penalty else "switch"
+        over = _overcount(joint_problem, lugre_est) if math.isfinite(gain) else math.nan
+        penalty = _ln_n_eff(joint_problem.n_data, over)
+        keep_lugre = not math.isfinite(gain) or _lugre_kept(gain, over, penalty)
+        better = "lugre" if keep_lugre else "switch"
         if not math.isfinite(switch_est.log_likelihood):
             better = "lugre"
         if not math.isfinite(lugre_est.log_likelihood):
@@ -1859,7 +1871,7 @@ def identify(
         )
         say(f"joint: {line}")
         if better == law:
-            # the other law: its joint optimum is the fit's
+            # the switch law: its joint optimum is the fit's
             trial.seconds += kept_seconds
             trial.note = "; ".join(x for x in (stage.note, line) if x)
             stage, joint_free, friction_names, joint_problem = trial, free, names, prob

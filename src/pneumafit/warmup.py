@@ -73,8 +73,11 @@ def warm_up(log: Callable[[str], None] | None = None) -> dict[str, float]:
     timed("check_parameters", lambda: kernel.check_parameters(params))
     stroke, wall = params[P["stroke"]], params[P["wall_temperature"]]
     # choose_step's call, and the fits' own (default valve and friction laws)
-    timed("stiffness_bound", lambda: (choose_step(params),
-                                      kernel.stiffness_bound(params, 0.0, stroke)))  # fmt: skip
+    # (every argument passed: an omitted one compiles another version)
+    timed(
+        "stiffness_bound",
+        lambda: (choose_step(params), kernel.stiffness_bound(params, 0.0, stroke, 0, 0)),
+    )
     timed("static_valve_flows", lambda: kernel.static_valve_flows(params, 0, 1.0, 4e5, wall))
     timed("simulate (serial)", lambda: sim.simulate(params, step))
     timed("simulate_batch (parallel)", lambda: sim.simulate_batch(np.tile(params, (2, 1)), [step]))

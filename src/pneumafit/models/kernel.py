@@ -218,6 +218,19 @@ STATUS_BAD_PARAMETERS = 3
 STATUS_BAD_INPUT = 4
 
 _FM = FASTMATH
+#: 0, 1, True and False as run-time values for the compiled functions' calls
+#: to one another. A literal argument (``rhs(x, 0, ...)``) is typed as that
+#: constant (``Literal[int](0)``) and numba compiles the callee once more for
+#: it, and everything it calls: the warm-up's serial simulation compiled
+#: rk_step six times and integrate_from twice. Numpy scalars are typed as
+#: int64 and bool, so each function is compiled once per entry point. A
+#: variable that starts at a literal and changes later (``k = 0`` before
+#: ``k += span``) is typed as the literal first, and its calls compiled for
+#: it, before numba's inference widens it: such variables start here too.
+_I0 = np.int64(0)
+_I1 = np.int64(1)
+_TRUE = np.bool_(True)
+_FALSE = np.bool_(False)
 
 # The functions called once per stage (rhs, commands, rk_step and what they
 # call, down to the valve laws) are compiled with ``_nrt=False``: numba's
@@ -1070,10 +1083,11 @@ def locate_event(
     lo, g_lo = 0.0, g0
     hi, g_hi = 1.0, g1
     side = 0
+    first = _TRUE
     theta = g_lo / (g_lo - g_hi) if g_lo != g_hi else 0.0
     for _ in range(8):
         rk_step(x, mode, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl, tab_a, tab_b,
-                tab_c, kk, xs, dx, aux, xe)  # fmt: skip
+                tab_c, kk, xs, dx, aux, xe, first)  # fmt: skip
         u_p, u_n = commands(xe, inp, k, w0 + theta * dw, cfg, ctrl)
         rhs(xe, mode, u_p, u_n, p, d, cfg, dx, aux)
         g = _event_function(kind, xe, aux)
@@ -1092,7 +1106,7 @@ def locate_event(
             side = 1
         theta = lo - g_lo * (hi - lo) / (g_hi - g_lo)
     rk_step(x, mode, inp, k, w0, theta * dw, theta * h, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
-            kk, xs, dx, aux, xe)  # fmt: skip
+            kk, xs, dx, aux, xe, first)  # fmt: skip
     u_p, u_n = commands(xe, inp, k, w0 + theta * dw, cfg, ctrl)
     rhs(xe, mode, u_p, u_n, p, d, cfg, dx, aux)
     return theta
@@ -1278,7 +1292,8 @@ def initial_mode(
     # mode and event location are the switch model's)
     lugre = cfg[C_FRICTION_LAW] == FRICTION_LUGRE and not blocked
     smooth = not friction_modes(cfg) and not blocked
-    u_p, u_n = commands(x, inp, 0, 0.0, cfg, ctrl)
+    stuck = _I0  # as a run-time int: see _I0
+    u_p, u_n = commands(x, inp, stuck, 0.0, cfg, ctrl)
     if cfg[C_VALVE_ORDER] > 0:
         x[X_UP] = u_p
         x[X_UN] = u_n
@@ -1289,9 +1304,9 @@ def initial_mode(
     if lugre:
         if not math.isfinite(x[X_Z]):
             x[X_Z] = 0.0
-            rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
+            rhs(x, stuck, u_p, u_n, p, d, cfg, dx, aux)
             x[X_Z] = initial_deflection(x, p, cfg, aux[A_FD])
-    rhs(x, 0, u_p, u_n, p, d, cfg, dx, aux)
+    rhs(x, stuck, u_p, u_n, p, d, cfg, dx, aux)
     if not blocked and not smooth:
         if x[X_V] > 0.0:
             mode = 1
@@ -1378,7 +1393,7 @@ def integrate_from(
     herm = np.empty((3, NX))
     fsal = False  # herm[2] holds f at x, with the inputs of sample k
     h_prev = 0.0
-    k = 0
+    k = _I0
     while k < n - 1:
         span = 1
         if nsub[k] < -1:
@@ -1412,33 +1427,33 @@ def integrate_from(
                     # the sliding piston came to rest within the step
                     theta = 0.0
                     if x[X_V] != 0.0:
-                        theta = locate_event(0, x[X_V], xn[X_V], x, mode, inp, k, w0, dw, h, p,
+                        theta = locate_event(_I0, x[X_V], xn[X_V], x, mode, inp, k, w0, dw, h, p,
                                              d, cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx,
                                              aux, xe)  # fmt: skip
                     else:
                         for i in range(NX):
                             xe[i] = x[i]
                         u_p, u_n = commands(xe, inp, k, w0, cfg, ctrl)
-                        rhs(xe, 0, u_p, u_n, p, d, cfg, dx, aux)
+                        rhs(xe, _I0, u_p, u_n, p, d, cfg, dx, aux)
                     xe[X_V] = 0.0
                     mode = next_mode(aux[A_FD], aux[A_FS])
                     we = w0 + theta * dw
                     rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
-                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
+                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn, _TRUE)  # fmt: skip
                     if mode != 0 and xn[X_V] * mode < 0.0:
                         xn[X_V] = 0.0  # reversal overshoot; the next step re-decides
             elif abs(aux[A_FD]) > aux[A_FS]:
                 # the last stage says the stuck piston breaks away: confirm at the
                 # step's end, then locate |F_d| = F_s within the step
                 u_p, u_n = commands(xn, inp, k, w0 + dw, cfg, ctrl)
-                rhs(xn, 0, u_p, u_n, p, d, cfg, dx, aux)
+                rhs(xn, _I0, u_p, u_n, p, d, cfg, dx, aux)
                 e1 = abs(aux[A_FD]) - aux[A_FS]
                 if e1 > 0.0:
                     direction = 1 if aux[A_FD] > 0.0 else -1
                     e0 = abs(fd_prev) - fs_prev
                     theta = 0.0
                     if e0 < 0.0:
-                        theta = locate_event(1, e0, e1, x, 0, inp, k, w0, dw, h, p, d, cfg,
+                        theta = locate_event(_I1, e0, e1, x, _I0, inp, k, w0, dw, h, p, d, cfg,
                                              ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux,
                                              xe)  # fmt: skip
                     else:
@@ -1447,7 +1462,7 @@ def integrate_from(
                     mode = direction
                     we = w0 + theta * dw
                     rk_step(xe, mode, inp, k, we, (1.0 - theta) * dw, (1.0 - theta) * h, p, d,
-                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn)  # fmt: skip
+                            cfg, ctrl, tab_a, tab_b, tab_c, kk, xs, dx, aux, xn, _TRUE)  # fmt: skip
             fd_prev = aux[A_FD]
             fs_prev = aux[A_FS]
             for i in range(NX):
@@ -1606,7 +1621,7 @@ def integrate(
         return _fail(out, 0, STATUS_BAD_PARAMETERS)
     derive(p, d)
     _initial_state(x0, p, cfg, x)
-    need_aux = False
+    need_aux = _FALSE
     for j in range(ch_sel.shape[0]):
         if 6 <= ch_sel[j] < 12 or ch_sel[j] == 14:
             need_aux = True
@@ -1639,7 +1654,7 @@ def integrate(
     if n > 1:
         h0 = (t[1] - t[0]) / nsub[0] if nsub[0] > 0 else t[min(max(-nsub[0], 1), n - 1)] - t[0]
     mode, fd_prev, fs_prev = initial_mode(x, inp, h0, p, d, cfg, ctrl, dx, aux)
-    _record(out, 0, x, aux, ch_sel)
+    _record(out, _I0, x, aux, ch_sel)
     status, _, _, _ = integrate_from(
         t, inp, nsub, x, mode, fd_prev, fs_prev, p, d, cfg, ctrl, tab_a, tab_b, tab_c,
         ch_sel, out, need_aux, kk, xs, xn, xe, dx, aux,
@@ -1709,7 +1724,8 @@ def integrate_many(
     status : ndarray of int64, shape (n_sets, n_recordings)
     """
     for job in prange(params.shape[0] * cfgs.shape[0]):
-        _run_job(job, params, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets,
+        # prange's index is unsigned: as int64, the serial twin's _run_job
+        _run_job(np.int64(job), params, cfgs, ctrls, x0s, t_all, inp_all, nsub_all, offsets,
                  tab_a, tab_b, tab_c, ch_sel, out, status)  # fmt: skip
 
 
@@ -1818,8 +1834,8 @@ def _part_friction_mode(p: np.ndarray, law: int) -> float:
     if part_friction_stuck(law):
         # a sliding force in the switch model's modes: no state, and its
         # slope one-sided (v -> 0+, sliding forwards: the levels jump at 0)
-        f_1 = part_friction_sliding(law, dv, 1.0, f_s, f_c, x, p)
-        f_2 = part_friction_sliding(law, 2.0 * dv, 1.0, f_s, f_c, x, p)
+        f_1 = part_friction_sliding(law, dv, _I1, f_s, f_c, x, p)
+        f_2 = part_friction_sliding(law, 2.0 * dv, _I1, f_s, f_c, x, p)
         bound = abs(f_2 - f_1) / dv / p[P_MASS]
         return bound if math.isfinite(bound) else 0.0
     f_hi = part_friction(law, dv, f_s, f_c, x, p)

@@ -407,7 +407,7 @@ def _copy() -> ModuleType:
         # its first simulation, a silent wait on the command line otherwise
         _log.info(
             "the simulator with the parts from outside the package (%s) is compiled at its "
-            "first use in this process (about 20-60 s, once)",
+            "first use in this process (about 15-40 s, once)",
             ", ".join(named),
         )
         _compile_hooks(module, (heat, valve, friction, effects), ", ".join(named))

@@ -4,7 +4,14 @@ add no compiled signature, so nothing is compiled at first use."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from pneumafit.models import kernel
 from pneumafit.models.parameters import parameter_vector
@@ -49,3 +56,43 @@ def test_after_the_warm_up_nothing_compiles_at_first_use(
     t = step_experiment.time[:200]
     simulate_sampled({}, t, np.full(t.size, 0.26), lambda x, r: 50.0 * (r - x[0]))
     assert _signatures() == warmed
+
+
+#: Compiles the warm-up with numba's compile events recorded, from an empty
+#: cache, and prints how often each kernel function was compiled.
+_COUNT_COMPILES = """
+import collections, json
+from numba.core import event
+from pneumafit.warmup import warm_up
+with event.install_recorder("numba:compile") as rec:
+    warm_up()
+counts = collections.Counter(
+    ev.data["dispatcher"].py_func.__qualname__
+    for _, ev in rec.buffer
+    if ev.is_start and ev.data["dispatcher"].py_func.__module__ == "pneumafit.models.kernel"
+)
+print(json.dumps(counts))
+"""
+
+
+@pytest.mark.slow  # slow job: a compilation from an empty cache (about 45 s)
+def test_the_warm_up_compiles_each_kernel_function_once(tmp_path: Path) -> None:
+    """A call with a constant argument (``rhs(x, 0, ...)``) is typed as that
+    literal and numba compiles the callee, and all it calls, once more for
+    it (README, "Performance": rk_step was compiled six times, the serial
+    simulation took 33 s to compile instead of 15). From an empty cache, the
+    warm-up compiles every function of the kernel once. ``_fail`` (two
+    lines, its status codes module constants) is the one function allowed
+    more. A test that cannot pass by accident: a literal argument put back
+    at any call of the integration loop compiles its callee twice."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "NUMBA_NUM_THREADS": "1"}
+    run = subprocess.run(
+        [sys.executable, "-c", _COUNT_COMPILES], env=env, capture_output=True, text=True,
+        timeout=600, check=False,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-2000:]
+    counts = json.loads(run.stdout.strip().splitlines()[-1])
+    for name in ("rhs", "rk_step", "integrate_from", "integrate", "_run_job"):
+        assert counts.get(name) == 1, counts
+    twice = {name: n for name, n in counts.items() if n > 1 and name != "_fail"}
+    assert not twice, twice

@@ -76,7 +76,12 @@ def warm_up(log: Callable[[str], None] | None = None) -> dict[str, float]:
     # (every argument passed: an omitted one compiles another version)
     timed(
         "stiffness_bound",
-        lambda: (choose_step(params), kernel.stiffness_bound(params, 0.0, stroke, 0, 0)),
+        lambda: (
+            choose_step(params),
+            kernel.stiffness_bound(
+                params, 0.0, stroke, kernel.VALVE_ISO6358, kernel.FRICTION_SWITCH
+            ),
+        ),
     )
     timed("static_valve_flows", lambda: kernel.static_valve_flows(params, 0, 1.0, 4e5, wall))
     timed("simulate (serial)", lambda: sim.simulate(params, step))

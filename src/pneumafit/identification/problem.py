@@ -506,7 +506,9 @@ def rest_step(parameters: NDArray[np.float64], cap: float, stability: float) -> 
     vec[P["stop_stiffness"]] = 0.0
     # the default laws (ISO 6358 valve, switch friction) passed explicitly: the
     # simulator's call passes them, and omitted arguments compile another version
-    rate = kernel.stiffness_bound(vec, 0.0, float(vec[P["stroke"]]), 0, 0)
+    rate = kernel.stiffness_bound(
+        vec, 0.0, float(vec[P["stroke"]]), kernel.VALVE_ISO6358, kernel.FRICTION_SWITCH
+    )
     return float(min(cap, REST_STABILITY_MARGIN * stability / max(rate, 1e-12)))
 
 

@@ -87,7 +87,7 @@ def _advance(x, mem_i, mem_f, inp, dt, n_sub, p, d, cfg, ctrl, tab_a, tab_b, tab
     nsub2 = np.full(2, n_sub, dtype=np.int64)
     status, mode, fd, fs = integrate_from(
         t2, inp, nsub2, x, mem_i[_MODE], mem_f[_FD], mem_f[_FS], p, d, cfg, ctrl,
-        tab_a, tab_b, tab_c, np.empty(0, dtype=np.int64), np.empty((2, 0)), np.bool_(False),
+        tab_a, tab_b, tab_c, np.empty(0, dtype=np.int64), np.empty((2, 0)), kernel._FALSE,
         kk, xs, xn, xe, dx, aux,
     )  # fmt: skip
     mem_i[_MODE] = mode
@@ -99,7 +99,7 @@ def _advance(x, mem_i, mem_f, inp, dt, n_sub, p, d, cfg, ctrl, tab_a, tab_b, tab
 @njit(cache=True)
 def _observe(x, mem_i, inp, p, d, cfg, ctrl, dx, aux, ch_sel, out, row) -> None:
     """Record the channels at a sample, with the command just decided."""
-    u_p, u_n = commands(x, inp, np.int64(0), 0.0, cfg, ctrl)
+    u_p, u_n = commands(x, inp, kernel._I0, 0.0, cfg, ctrl)
     rhs(x, mem_i[_MODE], u_p, u_n, p, d, cfg, dx, aux)
     kernel._record(out, row, x, aux, ch_sel)
 

@@ -85,7 +85,9 @@ _RECORDING_KEYS = (
     "read",
 )
 #: keys of a ``[read]`` / ``[recording.read]`` table (how to read a file)
-_READ_KEYS = ("header", "separator", "channels", "start")
+_READ_KEYS = ("header", "separator", "decimal", "skip_lines", "channels", "start")
+#: decimal marks of CSV numbers ("," as many European benches export them)
+_DECIMALS = (".", ",")
 #: separators of CSV files; "whitespace" is any run of spaces and tabs
 _SEPARATORS = ("whitespace", ",", ";", "\t")
 #: keys of one ``[read.channels]`` entry
@@ -240,6 +242,8 @@ class _ReadSpec:
 
     header: bool = True
     separator: str = ","
+    decimal: str = "."
+    skip_lines: int = 0
     channels: dict[str, _ChannelColumn] = field(default_factory=dict)
     start: float | None = None
     start_text: str = ""
@@ -637,7 +641,7 @@ def _parse_read(table: object, prefix: str, file: str, probs: _Problems) -> dict
     if table is None:
         return out
     if not isinstance(table, dict):
-        probs.error(file, prefix, "a table (header, separator, channels, start)", _shown(table))
+        probs.error(file, prefix, f"a table ({', '.join(_READ_KEYS)})", _shown(table))
         out["ok"] = False
         return out
     n_errors = probs.n_errors
@@ -660,6 +664,24 @@ def _parse_read(table: object, prefix: str, file: str, probs: _Problems) -> dict
         else:
             shown = '"whitespace", ",", ";", "\\t"'
             probs.error(file, f"{prefix}.separator", f"one of {shown}", _shown(sep))
+    if "decimal" in table:
+        if table["decimal"] in _DECIMALS:
+            out["decimal"] = table["decimal"]
+        else:
+            probs.error(
+                file, f"{prefix}.decimal", '"." or "," (the decimal mark)', _shown(table["decimal"])
+            )
+    if "skip_lines" in table:
+        skip = table["skip_lines"]
+        if type(skip) is int and skip >= 0:
+            out["skip_lines"] = skip
+        else:
+            probs.error(
+                file,
+                f"{prefix}.skip_lines",
+                "a number of lines (an integer, 0 or more) to leave out at the top of the file",
+                _shown(skip),
+            )
     if "start" in table:
         try:
             out["start"] = parse_value(table["start"], "time")
@@ -762,7 +784,8 @@ def _merge_read(top: dict[str, Any], own: dict[str, Any], file: str, probs: _Pro
     spec = _ReadSpec()
     keys = {**top["keys"], **own["keys"]}
     for part in (top, own):
-        for name in ("header", "separator", "channels", "start", "start_text"):
+        for name in ("header", "separator", "decimal", "skip_lines", "channels", "start",
+                     "start_text"):  # fmt: skip
             if name in part:
                 setattr(spec, name, part[name])
     spec.keys = keys
@@ -793,6 +816,12 @@ def _merge_read(top: dict[str, Any], own: dict[str, Any], file: str, probs: _Pro
             "channels by column number only in a file without a header row (header = false); "
             "with a header use [recording.columns]",
             "header = true",
+        )
+    if spec.decimal == "," and spec.separator == ",":
+        combination(
+            keys.get("decimal", "read.decimal"),
+            'another separator with a decimal comma (e.g. separator = ";")',
+            'decimal = "," and separator ","',
         )
     if spec.header and spec.separator == "whitespace":
         combination(
@@ -891,9 +920,21 @@ def _drop_duplicates(
 
 
 def _csv_numbers(
-    series: pd.Series, file: str, key: str, locate: Callable[[int], str], probs: _Problems
+    series: pd.Series,
+    file: str,
+    key: str,
+    locate: Callable[[int], str],
+    probs: _Problems,
+    decimal: str = ".",
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
-    """Numbers of one CSV column; an empty cell is NaN and mask False."""
+    """Numbers of one CSV column; an empty cell is NaN and mask False.
+
+    With ``decimal`` "," a cell's comma is its decimal mark, and a cell with
+    a point is refused: "1.234" may be a thousands-grouped 1234 or 1.234, and
+    the reader does not guess.
+    """
+    if decimal == ",":
+        return _comma_numbers(series, file, key, locate, probs)
     if series.dtype.kind in "fiu":
         values = series.to_numpy(dtype=np.float64)
         return values, ~np.isnan(values)
@@ -917,19 +958,57 @@ def _csv_numbers(
             expected, what = "finite numbers", " (a NaN or infinite sample)"
         except ValueError:
             expected, what = "numbers", ""
+            if _comma_decimal(cell):
+                expected = 'numbers (a decimal comma as in this cell needs decimal = "," in [read])'
         probs.error(file, key, expected, f'"{cell}" at {locate(i)}{what}{more}')
         return None
     return values, ~np.isnan(values)
 
 
+def _comma_decimal(cell: str) -> bool:
+    """Whether a cell is a number written with a decimal comma ("0,25")."""
+    text = cell.strip()
+    if text.count(",") != 1 or "." in text:
+        return False
+    try:
+        float(text.replace(",", "."))
+    except ValueError:
+        return False
+    return True
+
+
+def _comma_numbers(
+    series: pd.Series, file: str, key: str, locate: Callable[[int], str], probs: _Problems
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
+    """:func:`_csv_numbers` of a column written with decimal commas ("1,25")."""
+    cells = [None if pd.isna(c) else str(c).strip() for c in series.tolist()]
+    dotted = [i for i, c in enumerate(cells) if c and "." in c]
+    if dotted:
+        i = dotted[0]
+        more = f" (and {len(dotted) - 1} more)" if len(dotted) > 1 else ""
+        probs.error(
+            file,
+            key,
+            'numbers with a decimal comma (decimal = ","), no points',
+            f'"{cells[i]}" at {locate(i)}{more}',
+        )
+        return None
+    converted = pd.Series([c.replace(",", ".") if c else c for c in cells], dtype=object)
+    return _csv_numbers(converted, file, key, locate, probs)
+
+
 def _csv_time(
-    series: pd.Series, file: str, locate: Callable[[int], str], probs: _Problems
+    series: pd.Series,
+    file: str,
+    locate: Callable[[int], str],
+    probs: _Problems,
+    decimal: str = ".",
 ) -> NDArray[np.float64] | None:
     """The time column of a CSV file, in its own unit: a number in every row.
 
     None when a cell is not a number or is empty (the problem is reported).
     """
-    time = _csv_numbers(series, file, "time", locate, probs)
+    time = _csv_numbers(series, file, "time", locate, probs, decimal)
     if time is None:
         return None
     if not time[1].all():
@@ -948,8 +1027,16 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
         return None
     lines = text.splitlines()
     comments: list[str] = []
-    skip = 0
-    for line in lines:
+    skip = meta.read.skip_lines
+    if skip and skip >= len(lines):
+        probs.error(
+            file,
+            meta.read.keys.get("skip_lines", "read.skip_lines"),
+            f"more than the {skip} lines that read.skip_lines leaves out",
+            f"{len(lines)} line{'s' * (len(lines) != 1)}",
+        )
+        return None
+    for line in lines[skip:]:
         stripped = line.strip()
         if stripped and not stripped.startswith("#"):
             break
@@ -975,6 +1062,8 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
             keep_default_na=False,
             na_values=[""],
             skip_blank_lines=True,
+            # decimal commas: cells kept as text, read by _csv_numbers
+            dtype=object if meta.read.decimal == "," else None,
         )
     except pd.errors.EmptyDataError:
         frame = pd.DataFrame(columns=list(range(len(cells))))
@@ -1013,7 +1102,7 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
             f'"{cells[0]}"',
         )
         return None
-    time = _csv_time(frame[0], file, locate, probs)
+    time = _csv_time(frame[0], file, locate, probs, meta.read.decimal)
     if time is None:
         return None
 
@@ -1036,7 +1125,7 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
 
     columns = []
     for j, name in channel.items():
-        numbers = _csv_numbers(frame[j], file, name, locate, probs)
+        numbers = _csv_numbers(frame[j], file, name, locate, probs, meta.read.decimal)
         if numbers is None:
             columns.append(_Column(name, headers[j][1], np.empty(0), np.empty(0, bool), ok=False))
         else:
@@ -1104,14 +1193,14 @@ def _read_positional(
         return pd.Series([row[column - 1] for row in rows], dtype=object)
 
     time_spec = spec.channels["time"]
-    time = _csv_time(cells(time_spec.column), file, locate, probs)
+    time = _csv_time(cells(time_spec.column), file, locate, probs, spec.decimal)
     if time is None:
         return None
     columns = []
     for channel, col in spec.channels.items():
         if channel == "time":
             continue
-        numbers = _csv_numbers(cells(col.column), file, channel, locate, probs)
+        numbers = _csv_numbers(cells(col.column), file, channel, locate, probs, spec.decimal)
         if numbers is None:
             columns.append(_Column(channel, col.unit, np.empty(0), np.empty(0, bool), ok=False))
         else:
@@ -1479,14 +1568,20 @@ def _load_recording(
     if not data:
         probs.error(meta.file, "", "a recording with samples", "an empty file (0 bytes)")
         return None
-    if suffix in HDF5_SUFFIXES and (not meta.read.header or meta.read.channels):
+    csv_only = ("channels", "header", "decimal", "skip_lines")
+    if suffix in HDF5_SUFFIXES and (
+        not meta.read.header or meta.read.channels or meta.read.decimal != "."
+        or meta.read.skip_lines
+    ):  # fmt: skip
         probs.warning(
             meta.columns_file,
-            meta.read.keys.get("channels", meta.read.keys.get("header", "read")),
-            "header and channels for CSV files only (HDF5 names its datasets)",
+            next((meta.read.keys[k] for k in csv_only if k in meta.read.keys), "read"),
+            "header, channels, decimal and skip_lines for CSV files only "
+            "(HDF5 names its datasets and stores numbers)",
             f"a read table for {meta.file} (ignored)",
         )
         meta.read.header, meta.read.channels = True, {}
+        meta.read.decimal, meta.read.skip_lines = ".", 0
     if not meta.read.ok:
         return None  # its read table has an error, already reported
     reader = _read_hdf5 if suffix in HDF5_SUFFIXES else _read_csv

@@ -1,0 +1,161 @@
+"""Bench exports with decimal commas and a block of lines before the data.
+
+Many benches (LabVIEW and spreadsheet exports in most of Europe) write
+"3,25" for 3.25, with ";" or tabs between the fields, and start the file with
+lines of their own (the program, the date, the operator) that are not
+"#"-comments. ``[read]``'s ``decimal = ","`` and ``skip_lines = N`` read such
+files unchanged (docs/campaign-format.md, "`[read]`"). Each test compares
+with the same numbers written the format's own way: the values must be
+equal to the bit, not close, since both go through the same float parser.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rich.console import Console
+
+from pneumafit.campaign import CampaignError, check_campaign, read_campaign
+
+#: The bench's own preamble: three lines that are not "#"-comments.
+PREAMBLE = "Prüfstand 2;Zylinder DNC-32-500\nDatum;04.12.2026\nBediener;M. Muster\n"
+
+READ_TABLE = """\
+[recording.read]
+separator = ";"
+decimal = ","
+skip_lines = 3
+"""
+
+
+def european(csv_text: str) -> str:
+    """The same table with ";" between fields and "," as the decimal mark."""
+    out = []
+    for line in csv_text.splitlines():
+        if line.startswith("#"):
+            out.append(line)
+        else:
+            out.append(line.replace(",", ";").replace(".", ","))
+    return PREAMBLE + "\n".join(out) + "\n"
+
+
+def with_read_table(folder: Path, table: str = READ_TABLE) -> None:
+    """Give the step recording (the third entry) its own read table."""
+    toml = folder / "campaign.toml"
+    text = toml.read_text()
+    anchor = '[recording.columns]\n"Pos [mm]" = "y"\n'
+    assert anchor in text
+    toml.write_text(text.replace(anchor, anchor + table))
+
+
+def errors_of(folder: Path) -> list[str]:
+    with pytest.raises(CampaignError) as info:
+        read_campaign(folder)
+    return [str(p) for p in info.value.errors]
+
+
+def test_a_european_export_reads_as_the_same_numbers(campaign_dir: Path) -> None:
+    reference = read_campaign(campaign_dir).recording("step_1.csv")
+    path = campaign_dir / "step_1.csv"
+    path.write_text(european(path.read_text()))
+    with_read_table(campaign_dir)
+    step = read_campaign(campaign_dir).recording("step_1.csv")
+    np.testing.assert_array_equal(step.time, reference.time)
+    assert set(step.channels) == set(reference.channels)
+    for name, values in reference.channels.items():
+        np.testing.assert_array_equal(step.channels[name], values, err_msg=name)
+        np.testing.assert_array_equal(step.mask[name], reference.mask[name], err_msg=name)
+    # the "#" lines after the skipped block are still the description
+    assert step.description == reference.description
+    status, out = _check(campaign_dir)
+    assert status == 0, out
+
+
+def test_a_headerless_whitespace_export_with_decimal_commas(tmp_path: Path) -> None:
+    """The measured seals' layout (columns by position), written with commas."""
+    from test_friction_campaign import ROWS, SMALL_TOML, small_campaign  # this folder, on sys.path
+
+    reference = read_campaign(small_campaign(tmp_path / "a")).recordings[0]
+    rows = [row.replace(".", ",") for row in ROWS]
+    toml = SMALL_TOML.replace('separator = "whitespace"', 'separator = "whitespace"\ndecimal = ","')
+    comma = read_campaign(small_campaign(tmp_path / "b", toml, rows)).recordings[0]
+    np.testing.assert_array_equal(comma.time, reference.time)
+    for name, values in reference.channels.items():
+        np.testing.assert_array_equal(comma.channels[name], values, err_msg=name)
+
+
+def _check(folder: Path) -> tuple[int, str]:
+    out = io.StringIO()
+    status = check_campaign(folder, console=Console(file=out, width=200))
+    return status, " ".join(out.getvalue().split())
+
+
+def test_a_point_in_a_decimal_comma_file_is_refused(campaign_dir: Path) -> None:
+    """ "1.234" may be 1234 grouped in thousands or 1.234: not guessed."""
+    path = campaign_dir / "step_1.csv"
+    path.write_text(european(path.read_text()).replace("100,5", "100.5"))
+    with_read_table(campaign_dir)
+    assert errors_of(campaign_dir) == [
+        'step_1.csv: y: expected numbers with a decimal comma (decimal = ","), no points, '
+        'found "100.5" at line 9'
+    ]
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        (
+            'separator = ","\ndecimal = ","\n',
+            "campaign.toml: recording[3].read.decimal: expected another separator with a "
+            'decimal comma (e.g. separator = ";"), found decimal = "," and separator ","',
+        ),
+        (
+            'decimal = "comma"\n',
+            'campaign.toml: recording[3].read.decimal: expected "." or "," (the decimal '
+            'mark), found "comma"',
+        ),
+        (
+            "skip_lines = -1\n",
+            "campaign.toml: recording[3].read.skip_lines: expected a number of lines (an "
+            "integer, 0 or more) to leave out at the top of the file, found -1",
+        ),
+        (
+            "skip_lines = 40\n",
+            "step_1.csv: recording[3].read.skip_lines: expected more than the 40 lines that "
+            "read.skip_lines leaves out, found 8 lines",
+        ),
+    ],
+)
+def test_bad_decimal_and_skip_lines(campaign_dir: Path, table: str, message: str) -> None:
+    with_read_table(campaign_dir, "[recording.read]\n" + table)
+    assert message in errors_of(campaign_dir)
+
+
+def test_the_csv_keys_on_an_hdf5_recording_are_ignored_with_a_warning(
+    campaign_dir: Path,
+) -> None:
+    toml = campaign_dir / "campaign.toml"
+    text = toml.read_text()
+    anchor = 'piston_position = "250 mm"\n'
+    toml.write_text(
+        text.replace(anchor, anchor + '[recording.read]\nseparator = ";"\ndecimal = ","\n')
+    )
+    campaign = read_campaign(campaign_dir)
+    charge = campaign.recording("charge_P_1.h5")
+    assert charge.channels["p_P"][0] == pytest.approx(1.013e5)
+    _, out = _check(campaign_dir)
+    assert "recording[1].read.decimal" in out and "CSV files only" in out, out
+
+
+def test_a_decimal_comma_without_the_key_is_named(tmp_path: Path) -> None:
+    from test_friction_campaign import ROWS, small_campaign  # this folder, on sys.path
+
+    rows = [row.replace(".", ",") for row in ROWS]
+    errors = errors_of(small_campaign(tmp_path, rows=rows))
+    assert errors[0] == (
+        'a_1bar.csv: time: expected numbers (a decimal comma as in this cell needs decimal = "," '
+        'in [read]), found "0,000" at line 1 (and 5 more)'
+    ), errors

@@ -9,6 +9,7 @@ bytes, and never opened for writing; the SHA-256 of those bytes is kept.
 
 from __future__ import annotations
 
+import codecs
 import csv
 import hashlib
 import io
@@ -85,7 +86,9 @@ _RECORDING_KEYS = (
     "read",
 )
 #: keys of a ``[read]`` / ``[recording.read]`` table (how to read a file)
-_READ_KEYS = ("header", "separator", "decimal", "skip_lines", "channels", "start")
+_READ_KEYS = (
+    "header", "separator", "decimal", "skip_lines", "encoding", "channels", "start",
+)  # fmt: skip
 #: decimal marks of CSV numbers ("," as many European benches export them)
 _DECIMALS = (".", ",")
 #: separators of CSV files; "whitespace" is any run of spaces and tabs
@@ -244,6 +247,7 @@ class _ReadSpec:
     separator: str = ","
     decimal: str = "."
     skip_lines: int = 0
+    encoding: str = "utf-8"
     channels: dict[str, _ChannelColumn] = field(default_factory=dict)
     start: float | None = None
     start_text: str = ""
@@ -682,6 +686,19 @@ def _parse_read(table: object, prefix: str, file: str, probs: _Problems) -> dict
                 "a number of lines (an integer, 0 or more) to leave out at the top of the file",
                 _shown(skip),
             )
+    if "encoding" in table:
+        name = table["encoding"]
+        try:
+            if not isinstance(name, str):
+                raise LookupError(name)
+            out["encoding"] = codecs.lookup(name).name
+        except LookupError:
+            probs.error(
+                file,
+                f"{prefix}.encoding",
+                'a text encoding (e.g. "utf-8", the default, "cp1252" or "latin-1")',
+                _shown(name),
+            )
     if "start" in table:
         try:
             out["start"] = parse_value(table["start"], "time")
@@ -784,8 +801,8 @@ def _merge_read(top: dict[str, Any], own: dict[str, Any], file: str, probs: _Pro
     spec = _ReadSpec()
     keys = {**top["keys"], **own["keys"]}
     for part in (top, own):
-        for name in ("header", "separator", "decimal", "skip_lines", "channels", "start",
-                     "start_text"):  # fmt: skip
+        for name in ("header", "separator", "decimal", "skip_lines", "encoding", "channels",
+                     "start", "start_text"):  # fmt: skip
             if name in part:
                 setattr(spec, name, part[name])
     spec.keys = keys
@@ -965,6 +982,15 @@ def _csv_numbers(
     return values, ~np.isnan(values)
 
 
+def _decodes(data: bytes, encoding: str) -> bool:
+    """Whether ``data`` is text in ``encoding``."""
+    try:
+        data.decode(encoding)
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
 def _comma_decimal(cell: str) -> bool:
     """Whether a cell is a number written with a decimal comma ("0,25")."""
     text = cell.strip()
@@ -1020,10 +1046,23 @@ def _csv_time(
 
 def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
     file = meta.file
+    encoding = meta.read.encoding
     try:
-        text = data.decode("utf-8-sig")
+        # UTF-8 with or without a byte-order mark
+        text = data.decode("utf-8-sig" if encoding == "utf-8" else encoding)
     except UnicodeDecodeError as exc:
-        probs.error(file, f"byte {exc.start}", "UTF-8 text", "a byte that is not UTF-8")
+        where = f"byte {exc.start}"
+        if encoding == "utf-8":
+            line = data[: exc.start].count(b"\n") + 1
+            hint = (
+                ' (a Windows export? encoding = "cp1252" in [read] reads it)'
+                if _decodes(data, "cp1252") else ""
+            )  # fmt: skip
+            probs.error(file, f"line {line}, {where}", "UTF-8 text" + hint,
+                        f"a byte that is not UTF-8 (0x{data[exc.start]:02x})")  # fmt: skip
+        else:
+            probs.error(file, where, f"{encoding} text (read.encoding)",
+                        f"a byte that is not {encoding} (0x{data[exc.start]:02x})")  # fmt: skip
         return None
     lines = text.splitlines()
     comments: list[str] = []
@@ -1568,20 +1607,20 @@ def _load_recording(
     if not data:
         probs.error(meta.file, "", "a recording with samples", "an empty file (0 bytes)")
         return None
-    csv_only = ("channels", "header", "decimal", "skip_lines")
+    csv_only = ("channels", "header", "decimal", "skip_lines", "encoding")
     if suffix in HDF5_SUFFIXES and (
         not meta.read.header or meta.read.channels or meta.read.decimal != "."
-        or meta.read.skip_lines
+        or meta.read.skip_lines or meta.read.encoding != "utf-8"
     ):  # fmt: skip
         probs.warning(
             meta.columns_file,
             next((meta.read.keys[k] for k in csv_only if k in meta.read.keys), "read"),
-            "header, channels, decimal and skip_lines for CSV files only "
+            "header, channels, decimal, skip_lines and encoding for CSV files only "
             "(HDF5 names its datasets and stores numbers)",
             f"a read table for {meta.file} (ignored)",
         )
         meta.read.header, meta.read.channels = True, {}
-        meta.read.decimal, meta.read.skip_lines = ".", 0
+        meta.read.decimal, meta.read.skip_lines, meta.read.encoding = ".", 0, "utf-8"
     if not meta.read.ok:
         return None  # its read table has an error, already reported
     reader = _read_hdf5 if suffix in HDF5_SUFFIXES else _read_csv

@@ -1,10 +1,11 @@
-"""Bench exports with decimal commas and a block of lines before the data.
+"""Bench exports with decimal commas, a preamble of their own and a Windows encoding.
 
 Many benches (LabVIEW and spreadsheet exports in most of Europe) write
-"3,25" for 3.25, with ";" or tabs between the fields, and start the file with
+"3,25" for 3.25, with ";" or tabs between the fields, start the file with
 lines of their own (the program, the date, the operator) that are not
-"#"-comments. ``[read]``'s ``decimal = ","`` and ``skip_lines = N`` read such
-files unchanged (docs/campaign-format.md, "`[read]`"). Each test compares
+"#"-comments, and write them in cp1252. ``[read]``'s ``decimal = ","``,
+``skip_lines = N`` and ``encoding`` read such files unchanged
+(docs/campaign-format.md, "`[read]`"). Each test compares
 with the same numbers written the format's own way: the values must be
 equal to the bit, not close, since both go through the same float parser.
 """
@@ -159,3 +160,33 @@ def test_a_decimal_comma_without_the_key_is_named(tmp_path: Path) -> None:
         'a_1bar.csv: time: expected numbers (a decimal comma as in this cell needs decimal = "," '
         'in [read]), found "0,000" at line 1 (and 5 more)'
     ), errors
+
+
+def test_a_windows_export_reads_with_its_encoding(campaign_dir: Path) -> None:
+    """cp1252 (Windows in Western Europe): "ü" and "°" are single bytes that
+    are not UTF-8. Without the key the error names the line and suggests it;
+    with it the file reads as the same numbers."""
+    reference = read_campaign(campaign_dir).recording("step_1.csv")
+    path = campaign_dir / "step_1.csv"
+    path.write_bytes(european(path.read_text()).encode("cp1252"))
+    toml = campaign_dir / "campaign.toml"
+    original = toml.read_text()
+    with_read_table(campaign_dir)
+    (error,) = errors_of(campaign_dir)
+    assert error == (
+        'step_1.csv: line 1, byte 2: expected UTF-8 text (a Windows export? encoding = "cp1252" '
+        "in [read] reads it), found a byte that is not UTF-8 (0xfc)"
+    )
+    toml.write_text(original)
+    with_read_table(campaign_dir, READ_TABLE + 'encoding = "cp1252"\n')
+    step = read_campaign(campaign_dir).recording("step_1.csv")
+    for name, values in reference.channels.items():
+        np.testing.assert_array_equal(step.channels[name], values, err_msg=name)
+
+
+def test_an_unknown_encoding_is_named(campaign_dir: Path) -> None:
+    with_read_table(campaign_dir, '[recording.read]\nencoding = "klingon"\n')
+    assert errors_of(campaign_dir) == [
+        'campaign.toml: recording[3].read.encoding: expected a text encoding (e.g. "utf-8", '
+        'the default, "cp1252" or "latin-1"), found "klingon"'
+    ]

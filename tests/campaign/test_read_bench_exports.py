@@ -190,3 +190,21 @@ def test_an_unknown_encoding_is_named(campaign_dir: Path) -> None:
         'campaign.toml: recording[3].read.encoding: expected a text encoding (e.g. "utf-8", '
         'the default, "cp1252" or "latin-1"), found "klingon"'
     ]
+
+
+def test_a_header_in_another_notation_is_skipped_and_read_by_position(tmp_path: Path) -> None:
+    """Names on one row and units on the next ("Zeit;Weg;Druck A" / "ms;mm;bar"),
+    which the header row's "name [unit]" cannot take: ``header = false``,
+    ``skip_lines`` over both rows, the columns by position."""
+    from test_friction_campaign import ROWS, SMALL_TOML, small_campaign  # this folder, on sys.path
+
+    reference = read_campaign(small_campaign(tmp_path / "a")).recordings[0]
+    head = ["Zeit;U1;U2;U3;Weg;Druck;Kraft", "ms;V;V;V;mm;bar;N"]
+    rows = head + [row.replace("\t", ";").replace(".", ",") for row in ROWS]
+    toml = SMALL_TOML.replace(
+        'separator = "whitespace"', 'separator = ";"\ndecimal = ","\nskip_lines = 2'
+    )
+    exported = read_campaign(small_campaign(tmp_path / "b", toml, rows)).recordings[0]
+    np.testing.assert_array_equal(exported.time, reference.time)
+    for name, values in reference.channels.items():
+        np.testing.assert_array_equal(exported.channels[name], values, err_msg=name)

@@ -96,3 +96,104 @@ def test_the_warm_up_compiles_each_kernel_function_once(tmp_path: Path) -> None:
         assert counts.get(name) == 1, counts
     twice = {name: n for name, n in counts.items() if n > 1 and name != "_fail"}
     assert not twice, twice
+
+
+# ------------------------------------------------------- the warm-up at first use
+
+
+def _fake_warm_up(calls: list[int]):  # type: ignore[no-untyped-def]
+    """A warm-up that only leaves the mark, as the real one does when it ends."""
+    from pneumafit import warmup
+
+    def fake(log=None):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        warmup._mark({"fake": 0.0})
+        return {"fake": 0.0}
+
+    return fake
+
+
+def test_a_command_warms_up_once_at_first_use(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without the mark the command's warm-up runs (and says so), leaves the
+    mark and is not run again; the real warm-up's mark and compile are the
+    slow test below. A synthetic check of the logic: the warm-up is faked."""
+    from pneumafit import warmup
+
+    mark = tmp_path / "cache" / "pneumafit-warm-test.txt"
+    calls: list[int] = []
+    monkeypatch.setattr(warmup, "marker", lambda: mark)
+    monkeypatch.setattr(warmup, "warm_up", _fake_warm_up(calls))
+    monkeypatch.setenv(warmup.AUTO_ENV, "1")
+    lines: list[str] = []
+    assert warmup.ensure_warm(lines.append) is not None
+    assert calls == [1] and mark.exists()
+    assert lines[0].startswith("first use of this install: compiling the simulator")
+    assert lines[-1].startswith("simulator ready")
+    assert warmup.ensure_warm(lines.append) is None
+    assert calls == [1]
+    # off by the environment, or where numba does not say where its cache is
+    mark.unlink()
+    monkeypatch.setenv(warmup.AUTO_ENV, "0")
+    assert warmup.ensure_warm(lines.append) is None
+    monkeypatch.setenv(warmup.AUTO_ENV, "1")
+    monkeypatch.setattr(warmup, "marker", lambda: None)
+    assert warmup.ensure_warm(lines.append) is None
+    assert calls == [1]
+
+
+def test_the_simulating_commands_warm_up_and_check_does_not(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """From the command line: ``simulate`` prints the first-use lines before its
+    own output, ``check`` (which simulates nothing) never runs the warm-up."""
+    from typer.testing import CliRunner
+
+    from pneumafit import warmup
+    from pneumafit.cli.app import app
+
+    mark = tmp_path / "cache" / "pneumafit-warm-test.txt"
+    calls: list[int] = []
+    monkeypatch.setattr(warmup, "marker", lambda: mark)
+    monkeypatch.setattr(warmup, "warm_up", _fake_warm_up(calls))
+    monkeypatch.setenv(warmup.AUTO_ENV, "1")
+    runner = CliRunner()
+    checked = runner.invoke(app, ["check", str(tmp_path / "no-campaign")])
+    assert calls == [] and "first use" not in checked.output
+    params = tmp_path / "params.json"
+    params.write_text(json.dumps({"model": "convection", "parameters": {"xi": 0.4}}))
+    command = ["simulate", str(params), "--kind", "charge", "--duration", "0.05 s",
+               "--out", str(tmp_path / "sim.h5")]  # fmt: skip
+    result = runner.invoke(app, command)
+    assert result.exit_code == 0, result.output
+    assert calls == [1]
+    assert result.output.index("first use of this install") < result.output.index("simulator ready")
+    again = runner.invoke(app, command)
+    assert again.exit_code == 0 and "first use" not in again.output and calls == [1]
+
+
+@pytest.mark.slow  # slow job: two commands, the first from an empty cache (about 50 s)
+def test_the_first_command_of_an_install_compiles_in_the_warm_up(tmp_path: Path) -> None:
+    """The real thing, from an empty numba cache in a subprocess: the first
+    ``pneumafit simulate`` runs the warm-up (its lines, then the mark in the
+    kernel's cache folder); the second finds the mark and prints only its own
+    output. Can fail: a mark not written, or written where ``marker`` does
+    not look, runs the warm-up twice."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "NUMBA_NUM_THREADS": "1",
+           "PNEUMAFIT_AUTO_WARMUP": "1"}  # fmt: skip
+    params = tmp_path / "params.json"
+    params.write_text(json.dumps({"model": "convection", "parameters": {"xi": 0.4}}))
+    command = [sys.executable, "-m", "pneumafit", "simulate", str(params), "--kind", "charge",
+               "--duration", "0.05 s", "--out", str(tmp_path / "sim.h5")]  # fmt: skip
+    first = subprocess.run(command, env=env, capture_output=True, text=True, timeout=900,
+                           check=False)  # fmt: skip
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert "first use of this install" in first.stdout, first.stdout
+    assert "simulate (serial)" in first.stdout
+    marks = list((tmp_path / "cache").rglob("pneumafit-warm-*.txt"))
+    assert len(marks) == 1, marks
+    second = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300,
+                            check=False)  # fmt: skip
+    assert second.returncode == 0, second.stderr[-2000:]
+    assert "first use" not in second.stdout, second.stdout

@@ -15,6 +15,17 @@ it twice costs nothing. Nothing is run in the background: the warm-up is one
 ordinary process that compiles one function at a time, so it never races a
 simulation, a test or a worker process over the cache.
 
+A finished warm-up leaves a mark in the kernel's cache folder
+(:func:`marker`: one file per package source stamp, numba version, Python
+version and CPU, the things numba's cache is valid for). The commands that
+simulate (``pneumafit run``, ``fit``, ``compare``, ``discover``,
+``simulate``, ...) call :func:`ensure_warm` first: without the mark they run
+the warm-up in their own process, with its lines on the console, before their
+work, so that a user who skipped this command sees what the first minute is
+spent on instead of a silent first simulation; with it they do nothing.
+``PNEUMAFIT_AUTO_WARMUP=0`` turns that off (the test suite does: its
+commands must print only their own output).
+
 Entry points: the serial and parallel batch integrators
 (:meth:`Simulator.simulate`, :meth:`Simulator.simulate_batch`, with and
 without pairs shared with the first set), the sampled
@@ -27,9 +38,13 @@ models differ only in configuration values, not in compiled code.
 
 from __future__ import annotations
 
+import hashlib
+import os
+import platform
 import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -93,6 +108,84 @@ def warm_up(log: Callable[[str], None] | None = None) -> dict[str, float]:
     timed("simulate_sampled", lambda: simulate_sampled(params, t, step.y_ref,
                                                        lambda x, r: 60.0 * (r - x[0])))  # fmt: skip
     timed("small kernels", lambda: _small_kernels(params))
+    _mark(seconds)
+    return seconds
+
+
+#: Environment variable: "0" turns off the commands' warm-up at first use
+#: (:func:`ensure_warm`).
+AUTO_ENV = "PNEUMAFIT_AUTO_WARMUP"
+
+
+def marker() -> Path | None:
+    """The file a finished warm-up leaves in the kernel's cache folder.
+
+    Its name holds a hash of what numba's cache is valid for: the package's
+    compiled sources (:func:`pneumafit.numba_stamp.package_stamp`), numba's
+    version, Python's and the CPU's name; after a ``git pull`` that changes
+    the kernel, or in another environment, the mark is another file. None
+    where numba does not say where it keeps the cache (its private
+    ``FunctionCache._cache_path``): then nothing is marked or checked.
+    """
+    import llvmlite.binding as llvm
+    import numba
+
+    from pneumafit.models import kernel
+    from pneumafit.numba_stamp import package_stamp
+
+    folder = getattr(getattr(kernel.integrate, "_cache", None), "_cache_path", None)
+    if not folder:
+        return None
+    key = hashlib.sha256(
+        package_stamp()
+        + f"|{numba.__version__}|{platform.python_version()}|{llvm.get_host_cpu_name()}".encode()
+    ).hexdigest()[:16]
+    return Path(folder) / f"pneumafit-warm-{key}.txt"
+
+
+def _mark(seconds: dict[str, float]) -> None:
+    """Leave the mark (written to a temporary file, then renamed); a cache
+    folder that cannot be written is not an error: the warm-up then runs
+    again at the next command's first use, and loads from the cache."""
+    path = marker()
+    if path is None:
+        return
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text("".join(f"{name}\t{s:.2f}\n" for name, s in seconds.items()))
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+
+
+def ensure_warm(log: Callable[[str], None]) -> float | None:
+    """Run the warm-up here if no finished warm-up has marked the cache.
+
+    Parameters
+    ----------
+    log : callable
+        Called with the lines to show (what is compiled, and why now).
+
+    Returns
+    -------
+    float or None
+        Wall time of the warm-up (s), None when it was not needed (marked,
+        no mark known, or ``PNEUMAFIT_AUTO_WARMUP=0``).
+    """
+    if os.environ.get(AUTO_ENV, "1") == "0":
+        return None
+    path = marker()
+    if path is None or path.exists():
+        return None
+    log(
+        "first use of this install: compiling the simulator into numba's cache, once "
+        "(about a minute on 2 cores; python -m pneumafit.warmup does it ahead)"
+    )
+    t0 = time.perf_counter()
+    warm_up(log=lambda line: log("  " + line))
+    seconds = time.perf_counter() - t0
+    log(f"simulator ready ({seconds:.1f} s)")
     return seconds
 
 
@@ -135,7 +228,7 @@ def main() -> int:
     return 0
 
 
-__all__ = ["warm_up"]
+__all__ = ["AUTO_ENV", "ensure_warm", "marker", "warm_up"]
 
 if __name__ == "__main__":
     sys.exit(main())

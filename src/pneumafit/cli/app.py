@@ -75,6 +75,14 @@ VerboseOption = Annotated[
 ]
 
 
+#: Commands that run the compiled simulator: on an install whose warm-up has
+#: not run they run it first, with its lines (:func:`pneumafit.warmup.ensure_warm`).
+SIMULATING_COMMANDS = frozenset({
+    "run", "fit", "fit-many", "compare", "discover", "simulate", "linear", "design",
+    "closed-loop", "export",
+})  # fmt: skip
+
+
 def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """``func`` with the ``--quiet`` and ``--verbose`` options of every command."""
     signature = inspect.signature(func, eval_str=True)
@@ -93,6 +101,10 @@ def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
         started = time.perf_counter()
         code: int | None = 0
         try:
+            if name in SIMULATING_COMMANDS:
+                from pneumafit.warmup import ensure_warm
+
+                ensure_warm(lambda line: console.print(f"[dim]{escape(line)}[/dim]"))
             return func(*args, **kwargs)
         except typer.Exit as exc:
             code = exc.exit_code

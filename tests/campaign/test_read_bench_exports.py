@@ -208,3 +208,20 @@ def test_a_header_in_another_notation_is_skipped_and_read_by_position(tmp_path: 
     np.testing.assert_array_equal(exported.time, reference.time)
     for name, values in reference.channels.items():
         np.testing.assert_array_equal(exported.channels[name], values, err_msg=name)
+
+
+def test_a_utf16_export_is_named_and_read_with_its_encoding(campaign_dir: Path) -> None:
+    """Some Windows tools write UTF-16 with a byte-order mark: the hint names
+    it (not cp1252, which would decode it into text with NUL characters)."""
+    reference = read_campaign(campaign_dir).recording("step_1.csv")
+    path = campaign_dir / "step_1.csv"
+    path.write_bytes(path.read_text().encode("utf-16"))
+    (error,) = errors_of(campaign_dir)
+    assert error == (
+        'step_1.csv: line 1, byte 0: expected UTF-8 text (a UTF-16 file: encoding = "utf-16" '
+        "in [read] reads it), found a byte that is not UTF-8 (0xff)"
+    )
+    with_read_table(campaign_dir, '[recording.read]\nencoding = "utf-16"\n')
+    step = read_campaign(campaign_dir).recording("step_1.csv")
+    for name, values in reference.channels.items():
+        np.testing.assert_array_equal(step.channels[name], values, err_msg=name)

@@ -1054,10 +1054,12 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
         where = f"byte {exc.start}"
         if encoding == "utf-8":
             line = data[: exc.start].count(b"\n") + 1
-            hint = (
-                ' (a Windows export? encoding = "cp1252" in [read] reads it)'
-                if _decodes(data, "cp1252") else ""
-            )  # fmt: skip
+            if data[:2] in (b"\xff\xfe", b"\xfe\xff"):  # a UTF-16 byte-order mark
+                hint = ' (a UTF-16 file: encoding = "utf-16" in [read] reads it)'
+            elif _decodes(data, "cp1252"):
+                hint = ' (a Windows export? encoding = "cp1252" in [read] reads it)'
+            else:
+                hint = ""
             probs.error(file, f"line {line}, {where}", "UTF-8 text" + hint,
                         f"a byte that is not UTF-8 (0x{data[exc.start]:02x})")  # fmt: skip
         else:

@@ -89,6 +89,8 @@ _RECORDING_KEYS = (
 _READ_KEYS = (
     "header", "separator", "decimal", "skip_lines", "encoding", "channels", "start",
 )  # fmt: skip
+#: ``[read]`` keys that only CSV files take (ignored, with a warning, on HDF5)
+_CSV_ONLY_KEYS = ("channels", "header", "decimal", "skip_lines", "encoding")
 #: decimal marks of CSV numbers ("," as many European benches export them)
 _DECIMALS = (".", ",")
 #: separators of CSV files; "whitespace" is any run of spaces and tabs
@@ -801,8 +803,7 @@ def _merge_read(top: dict[str, Any], own: dict[str, Any], file: str, probs: _Pro
     spec = _ReadSpec()
     keys = {**top["keys"], **own["keys"]}
     for part in (top, own):
-        for name in ("header", "separator", "decimal", "skip_lines", "encoding", "channels",
-                     "start", "start_text"):  # fmt: skip
+        for name in (*_READ_KEYS, "start_text"):
             if name in part:
                 setattr(spec, name, part[name])
     spec.keys = keys
@@ -1609,20 +1610,18 @@ def _load_recording(
     if not data:
         probs.error(meta.file, "", "a recording with samples", "an empty file (0 bytes)")
         return None
-    csv_only = ("channels", "header", "decimal", "skip_lines", "encoding")
-    if suffix in HDF5_SUFFIXES and (
-        not meta.read.header or meta.read.channels or meta.read.decimal != "."
-        or meta.read.skip_lines or meta.read.encoding != "utf-8"
-    ):  # fmt: skip
+    default = _ReadSpec()
+    set_keys = [k for k in _CSV_ONLY_KEYS if getattr(meta.read, k) != getattr(default, k)]
+    if suffix in HDF5_SUFFIXES and set_keys:
         probs.warning(
             meta.columns_file,
-            next((meta.read.keys[k] for k in csv_only if k in meta.read.keys), "read"),
-            "header, channels, decimal, skip_lines and encoding for CSV files only "
+            next((meta.read.keys[k] for k in _CSV_ONLY_KEYS if k in meta.read.keys), "read"),
+            f"{', '.join(_CSV_ONLY_KEYS)} for CSV files only "
             "(HDF5 names its datasets and stores numbers)",
             f"a read table for {meta.file} (ignored)",
         )
-        meta.read.header, meta.read.channels = True, {}
-        meta.read.decimal, meta.read.skip_lines, meta.read.encoding = ".", 0, "utf-8"
+        for key in set_keys:
+            setattr(meta.read, key, getattr(default, key))
     if not meta.read.ok:
         return None  # its read table has an error, already reported
     reader = _read_hdf5 if suffix in HDF5_SUFFIXES else _read_csv

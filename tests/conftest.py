@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from pneumafit.simulation import PD, Experiment
+from pneumafit.warmup import AUTO_ENV
 
 # The commands' warm-up at first use (pneumafit.warmup.ensure_warm) is off in
 # the suite: its commands must print only their own output, and the compiler
 # runs where each test needs it, as before. tests/test_warmup.py turns it on
 # where it is the subject.
-os.environ.setdefault("PNEUMAFIT_AUTO_WARMUP", "0")
+os.environ.setdefault(AUTO_ENV, "0")
 
 
 @pytest.fixture(scope="session")

@@ -147,11 +147,15 @@ def test_the_simulating_commands_warm_up_and_check_does_not(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """From the command line: ``simulate`` prints the first-use lines before its
-    own output, ``check`` (which simulates nothing) never runs the warm-up."""
+    own output, ``check`` (which simulates nothing) never runs the warm-up, and
+    a simulating command whose input is refused ends before its first
+    simulation without it (the warm-up waits for that simulation,
+    :mod:`pneumafit.first_use`): a mistyped path costs no compile."""
     from typer.testing import CliRunner
 
     from pneumafit import warmup
     from pneumafit.cli.app import app
+    from pneumafit.errors import PneumafitInputError
 
     mark = tmp_path / "cache" / "pneumafit-warm-test.txt"
     calls: list[int] = []
@@ -161,6 +165,18 @@ def test_the_simulating_commands_warm_up_and_check_does_not(
     runner = CliRunner()
     checked = runner.invoke(app, ["check", str(tmp_path / "no-campaign")])
     assert calls == [] and "first use" not in checked.output
+    # refused by the commands themselves (typer already refuses a missing path)
+    (tmp_path / "empty-campaign").mkdir()
+    (tmp_path / "bad-params.json").write_text("{not json")
+    for refused in (["fit", str(tmp_path / "empty-campaign"), "--out", str(tmp_path / "f")],
+                    ["simulate", str(tmp_path / "bad-params.json"), "--kind", "charge",
+                     "--out", str(tmp_path / "s.h5")]):  # fmt: skip
+        result = runner.invoke(app, refused)
+        # exit 2, or the input error that pneumafit's entry point turns into it
+        assert result.exit_code == 2 or isinstance(result.exception, PneumafitInputError), (
+            result.output
+        )
+        assert calls == [] and "first use" not in result.output, result.output
     params = tmp_path / "params.json"
     params.write_text(json.dumps({"model": "convection", "parameters": {"xi": 0.4}}))
     command = ["simulate", str(params), "--kind", "charge", "--duration", "0.05 s",

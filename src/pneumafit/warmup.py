@@ -19,10 +19,12 @@ A finished warm-up leaves a mark in the kernel's cache folder
 (:func:`marker`: one file per package source stamp, numba version, Python
 version and CPU, the things numba's cache is valid for). The commands that
 simulate (``pneumafit run``, ``fit``, ``compare``, ``discover``,
-``simulate``, ...) call :func:`ensure_warm` first: without the mark they run
-the warm-up in their own process, with its lines on the console, before their
-work, so that a user who skipped this command sees what the first minute is
-spent on instead of a silent first simulation; with it they do nothing.
+``simulate``, ...) call :func:`ensure_warm` just before their first
+simulation (:mod:`pneumafit.first_use`; their input read and checked by
+then): without the mark they run the warm-up in their own process, with its
+lines on the console, so that a user who skipped this command sees what the
+first minute is spent on instead of a silent first simulation; with it they
+do nothing.
 ``PNEUMAFIT_AUTO_WARMUP=0`` turns that off (the test suite does: its
 commands must print only their own output).
 

@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from pneumafit import first_use
 from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import (
@@ -123,6 +124,7 @@ def _flows(p: np.ndarray, u: float, pres: float, law: int) -> tuple[float, float
     """Valve flows (net, enthalpy, from supply) into a chamber at pressure pres
     (Pa), gas at T_0, under the valve law ``law`` (the fitted one: ISO 6358,
     the measured map or a law from outside the package)."""
+    first_use.due()
     module = kernel_for_valve(law)
     return module.static_valve_flows(p, law, u, pres, p[P["wall_temperature"]])
 

@@ -25,6 +25,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from pneumafit import first_use
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
@@ -76,11 +77,17 @@ VerboseOption = Annotated[
 
 
 #: Commands that run the compiled simulator: on an install whose warm-up has
-#: not run they run it first, with its lines (:func:`pneumafit.warmup.ensure_warm`).
+#: not run they run it, with its lines (:func:`pneumafit.warmup.ensure_warm`),
+#: just before their first simulation (:mod:`pneumafit.first_use`: their input
+#: read and checked first, so a mistyped path costs no compile).
 SIMULATING_COMMANDS = frozenset({
     "run", "fit", "fit-many", "compare", "discover", "simulate", "linear", "design",
     "closed-loop", "export",
 })  # fmt: skip
+#: Commands whose simulations run in other processes (Dask workers): they warm
+#: up before their work, in this process, so that the workers load the cache
+#: instead of each compiling it.
+WORKER_COMMANDS = frozenset({"fit-many"})
 
 
 def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -104,7 +111,13 @@ def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
             if name in SIMULATING_COMMANDS:
                 from pneumafit.warmup import ensure_warm
 
-                ensure_warm(lambda line: console.print(f"[dim]{escape(line)}[/dim]"))
+                def warm() -> None:
+                    ensure_warm(lambda line: console.print(f"[dim]{escape(line)}[/dim]"))
+
+                if name in WORKER_COMMANDS:
+                    warm()
+                else:
+                    first_use.defer(warm)
             return func(*args, **kwargs)
         except typer.Exit as exc:
             code = exc.exit_code
@@ -119,6 +132,7 @@ def _with_output_options(func: Callable[..., Any]) -> Callable[..., Any]:
             code = None
             raise
         finally:
+            first_use.cancel()
             release_output(console, failed=code != 0)
             log.debug("pneumafit %s: exit status %s after %.1f s", name,
                       "(exception)" if code is None else code,

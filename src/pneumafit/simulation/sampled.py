@@ -24,6 +24,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from pneumafit import first_use
 from pneumafit.models import kernel
 from pneumafit.models.kernel import (
     commands,
@@ -151,6 +152,7 @@ def simulate_sampled(
     """
     from pneumafit.simulation.experiment import Experiment
 
+    first_use.due()
     structure = get_structure(model)
     # the cached kernel's steps, or the same steps on its copy bound to
     # outside parts (models.part_kernel)

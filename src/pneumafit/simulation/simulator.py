@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from pneumafit import first_use
 from pneumafit.errors import PneumafitInputError
 from pneumafit.models import kernel
 from pneumafit.models.layout import (
@@ -183,6 +184,7 @@ class Simulator:
         channels: Sequence[str] | None = None,
         dense: bool = False,
     ) -> None:
+        first_use.due()  # a deferred warm-up (pneumafit.first_use), once input is read
         self.structure = get_structure(model)
         self.dense = bool(dense)
         # the cached kernel, or its copy bound to outside parts (models.part_kernel)
@@ -520,6 +522,7 @@ def choose_step(
         stability radius in that direction (:meth:`Tableau.stability_radius`,
         the real-axis limit at pi). None: no such mode.
     """
+    first_use.due()
     if valve not in VALVE_LAWS:
         raise PneumafitInputError(
             f"choose_step: valve: expected one of {sorted(VALVE_LAWS)}, found {valve!r}"

@@ -162,6 +162,37 @@ def test_a_decimal_comma_without_the_key_is_named(tmp_path: Path) -> None:
     ), errors
 
 
+@pytest.mark.parametrize(
+    ("time_cells", "hint"),
+    [
+        # every comma cell reads both ways: both named, neither chosen
+        (["1,000", "1,010", "1,020"],
+         '"1,000" is a decimal comma, which needs decimal = "," in [read], or thousands '
+         "grouping, which is not read: export the numbers without it"),
+        # a later cell that no grouping writes settles it
+        (["1,000", "1,010", "1,02"], 'a decimal comma as in "1,02" needs decimal = "," in [read]'),
+        # grouped beyond doubt (a point after the groups): not a decimal comma
+        (["1,000.0", "1,010.0", "1,020.0"],
+         "thousands separators are not read: export the numbers without grouping"),
+    ],
+)  # fmt: skip
+def test_thousands_grouping_is_not_taken_for_a_decimal_comma(
+    tmp_path: Path, time_cells: list[str], hint: str
+) -> None:
+    """A time column in milliseconds grouped in thousands ("1,010" ms) must
+    not be pointed to decimal = ",", which would read it 1000 times too
+    small; the hint says what the commas show, from every unreadable cell."""
+    from test_friction_campaign import ROWS, small_campaign  # this folder, on sys.path
+
+    rows = [row.replace("\t", ";") for row in ROWS[:3]]
+    rows = [cell + row[row.index(";") :] for cell, row in zip(time_cells, rows, strict=True)]
+    folder = small_campaign(tmp_path, rows=rows)
+    toml = folder / "campaign.toml"
+    toml.write_text(toml.read_text().replace('"whitespace"', '";"'))
+    errors = errors_of(folder)
+    assert errors[0].startswith(f"a_1bar.csv: time: expected numbers ({hint}), found "), errors
+
+
 def test_a_windows_export_reads_with_its_encoding(campaign_dir: Path) -> None:
     """cp1252 (Windows in Western Europe): "ü" and "°" are single bytes that
     are not UTF-8. Without the key the error names the line and suggests it;

@@ -976,11 +976,44 @@ def _csv_numbers(
             expected, what = "finite numbers", " (a NaN or infinite sample)"
         except ValueError:
             expected, what = "numbers", ""
-            if _comma_decimal(cell):
-                expected = 'numbers (a decimal comma as in this cell needs decimal = "," in [read])'
+            hint = _comma_hint([c for _, c in bad])
+            if hint:
+                expected = f"numbers ({hint})"
         probs.error(file, key, expected, f'"{cell}" at {locate(i)}{what}{more}')
         return None
     return values, ~np.isnan(values)
+
+
+#: A number that may be grouped in thousands with commas ("1,250", "-12,500,000").
+_GROUPED = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+")
+
+
+def _comma_hint(cells: list[str]) -> str:
+    """What the commas of a column's unreadable cells say, for the error: a
+    decimal comma (some cell cannot be a thousands-grouped number, "0,25"),
+    thousands separators (a cell with both marks or two groups, "1,234.5",
+    "1,234,567"), either (every
+    comma cell reads both ways, "1,250"), or nothing ("" without commas)."""
+    texts = [c.strip() for c in cells]
+    # grouped beyond doubt: a point after the groups, or two groups or more
+    if any(
+        _GROUPED.fullmatch(t.split(".")[0]) and (t.count(".") == 1 or t.count(",") > 1)
+        for t in texts
+        if "," in t and t.count(".") <= 1
+    ):
+        return "thousands separators are not read: export the numbers without grouping"
+    commas = [t for t in texts if _comma_decimal(t)]
+    if not commas:
+        return ""
+    if all(_GROUPED.fullmatch(t) for t in commas):
+        return (
+            f'"{commas[0]}" is a decimal comma, which needs decimal = "," in [read], or '
+            "thousands grouping, which is not read: export the numbers without it"
+        )
+    proof = next(t for t in commas if not _GROUPED.fullmatch(t))
+    if proof == texts[0]:
+        return 'a decimal comma as in this cell needs decimal = "," in [read]'
+    return f'a decimal comma as in "{proof}" needs decimal = "," in [read]'
 
 
 def _decodes(data: bytes, encoding: str) -> bool:

@@ -193,6 +193,38 @@ def test_thousands_grouping_is_not_taken_for_a_decimal_comma(
     assert errors[0].startswith(f"a_1bar.csv: time: expected numbers ({hint}), found "), errors
 
 
+@pytest.mark.parametrize("where", ["every line", "data rows only", "two in a row"])
+def test_empty_separators_of_a_logger_export_read_as_nothing(
+    campaign_dir: Path, where: str
+) -> None:
+    """A separator at the end of every line (on the header too, or not) and an
+    unnamed column with no value in any row (two separators in a row) hold
+    nothing: the recording reads to the same floats as without them. A
+    column with a header and no unit is still an error (the next test's
+    file), and an extra field in one row only is one too."""
+    step = campaign_dir / "step_1.csv"
+    lines = step.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    if where == "every line":
+        lines[first:] = [line + "," for line in lines[first:]]
+    elif where == "data rows only":
+        lines[first + 1 :] = [line + "," for line in lines[first + 1 :]]
+    else:
+        lines[first:] = [line.replace(",", ",,", 1) for line in lines[first:]]
+    original = read_campaign(campaign_dir)
+    step.write_text("\n".join(lines) + "\n")
+    read = read_campaign(campaign_dir)
+    a, b = original.recordings[2], read.recordings[2]
+    assert a.file == b.file == "step_1.csv"
+    assert np.array_equal(a.time, b.time)
+    assert set(a.channels) == set(b.channels)
+    for name in a.channels:
+        assert np.array_equal(a.channels[name], b.channels[name]), name
+    lines[first + 5] += ",1.5"
+    step.write_text("\n".join(lines) + "\n")
+    assert any("fields, like the header" in e for e in errors_of(campaign_dir))
+
+
 def test_a_windows_export_reads_with_its_encoding(campaign_dir: Path) -> None:
     """cp1252 (Windows in Western Europe): "ü" and "°" are single bytes that
     are not UTF-8. Without the key the error names the line and suggests it;

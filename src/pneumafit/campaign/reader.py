@@ -1183,6 +1183,10 @@ def _read_csv(data: bytes, meta: _Meta, probs: _Problems) -> _Raw | None:
 
     headers: dict[int, tuple[str, str]] = {}
     for j, cell in enumerate(cells[1:], start=1):
+        if not cell and frame[j].isna().all():
+            # no name and no value: a separator at the end of every line (as
+            # LabVIEW and many loggers write them) or two in a row; nothing to read
+            continue
         parsed = split_header(cell)
         if parsed is None:
             probs.error(

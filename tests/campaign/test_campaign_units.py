@@ -36,6 +36,13 @@ EXHAUST = 101_325.0
         ("-50 kPag", "pressure", -5e4 + EXHAUST),
         ("6 bara", "pressure", 6e5),
         ("6 bar (absolute)", "pressure", 6e5),
+        # data-sheet and logger notations of the reference (since 2026-12-04)
+        ("6 bar(g)", "pressure", 6e5 + EXHAUST),
+        ("6 bar (g)", "pressure", 6e5 + EXHAUST),
+        ("600 kPa(g)", "pressure", 6e5 + EXHAUST),
+        ("6 bar gauge", "pressure", 6e5 + EXHAUST),
+        ("6 bar(a)", "pressure", 6e5),
+        ("20 °C", "temperature", 293.15),
     ],
 )
 def test_parse_value(value: object, kind: str, si: float) -> None:
@@ -53,6 +60,14 @@ def test_parse_value(value: object, kind: str, si: float) -> None:
         (True, "length", "True (a bool)"),
         (float("nan"), "length", "nan (not a finite number)"),
         ([1, 2], "length", "[1, 2] (a list)"),
+        # pint reads "C" as the coulomb (before 2026-12-04 said without the hint)
+        (
+            "20 C",
+            "temperature",
+            '"20 C" (unit "C" (a quantity of dimension [current] * [time]); "C" is the coulomb: '
+            'degrees Celsius are "degC" or "°C")',
+        ),
+        ("3 mm(g)", "length", '"3 mm(g)" (gauge applies to pressures only)'),
     ],
 )
 def test_parse_value_errors(value: object, kind: str, found: str) -> None:

@@ -9,10 +9,11 @@ Gauge notation (see ``docs/campaign-format.md``):
 
 - a pressure unit followed by ``g`` that pint does not know as such:
   ``"barg"``, ``"psig"``, ``"kPag"``, ``"mbarg"``;
-- any pressure unit followed by ``(gauge)``: ``"bar (gauge)"``;
+- any pressure unit followed by ``(gauge)``, ``(g)`` or the word ``gauge``:
+  ``"bar (gauge)"``, ``"bar(g)"``, ``"psi gauge"``;
 - in HDF5, the dataset attribute ``reference = "gauge"``.
 
-Likewise a trailing ``a`` (``"bara"``, ``"psia"``) or ``(absolute)`` says
+Likewise a trailing ``a`` (``"bara"``, ``"psia"``), ``(absolute)`` or ``(a)`` says
 explicitly that a pressure is absolute, which is the default anyway.
 """
 
@@ -150,16 +151,29 @@ class ParsedUnit:
     plain_text: str = ""
 
 
-_REFERENCE_WORD = re.compile(r"^(?P<unit>.*?)\s*\(\s*(?P<ref>gauge|absolute)\s*\)$")
+_REFERENCE_WORD = re.compile(
+    r"^(?P<unit>.*?)\s*(?:\(\s*(?P<ref>gauge|absolute|g|a)\s*\)|\s(?P<word>gauge|absolute))$"
+)
+#: Short reference marks: ``"bar(g)"``, ``"psi (a)"`` (data sheets and loggers).
+_REFERENCE_MARKS = {"g": "gauge", "a": "absolute"}
 _NUMBER = re.compile(r"^\s*(?P<num>[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)(?P<unit>.*)$")
 _HEADER = re.compile(r"^\s*(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 
 
+#: Temperature units written as their symbol alone, which pint reads as others.
+_NOT_DEGREES = {
+    "C": '"C" is the coulomb: degrees Celsius are "degC" or "°C"',
+    "F": '"F" is the farad: degrees Fahrenheit are "degF" or "°F"',
+}
+
+
 def _strip_reference(text: str) -> tuple[str, str | None]:
-    """Split ``"bar (gauge)"`` into ``("bar", "gauge")``; no marker gives ``None``."""
+    """Split ``"bar (gauge)"``, ``"bar(g)"`` or ``"bar gauge"`` into ``("bar",
+    "gauge")`` (likewise absolute, ``(a)``); no marker gives ``None``."""
     match = _REFERENCE_WORD.match(text.strip())
-    if match:
-        return match["unit"], match["ref"]
+    if match and match["unit"]:
+        ref = match["ref"] or match["word"]
+        return match["unit"], _REFERENCE_MARKS.get(ref, ref)
     return text.strip(), None
 
 
@@ -232,7 +246,10 @@ def parse_unit(text: str, kind: str | None = None) -> ParsedUnit:
     if reference is not None and not QUANTITY_KINDS["pressure"].matches(unit):
         raise UnitError(expected, f'unit "{text}" ({reference} applies to pressures only)')
     if expected_kind is not None and not expected_kind.matches(unit):
-        raise UnitError(expected, f'unit "{text}" ({describe_unit(unit)})')
+        found = f'unit "{text}" ({describe_unit(unit)})'
+        if expected_kind.name == "temperature" and body.strip() in _NOT_DEGREES:
+            found += f"; {_NOT_DEGREES[body.strip()]}"
+        raise UnitError(expected, found)
     return ParsedUnit(text=text.strip(), unit=unit, gauge=reference == "gauge", plain_text=body)
 
 

@@ -227,6 +227,43 @@ CASES = [
         "error",
         id="rod-not-below-bore",
     ),
+    # a bare number is SI: out of a cylinder's range it was meant in another unit
+    pytest.param(
+        toml('bore = "32 mm"', "bore = 32"),
+        "campaign.toml",
+        "rig.bore",
+        ["a bore of 0.002 to 0.5 m", "found 32 (= 32 m)", 'e.g. "32 mm"'],
+        "error",
+        id="bare-bore-in-mm",
+    ),
+    pytest.param(
+        toml('ambient_temperature = "20 degC"', "ambient_temperature = 20"),
+        "campaign.toml",
+        "rig.ambient_temperature",
+        ["an ambient temperature of 223.15 to 423.15 K", 'e.g. "20 degC"'],
+        "error",
+        id="bare-temperature-in-degc",
+    ),
+    pytest.param(
+        toml('supply_pressure = "7 bar"', "supply_pressure = 7"),
+        "campaign.toml",
+        "rig.supply_pressure",
+        ["above the exhaust pressure", 'e.g. "7 bar"'],
+        "error",
+        id="bare-supply-in-bar",
+    ),
+    # with its unit out of range it is used, with a warning
+    pytest.param(
+        toml('bore = "32 mm"', 'bore = "1 m"'),
+        "campaign.toml",
+        "rig.bore",
+        [
+            "a bore of 0.002 to 0.5 m (pneumatic cylinders; the value is used as written)",
+            '"1 m" (= 1 m)',
+        ],
+        "warning",
+        id="bore-with-unit-out-of-range",
+    ),
     pytest.param(
         toml('stroke = "500 mm"', 'stroke = "0 mm"'),
         "campaign.toml",

@@ -120,6 +120,26 @@ _RIG_FIELDS: dict[str, tuple[str, bool]] = {
     "mounting_angle": ("angle", False),
     "external_force": ("force", False),
 }
+#: rig key -> (lowest, highest) value of a pneumatic cylinder's rig (SI), and
+#: the unit a bare number out of that range was most likely meant in. A bare
+#: number is SI: ``bore = 32`` is a 32-m bore, which the fit would take
+#: without a word; out of range it is an error naming the unit it may have
+#: meant, and a value with a unit out of range only a warning (micro
+#: cylinders, long strokes, heavy loads exist).
+_RIG_PLAUSIBLE: dict[str, tuple[float, float, str]] = {
+    "exhaust_pressure": (5.0e4, 1.5e5, "bar"),
+    "bore": (0.002, 0.5, "mm"),
+    "rod": (0.0, 0.3, "mm"),
+    "stroke": (0.001, 10.0, "mm"),
+    "dead_volume_P": (1.0e-9, 0.05, "cm^3"),
+    "dead_volume_N": (1.0e-9, 0.05, "cm^3"),
+    "moving_mass": (1.0e-3, 5.0e3, "g"),
+    "supply_pressure": (1.2e5, 4.0e6, "bar"),
+    "ambient_temperature": (223.15, 423.15, "degC"),
+    "wall_temperature": (223.15, 423.15, "degC"),
+    "characteristic_length": (0.001, 1.0, "mm"),
+    "mounting_angle": (-2.0 * math.pi, 2.0 * math.pi, "deg"),
+}
 #: controller key -> (quantity kind, required)
 _CONTROLLER_FIELDS: dict[str, tuple[str, bool]] = {
     "kp": ("proportional gain", True),
@@ -143,6 +163,22 @@ def _shown(value: object) -> str:
     if isinstance(value, list):
         return "an array"
     return repr(value)
+
+
+def _bare_number(value: object) -> bool:
+    """Whether a TOML value is a number without a unit (a number, or a
+    string holding only one), which the campaign reads as SI."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int | float):
+        return True
+    if isinstance(value, str):
+        try:
+            float(value.strip())
+        except ValueError:
+            return False
+        return True
+    return False
 
 
 def _found(value: object) -> str:
@@ -418,9 +454,14 @@ def _parse_rig(
     def bad(key: str, expected: str) -> None:
         rejected.add(key)
         unit = QUANTITY_KINDS[_RIG_FIELDS[key][0]].si_unit
-        probs.error(
-            file, f"rig.{key}", expected, f"{_shown(table[key])} (= {values[key]:.6g} {unit})"
-        )
+        found = f"{_shown(table[key])} (= {values[key]:.6g} {unit})"
+        if _bare_number(table[key]) and key in _RIG_PLAUSIBLE:
+            meant = _RIG_PLAUSIBLE[key][2]
+            found += (
+                f": a bare number is in SI units ({unit}); if {table[key]} was meant in "
+                f'another, write it, e.g. "{table[key]} {meant}"'
+            )
+        probs.error(file, f"rig.{key}", expected, found)
 
     for key in (
         "bore",
@@ -444,6 +485,20 @@ def _parse_rig(
     exhaust = values.get("exhaust_pressure", 0.0)
     if "supply_pressure" in values and values["supply_pressure"] <= exhaust:
         bad("supply_pressure", f"a pressure above the exhaust pressure ({exhaust:.6g} Pa)")
+    for key, (low, high, _meant) in _RIG_PLAUSIBLE.items():
+        if key not in values or key in rejected or low <= values[key] <= high:
+            continue
+        kind = _RIG_FIELDS[key][0]
+        unit = QUANTITY_KINDS[kind].si_unit
+        name = key.replace("_", " ")
+        span = f"{'an' if name[0] in 'aeiou' else 'a'} {name} of {low:.6g} to {high:.6g} {unit}"
+        if _bare_number(table[key]):
+            bad(key, span)
+        else:
+            probs.warning(
+                file, f"rig.{key}", f"{span} (pneumatic cylinders; the value is used as written)",
+                f"{_shown(table[key])} (= {values[key]:.6g} {unit})",
+            )  # fmt: skip
     valid = {key: value for key, value in values.items() if key not in rejected}
     if probs.n_errors > n_errors:
         return None, valid

@@ -30,8 +30,10 @@ from pneumafit.campaign.consistency import (
     chamber_beyond_bounds,
     consistency_warnings,
     controller_mismatch,
+    moved_chamber_out_of_range,
     position_beyond_stroke,
     supply_mismatch,
+    temperature_out_of_range,
 )
 from pneumafit.campaign.model import PDController, Recording
 
@@ -142,7 +144,8 @@ def test_the_reader_judges_held_chambers_only(campaign_dir: Path) -> None:
     """The conftest's charge reaches 6.01 bar: above a supply declared as
     "5 bar" (5 bar gauge is 6.013 bar absolute), so it is named; its flow
     test (held at 3-4 bar absolute) is within the bounds, and its step and
-    free tests, whose piston moves, are not judged."""
+    free tests, whose piston moves, are judged only by the looser bounds of
+    a moved chamber, which they meet."""
     toml = campaign_dir / "campaign.toml"
     toml.write_text(
         toml.read_text().replace('supply_pressure = "7 bar"', 'supply_pressure = "5 bar"')
@@ -155,6 +158,59 @@ def test_the_reader_judges_held_chambers_only(campaign_dir: Path) -> None:
     assert "a gauge setting declared as absolute?" in found
     lines = consistency_warnings(read_campaign(campaign_dir))
     assert len(lines) == 1 and lines[0].startswith("charge_P_1.h5: p_P: expected a chamber")
+
+
+# --- the moved chambers and the temperatures against a rig's ranges
+
+
+def test_a_moved_chamber_compressed_past_the_supply_is_not_reported() -> None:
+    """A piston compresses its chamber past the supply and expands it below
+    the exhaust for a moment: up to 2 supplies and down to 0.3 exhausts
+    (absolute) pass."""
+    p = np.linspace(0.5 * EXHAUST, 1.5 * SUPPLY, 200)
+    assert moved_chamber_out_of_range(p, SUPPLY, EXHAUST) is None
+    # a friction-only campaign has no supply: the lower bound alone
+    assert moved_chamber_out_of_range(p * 10.0, float("nan"), EXHAUST) is None
+
+
+@pytest.mark.parametrize(
+    ("factor", "offset", "why"),
+    [
+        (1e-5, 0.0, "another unit than its header says (bar labelled Pa?)"),
+        (1e5, 0.0, "another unit than its header says (Pa labelled bar?)"),
+        (1.0, -EXHAUST, "gauge pressure declared as absolute?"),
+    ],
+)
+def test_a_moved_chamber_in_another_unit_is_named(factor: float, offset: float, why: str) -> None:
+    """Bar read as Pa, Pa read as bar, gauge read as absolute (a chamber
+    vented to the exhaust then reads ~0): named with the likely cause."""
+    p = np.linspace(EXHAUST, SUPPLY, 200) * factor + offset
+    found = moved_chamber_out_of_range(p, SUPPLY, EXHAUST)
+    assert found is not None and why in found[1], found
+
+
+@pytest.mark.parametrize(
+    ("offset", "why"), [(-273.15, "degC labelled K?"), (273.15, "K labelled degC?")]
+)
+def test_a_temperature_in_another_unit_is_named(offset: float, why: str) -> None:
+    t = np.linspace(290.0, 330.0, 100)
+    assert temperature_out_of_range(t) is None
+    found = temperature_out_of_range(t + offset)
+    assert found is not None and why in found[1], found
+
+
+def test_the_reader_names_a_step_test_pressure_in_another_unit(campaign_dir: Path) -> None:
+    """From the file: the step test's p_P written in bar under a "[Pa]"
+    header is a warning of ``pneumafit check`` naming file and channel (it
+    read 1e5 times too low, and the fit would take it)."""
+    path = campaign_dir / "step_1.csv"
+    text = path.read_text()
+    assert "p_P [bar]" in text
+    path.write_text(text.replace("p_P [bar]", "p_P [Pa]", 1))
+    report = inspect_campaign(campaign_dir)
+    mine = [p for p in report.problems if p.file == "step_1.csv" and p.key == "p_P"]
+    assert len(mine) == 1 and not mine[0].is_error, report.problems
+    assert "bar labelled Pa?" in mine[0].found
 
 
 # --- the position against the stroke

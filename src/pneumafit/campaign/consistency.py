@@ -1,6 +1,6 @@
 """Do the recordings agree with the declared rig? Supply, exhaust, stroke, controller.
 
-Four consistency checks of a campaign's recordings against its ``[rig]``
+Consistency checks of a campaign's recordings against its ``[rig]``
 table and their controllers, each a warning (not an error: a sensor may be off) that names the
 recording, the channel, what the declaration implies and what was read.
 
@@ -42,6 +42,13 @@ gauge: the charges plateau at 7.013 bar, and no valve law can fill the
 model's chambers past its 6 bar, so the fit fails on every charge test
 without saying why); one read below the exhaust pressure, a pressure
 channel in gauge declared as absolute.
+
+**The moved chambers and the temperatures.** A chamber the piston moves
+(step, free and friction tests) may pass the supply and exhaust pressures,
+but a bulk below 0.3 exhausts or above 2 supplies (:data:`MOVED_BOUNDS`,
+:func:`moved_chamber_out_of_range`) is a channel in another unit than its
+header says or gauge declared as absolute; a temperature channel outside
+:data:`TEMPERATURE_BOUNDS` (:func:`temperature_out_of_range`) likewise.
 
 **The position.** The format's piston position runs from 0 (retracted) to
 the stroke; the end stops hold it there. A recording whose position passes
@@ -97,9 +104,11 @@ __all__ = [
     "chamber_beyond_bounds",
     "consistency_warnings",
     "controller_mismatch",
+    "moved_chamber_out_of_range",
     "position_beyond_stroke",
     "recording_findings",
     "supply_mismatch",
+    "temperature_out_of_range",
 ]
 
 #: Largest difference, as a share of the gauge supply P_S - P_e, between the
@@ -125,6 +134,21 @@ BOUND_TOLERANCE = 0.02
 #: Quantiles of a held chamber's pressure compared with the bounds: the
 #: extremes of the bulk, not single noisy samples.
 BOUND_QUANTILES = (0.01, 0.99)
+#: A chamber the piston moves (step, free and friction tests) may pass the
+#: supply and exhaust pressures (compressed, or expanded behind a closed
+#: valve), but not by these factors of the absolute pressures: below 0.3 of
+#: the exhaust (30 kPa absolute, a vacuum no pneumatic drive pulls) or above
+#: 2 supplies, the channel is in another unit than its header says (bar
+#: labelled Pa reads 1e5 times too low, Pa labelled bar as much too high)
+#: or gauge declared as absolute (a chamber at the exhaust reads ~0).
+MOVED_BOUNDS = (0.3, 2.0)
+#: Gas and wall temperatures of a pneumatic rig (K). A fast discharge cools
+#: the gas toward the adiabatic limit (293 K (1/7)^(2/7) = 168 K from 7 bar;
+#: the virtual rig's 1st percentiles reach 217 K) and filling heats it up to
+#: gamma T_supply (410 K): 120-450 K takes both. A temperature channel whose
+#: bulk lies outside is in another unit than its header says (degC labelled
+#: K reads ~20 K; K labelled degC ~566 K).
+TEMPERATURE_BOUNDS = (120.0, 450.0)
 #: How far (share of the stroke) a recorded position may pass either end
 #: before it is reported: 2 %, 10 mm of a 0.5-m stroke, above an encoder
 #: zeroed a little off the end stop and the end stops' compliance, far below
@@ -281,6 +305,81 @@ def chamber_beyond_bounds(
     return expected, "; ".join(found)
 
 
+def moved_chamber_out_of_range(
+    pressure: NDArray[np.float64], supply: float, exhaust: float
+) -> tuple[str, str] | None:
+    """What a moved chamber's pressure should be and what it is, or None.
+
+    Parameters
+    ----------
+    pressure : ndarray
+        A chamber pressure channel of a test whose piston moves (Pa absolute).
+    supply, exhaust : float
+        The rig's declared supply and exhaust pressures (Pa absolute); a
+        supply that is not finite (friction-only campaigns) skips the upper
+        bound.
+
+    Returns
+    -------
+    (expected, found) or None
+        None when the channel's 1st and 99th percentiles lie within
+        :data:`MOVED_BOUNDS` times the exhaust and the supply; else the two
+        halves of a problem message.
+    """
+    x = np.asarray(pressure, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < 2 or not exhaust > 0.0:
+        return None
+    low = MOVED_BOUNDS[0] * exhaust
+    high = MOVED_BOUNDS[1] * supply if np.isfinite(supply) and supply > 0.0 else np.inf
+    lo, hi = (float(q) for q in np.quantile(x, BOUND_QUANTILES))
+    if low <= lo and hi <= high:
+        return None
+    expected = f"absolute pressures from {_shown(low)} ({MOVED_BOUNDS[0]:g} of the exhaust)" + (
+        f" to {_shown(high)} ({MOVED_BOUNDS[1]:g} supplies)" if np.isfinite(high) else ""
+    )
+    why = (
+        "a channel in another unit than its header says (bar labelled Pa?)"
+        if hi < low
+        else "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
+        'reference = "gauge" in HDF5)'
+        if lo < low
+        else "a channel in another unit than its header says (Pa labelled bar?)"
+    )
+    return expected, (
+        f"1st to 99th percentile {_shown(lo, spec='.4g')} to {_shown(hi, spec='.4g')}: {why}"
+    )
+
+
+def temperature_out_of_range(temperature: NDArray[np.float64]) -> tuple[str, str] | None:
+    """What a temperature channel should be and what it is, or None.
+
+    Parameters
+    ----------
+    temperature : ndarray
+        A gas or wall temperature channel (K).
+
+    Returns
+    -------
+    (expected, found) or None
+        None when the channel's 1st and 99th percentiles lie within
+        :data:`TEMPERATURE_BOUNDS`; else the two halves of a problem message.
+    """
+    x = np.asarray(temperature, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < 2:
+        return None
+    low, high = TEMPERATURE_BOUNDS
+    lo, hi = (float(q) for q in np.quantile(x, BOUND_QUANTILES))
+    if low <= lo and hi <= high:
+        return None
+    return (
+        f"temperatures of a pneumatic rig, {low:g} to {high:g} K",
+        f"1st to 99th percentile {lo:.1f} to {hi:.1f} K: a channel in another unit than its "
+        "header says (" + ("degC labelled K?)" if hi < low else "K labelled degC?)"),
+    )
+
+
 def position_beyond_stroke(position: NDArray[np.float64], stroke: float) -> tuple[str, str] | None:
     """What a recorded piston position should be and what it is, or None.
 
@@ -386,7 +485,9 @@ def recording_findings(
 ) -> list[tuple[str, str, str]]:
     """Every finding of this module on one recording: (channel, expected,
     found), its ``p_S`` first (:func:`supply_mismatch`), then the chambers of
-    a test with the piston held (:func:`chamber_beyond_bounds`), then its
+    a test with the piston held (:func:`chamber_beyond_bounds`) or moved
+    (:func:`moved_chamber_out_of_range`), its temperatures
+    (:func:`temperature_out_of_range`), then its
     position (:func:`position_beyond_stroke`, when ``stroke`` is given),
     then its commands against its controller (:func:`controller_mismatch`).
 
@@ -417,6 +518,21 @@ def recording_findings(
             found = chamber_beyond_bounds(channel, supply, exhaust)
             if found is not None:
                 out.append((name, *found))
+    else:
+        for name in ("p_P", "p_N"):
+            channel = recording.channels.get(name)
+            if channel is None:
+                continue
+            found = moved_chamber_out_of_range(channel, supply, exhaust)
+            if found is not None:
+                out.append((name, *found))
+    for name in ("T_P", "T_N", "T_wall"):
+        channel = recording.channels.get(name)
+        if channel is None:
+            continue
+        found = temperature_out_of_range(channel)
+        if found is not None:
+            out.append((name, *found))
     y = recording.channels.get("y")
     if y is not None and stroke is not None:
         found = position_beyond_stroke(y, stroke)

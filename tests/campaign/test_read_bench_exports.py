@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from pneumafit.campaign import CampaignError, check_campaign, read_campaign
+from pneumafit.campaign import CampaignError, check_campaign, inspect_campaign, read_campaign
 
 #: The bench's own preamble: three lines that are not "#"-comments.
 PREAMBLE = "Prüfstand 2;Zylinder DNC-32-500\nDatum;04.12.2026\nBediener;M. Muster\n"
@@ -288,3 +288,89 @@ def test_a_utf16_export_is_named_and_read_with_its_encoding(campaign_dir: Path) 
     step = read_campaign(campaign_dir).recording("step_1.csv")
     for name, values in reference.channels.items():
         np.testing.assert_array_equal(step.channels[name], values, err_msg=name)
+
+
+# --- max_rate: a fast bench's recordings thinned where they are read
+
+DEMO = Path(__file__).resolve().parents[2] / "data" / "demo"
+
+
+def test_max_rate_keeps_every_kth_sample_of_csv_and_hdf5(tmp_path: Path) -> None:
+    """``max_rate = "250 Hz"`` in the campaign's [read] keeps one sample in 4
+    of the demo's 1-kHz recordings (CSV and HDF5), the file's own samples
+    bit for bit, and leaves its 100-Hz flow tests whole. Can fail: any
+    averaging, an off-by-one start or a thinned slower file."""
+    import shutil
+
+    folder = tmp_path / "demo"
+    shutil.copytree(DEMO, folder)
+    toml = folder / "campaign.toml"
+    toml.write_text(
+        toml.read_text().replace("[[recording]]", '[read]\nmax_rate = "250 Hz"\n\n[[recording]]', 1)
+    )
+    whole, thinned = read_campaign(DEMO), read_campaign(folder)
+    kinds = set()
+    for a, b in zip(whole.recordings, thinned.recordings, strict=True):
+        rate = 1.0 / float(np.median(np.diff(a.time)))
+        k = 4 if rate > 250.0 else 1
+        kinds.add((a.file.rsplit(".", 1)[1], k))
+        assert np.array_equal(a.time[::k], b.time), a.file
+        assert set(a.channels) == set(b.channels)
+        for name in a.channels:
+            assert np.array_equal(a.channels[name][::k], b.channels[name]), (a.file, name)
+            assert np.array_equal(a.mask[name][::k], b.mask[name]), (a.file, name)
+    assert kinds == {("h5", 1), ("h5", 4), ("csv", 4)}, kinds
+
+
+def test_max_rate_keeps_a_sparse_channel_where_its_block_has_a_sample(campaign_dir: Path) -> None:
+    """The conftest's step test (100 Hz) has y_ref on rows 0, 2 and 4 only.
+    Thinned to one row in 3 (max_rate 34 Hz), row 0's block (rows 0-2) and
+    row 3's (rows 3-4) each hold a real y_ref, so both kept rows are
+    sampled, row 3 at its value interpolated between rows 2 and 4."""
+    with_read_table(campaign_dir, '[recording.read]\nmax_rate = "34 Hz"\n')
+    step = read_campaign(campaign_dir).recordings[2]
+    assert step.file == "step_1.csv"
+    assert np.allclose(step.time, [0.0, 0.03])
+    assert step.mask["y_ref"].tolist() == [True, True]
+    assert np.allclose(step.channels["y_ref"], [0.1, 0.2])
+    assert np.allclose(step.channels["y"], [0.1, 0.102])
+
+
+def test_a_fast_recording_is_named_with_max_rate(campaign_dir: Path) -> None:
+    """A step test at 10 kHz without max_rate is a warning of check naming
+    its rate and the key; with ``max_rate = "1 kHz"`` it is read one sample
+    in 10, without the warning."""
+    step = campaign_dir / "step_1.csv"
+    lines = step.read_text().splitlines()
+    out = []
+    for line in lines:
+        if line[:1].isdigit():
+            t, rest = line.split(",", 1)
+            line = f"{float(t) / 100.0!r},{rest}"
+        out.append(line)
+    # 10 kHz over 50 rows, so that one in 10 leaves 5
+    body = [line for line in out if line[:1].isdigit()]
+    head = [line for line in out if not line[:1].isdigit()]
+    rows = [f"{i * 1e-4!r}," + body[i % len(body)].split(",", 1)[1] for i in range(50)]
+    step.write_text("\n".join(head + rows) + "\n")
+    report = inspect_campaign(campaign_dir)
+    fast = [p for p in report.problems if p.file == "step_1.csv" and p.key == "time"]
+    assert len(fast) == 1 and not fast[0].is_error, report.problems
+    assert fast[0].found.startswith(
+        '1e+04 Hz, 10 times a 1-kHz recording\'s cost; max_rate = "1 kHz"'
+    )
+    with_read_table(campaign_dir, '[recording.read]\nmax_rate = "1 kHz"\n')
+    report = inspect_campaign(campaign_dir)
+    assert not [p for p in report.problems if p.file == "step_1.csv" and p.key == "time"]
+    assert report.campaign is not None
+    assert report.campaign.recordings[2].time.size == 5
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [('"0 Hz"', 'a positive frequency (e.g. "1 kHz")'), ('"1 kg"', 'a frequency (e.g. "1 kHz")')],
+)
+def test_a_bad_max_rate_is_named(campaign_dir: Path, value: str, expected: str) -> None:
+    with_read_table(campaign_dir, f"[recording.read]\nmax_rate = {value}\n")
+    errors = errors_of(campaign_dir)
+    assert any("read.max_rate" in e and f"expected {expected}" in e for e in errors), errors

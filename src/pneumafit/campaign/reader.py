@@ -18,7 +18,7 @@ import os
 import re
 import tomllib
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -85,9 +85,16 @@ _RECORDING_KEYS = (
     "description",
     "read",
 )
+#: Sample rate (Hz) above which a recording without ``max_rate`` in ``[read]``
+#: gets a warning: a fit's simulations take at least one step per sample
+#: (1 ms at most, ``simulation.simulator.DEFAULT_STEP``), so their cost grows
+#: with the rate (1.7 ms per 4-s step test at 1 kHz, 21 ms at 10 kHz,
+#: 2026-12-04), and the chambers' and the valves' dynamics (tens of Hz) need
+#: no more than 1 kHz.
+FAST_RATE = 2000.0
 #: keys of a ``[read]`` / ``[recording.read]`` table (how to read a file)
 _READ_KEYS = (
-    "header", "separator", "decimal", "skip_lines", "encoding", "channels", "start",
+    "header", "separator", "decimal", "skip_lines", "encoding", "channels", "start", "max_rate",
 )  # fmt: skip
 #: ``[read]`` keys that only CSV files take (ignored, with a warning, on HDF5)
 _CSV_ONLY_KEYS = ("channels", "header", "decimal", "skip_lines", "encoding")
@@ -289,6 +296,7 @@ class _ReadSpec:
     channels: dict[str, _ChannelColumn] = field(default_factory=dict)
     start: float | None = None
     start_text: str = ""
+    max_rate: float | None = None
     keys: dict[str, str] = field(default_factory=dict)
     ok: bool = True
 
@@ -762,6 +770,19 @@ def _parse_read(table: object, prefix: str, file: str, probs: _Problems) -> dict
             out["start_text"] = _shown(table["start"])
         except UnitError as exc:
             probs.error(file, f"{prefix}.start", exc.expected, exc.found)
+    if "max_rate" in table:
+        try:
+            rate = parse_value(table["max_rate"], "frequency")
+        except UnitError as exc:
+            probs.error(file, f"{prefix}.max_rate", exc.expected, exc.found)
+        else:
+            if rate > 0.0:
+                out["max_rate"] = rate
+            else:
+                probs.error(
+                    file, f"{prefix}.max_rate", 'a positive frequency (e.g. "1 kHz")',
+                    _shown(table["max_rate"]),
+                )  # fmt: skip
     if "channels" in table:
         out["channels"] = _parse_read_channels(table["channels"], f"{prefix}.channels", file, probs)
     out["ok"] = probs.n_errors == n_errors
@@ -1513,6 +1534,52 @@ def _drop_before(
     )
 
 
+def _thinned(
+    raw: _Raw, time: NDArray[np.float64], max_rate: float
+) -> tuple[_Raw, NDArray[np.float64]]:
+    """Every k-th sample of a recording sampled faster than ``max_rate`` (Hz).
+
+    k = ceil(rate / max_rate), the rate from the median sample interval; the
+    first sample is kept. The kept samples are the file's own (no averaging:
+    a held command stays a held command, only its changes may move by up to
+    k - 1 file samples); a channel with empty cells ("not sampled") is
+    sampled at a kept row when it has a real sample among the k rows from
+    it, its value there interpolated between its real samples as everywhere
+    else. Messages keep the file's line numbers.
+    """
+    if time.size < 3:
+        return raw, time
+    rate = 1.0 / float(np.median(np.diff(time)))
+    k = math.ceil(rate / max_rate * (1.0 - 1e-9))
+    if k <= 1:
+        return raw, time
+    starts = np.arange(0, time.size, k)
+
+    def kept(column: _Column) -> _Column:
+        values, real = column.values, column.mask
+        if values.size != time.size or real.size != time.size:
+            return column  # reported as a length mismatch by the caller
+        if real.all() or not real.any():
+            return replace(column, values=values[starts], mask=real[starts])
+        # a real sample among the k rows from a kept row samples it there
+        filled = values.copy()
+        filled[~real] = np.interp(time[~real], time[real], values[real])
+        sampled = np.add.reduceat(real.astype(np.int64), starts) > 0
+        return replace(column, values=np.where(sampled, filled[starts], np.nan), mask=sampled)
+
+    columns = [kept(c) for c in raw.columns]
+    locate = raw.locate
+
+    def thinned(i: int) -> str:
+        return locate(i * k)
+
+    raw_time = raw.time[starts] if raw.time.size == time.size else raw.time
+    return (
+        _Raw(raw_time, raw.time_unit, columns, raw.present, thinned, raw.description, raw.kind),
+        time[starts],
+    )
+
+
 def _build_recording(
     raw: _Raw, meta: _Meta, path: Path, exhaust: float | None, probs: _Problems
 ) -> Recording | None:
@@ -1557,6 +1624,19 @@ def _build_recording(
         if raw is None:
             return None
         time = time[time >= meta.read.start]
+    if meta.read.max_rate is not None:
+        raw, time = _thinned(raw, time, meta.read.max_rate)
+    elif time.size >= 3:
+        rate = 1.0 / float(np.median(np.diff(time)))
+        if rate > FAST_RATE:
+            probs.warning(
+                file, "time",
+                f"a rate of at most {FAST_RATE / 1e3:g} kHz for the fits, or max_rate in [read] "
+                "(a fit's simulations step through every sample: their cost grows with the rate, "
+                "and the models' dynamics need no more)",
+                f"{rate:.4g} Hz, {rate / 1e3:.3g} times a 1-kHz recording's cost; "
+                f'max_rate = "1 kHz" keeps one sample in {math.ceil(rate / 1e3 * (1 - 1e-9))}',
+            )  # fmt: skip
 
     channels: dict[str, NDArray[np.float64]] = {}
     masks: dict[str, NDArray[np.bool_]] = {}

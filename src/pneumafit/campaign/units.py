@@ -107,6 +107,7 @@ QUANTITY_KINDS: dict[str, QuantityKind] = {
             "derivative gain", "a", "[electric_potential]*[time]/[length]", "4 V s/m", "V s/m"
         ),
         QuantityKind("angle", "an", "[]", "90 deg", "rad"),
+        QuantityKind("frequency", "a", "1/[time]", "1 kHz", "Hz"),
     )
 }
 

@@ -32,6 +32,7 @@ from pneumafit.campaign.consistency import (
     controller_mismatch,
     moved_chamber_out_of_range,
     position_beyond_stroke,
+    sampled_too_slowly,
     supply_mismatch,
     temperature_out_of_range,
 )
@@ -197,6 +198,17 @@ def test_a_temperature_in_another_unit_is_named(offset: float, why: str) -> None
     assert temperature_out_of_range(t) is None
     found = temperature_out_of_range(t + offset)
     assert found is not None and why in found[1], found
+
+
+def test_a_dynamic_test_sampled_in_another_time_unit_is_named() -> None:
+    """A 4-s step test at 1 kHz passes; the same samples under a "[s]"
+    header that held milliseconds (one sample per second, 4000 s) are named;
+    a flow test holding its levels is not judged."""
+    t = np.arange(0.0, 4.0005, 1e-3)
+    assert sampled_too_slowly(t, "step") is None
+    found = sampled_too_slowly(t * 1e3, "step")
+    assert found is not None and "ms under [s]?" in found[1] and "4000 s in all" in found[1]
+    assert sampled_too_slowly(t * 1e3, "flow") is None
 
 
 def test_the_reader_names_a_step_test_pressure_in_another_unit(campaign_dir: Path) -> None:

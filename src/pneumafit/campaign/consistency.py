@@ -107,6 +107,7 @@ __all__ = [
     "moved_chamber_out_of_range",
     "position_beyond_stroke",
     "recording_findings",
+    "sampled_too_slowly",
     "supply_mismatch",
     "temperature_out_of_range",
 ]
@@ -149,6 +150,15 @@ MOVED_BOUNDS = (0.3, 2.0)
 #: bulk lies outside is in another unit than its header says (degC labelled
 #: K reads ~20 K; K labelled degC ~566 K).
 TEMPERATURE_BOUNDS = (120.0, 450.0)
+#: Kinds of tests whose transients the fits follow sample by sample (a free
+#: test's slow drift may be logged slowly, and a flow test holds its levels).
+DYNAMIC_KINDS = ("charge", "discharge", "step")
+#: Longest median sample interval (s) of such a test: its transients last
+#: 10-100 ms (a charge's time constant, a step's rise), so 20 ms already
+#: leaves few samples on them; a longer one is most often a time axis in
+#: another unit than its header says (ms under "[s]" makes a 4-s test last
+#: 4000 s, through which every simulation of a fit steps at 1 ms).
+MAX_INTERVAL = 0.02
 #: How far (share of the stroke) a recorded position may pass either end
 #: before it is reported: 2 %, 10 mm of a 0.5-m stroke, above an encoder
 #: zeroed a little off the end stop and the end stops' compliance, far below
@@ -351,6 +361,35 @@ def moved_chamber_out_of_range(
     )
 
 
+def sampled_too_slowly(time: NDArray[np.float64], kind: str) -> tuple[str, str] | None:
+    """What a dynamic test's sample interval should be and what it is, or None.
+
+    Parameters
+    ----------
+    time : ndarray
+        The recording's time (s).
+    kind : str
+        Its kind; only :data:`DYNAMIC_KINDS` are judged.
+
+    Returns
+    -------
+    (expected, found) or None
+        None when the median interval is at most :data:`MAX_INTERVAL`.
+    """
+    t = np.asarray(time, dtype=float)
+    if kind not in DYNAMIC_KINDS or t.size < 3:
+        return None
+    dt = float(np.median(np.diff(t)))
+    if dt <= MAX_INTERVAL:
+        return None
+    return (
+        f"a sample interval of at most {MAX_INTERVAL * 1e3:g} ms for a {kind} test (its "
+        "transients last 10-100 ms)",
+        f"{dt:.4g} s ({t[-1] - t[0]:.4g} s in all): a time axis in another unit than its header "
+        "says (ms under [s]?)",
+    )
+
+
 def temperature_out_of_range(temperature: NDArray[np.float64]) -> tuple[str, str] | None:
     """What a temperature channel should be and what it is, or None.
 
@@ -484,7 +523,8 @@ def recording_findings(
     recording: Recording, supply: float, exhaust: float, stroke: float | None = None
 ) -> list[tuple[str, str, str]]:
     """Every finding of this module on one recording: (channel, expected,
-    found), its ``p_S`` first (:func:`supply_mismatch`), then the chambers of
+    found), a dynamic test sampled too slowly first (:func:`sampled_too_slowly`),
+    its ``p_S`` (:func:`supply_mismatch`), then the chambers of
     a test with the piston held (:func:`chamber_beyond_bounds`) or moved
     (:func:`moved_chamber_out_of_range`), its temperatures
     (:func:`temperature_out_of_range`), then its
@@ -505,6 +545,9 @@ def recording_findings(
         The channel judged, what the declaration implies, what was read.
     """
     out = []
+    found = sampled_too_slowly(recording.time, recording.kind)
+    if found is not None:
+        out.append(("time", *found))
     p_s = recording.channels.get("p_S")
     if p_s is not None:
         found = supply_mismatch(p_s, supply, exhaust)

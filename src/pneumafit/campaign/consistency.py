@@ -104,6 +104,7 @@ __all__ = [
     "chamber_beyond_bounds",
     "consistency_warnings",
     "controller_mismatch",
+    "median_interval",
     "moved_chamber_out_of_range",
     "position_beyond_stroke",
     "recording_findings",
@@ -189,6 +190,31 @@ def _shown(value: float, kind: str = "pressure", spec: str = ".1f") -> str:
     """An SI value of ``kind`` in its one display unit (:data:`DISPLAY_UNITS`)."""
     factor, unit = DISPLAY_UNITS[kind]
     return f"{value * factor:{spec}} {unit}"
+
+
+#: Why a pressure reads below the exhaust: gauge values declared absolute.
+_GAUGE_HINT = (
+    "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
+    'reference = "gauge" in HDF5)'
+)
+
+
+def _bulk(values: NDArray[np.float64]) -> tuple[float, float] | None:
+    """The 1st and 99th percentiles (:data:`BOUND_QUANTILES`) of a channel's
+    finite samples: its extremes without single noisy samples; None with
+    fewer than two."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < 2:
+        return None
+    lo, hi = np.quantile(x, BOUND_QUANTILES)
+    return float(lo), float(hi)
+
+
+def median_interval(time: NDArray[np.float64]) -> float | None:
+    """A recording's median sample interval (s), None with fewer than 3 samples."""
+    t = np.asarray(time, dtype=float)
+    return float(np.median(np.diff(t))) if t.size >= 3 else None
 
 
 def _finite(
@@ -308,9 +334,7 @@ def chamber_beyond_bounds(
         )
     if lo < exhaust - allowed:
         found.append(
-            f"1st percentile {_shown(lo)}, {_shown(exhaust - lo)} below the exhaust: "
-            "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
-            'reference = "gauge" in HDF5)'
+            f"1st percentile {_shown(lo)}, {_shown(exhaust - lo)} below the exhaust: {_GAUGE_HINT}"
         )
     return expected, "; ".join(found)
 
@@ -336,13 +360,12 @@ def moved_chamber_out_of_range(
         :data:`MOVED_BOUNDS` times the exhaust and the supply; else the two
         halves of a problem message.
     """
-    x = np.asarray(pressure, dtype=float)
-    x = x[np.isfinite(x)]
-    if x.size < 2 or not exhaust > 0.0:
+    bulk = _bulk(pressure)
+    if bulk is None or not exhaust > 0.0:
         return None
+    lo, hi = bulk
     low = MOVED_BOUNDS[0] * exhaust
     high = MOVED_BOUNDS[1] * supply if np.isfinite(supply) and supply > 0.0 else np.inf
-    lo, hi = (float(q) for q in np.quantile(x, BOUND_QUANTILES))
     if low <= lo and hi <= high:
         return None
     expected = f"absolute pressures from {_shown(low)} ({MOVED_BOUNDS[0]:g} of the exhaust)" + (
@@ -351,8 +374,7 @@ def moved_chamber_out_of_range(
     why = (
         "a channel in another unit than its header says (bar labelled Pa?)"
         if hi < low
-        else "a channel in gauge pressure declared as absolute? (a unit such as barg, or "
-        'reference = "gauge" in HDF5)'
+        else _GAUGE_HINT
         if lo < low
         else "a channel in another unit than its header says (Pa labelled bar?)"
     )
@@ -376,17 +398,14 @@ def sampled_too_slowly(time: NDArray[np.float64], kind: str) -> tuple[str, str] 
     (expected, found) or None
         None when the median interval is at most :data:`MAX_INTERVAL`.
     """
-    t = np.asarray(time, dtype=float)
-    if kind not in DYNAMIC_KINDS or t.size < 3:
-        return None
-    dt = float(np.median(np.diff(t)))
-    if dt <= MAX_INTERVAL:
+    dt = median_interval(time) if kind in DYNAMIC_KINDS else None
+    if dt is None or dt <= MAX_INTERVAL:
         return None
     return (
         f"a sample interval of at most {MAX_INTERVAL * 1e3:g} ms for a {kind} test (its "
         "transients last 10-100 ms)",
-        f"{dt:.4g} s ({t[-1] - t[0]:.4g} s in all): a time axis in another unit than its header "
-        "says (ms under [s]?)",
+        f"{dt:.4g} s ({time[-1] - time[0]:.4g} s in all): a time axis in another unit than its "
+        "header says (ms under [s]?)",
     )
 
 
@@ -404,12 +423,11 @@ def temperature_out_of_range(temperature: NDArray[np.float64]) -> tuple[str, str
         None when the channel's 1st and 99th percentiles lie within
         :data:`TEMPERATURE_BOUNDS`; else the two halves of a problem message.
     """
-    x = np.asarray(temperature, dtype=float)
-    x = x[np.isfinite(x)]
-    if x.size < 2:
+    bulk = _bulk(temperature)
+    if bulk is None:
         return None
+    lo, hi = bulk
     low, high = TEMPERATURE_BOUNDS
-    lo, hi = (float(q) for q in np.quantile(x, BOUND_QUANTILES))
     if low <= lo and hi <= high:
         return None
     return (
@@ -553,23 +571,16 @@ def recording_findings(
         found = supply_mismatch(p_s, supply, exhaust)
         if found is not None:
             out.append(("p_S", *found))
-    if recording.kind in HELD_KINDS:
-        for name in ("p_P", "p_N"):
-            channel = recording.channels.get(name)
-            if channel is None:
-                continue
-            found = chamber_beyond_bounds(channel, supply, exhaust)
-            if found is not None:
-                out.append((name, *found))
-    else:
-        for name in ("p_P", "p_N"):
-            channel = recording.channels.get(name)
-            if channel is None:
-                continue
-            found = moved_chamber_out_of_range(channel, supply, exhaust)
-            if found is not None:
-                out.append((name, *found))
-    for name in ("T_P", "T_N", "T_wall"):
+    held = recording.kind in HELD_KINDS
+    judge = chamber_beyond_bounds if held else moved_chamber_out_of_range
+    for name in ("p_P", "p_N"):
+        channel = recording.channels.get(name)
+        if channel is None:
+            continue
+        found = judge(channel, supply, exhaust)
+        if found is not None:
+            out.append((name, *found))
+    for name in ("T_P", "T_N"):
         channel = recording.channels.get(name)
         if channel is None:
             continue

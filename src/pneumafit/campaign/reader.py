@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from pneumafit.campaign.consistency import recording_findings
+from pneumafit.campaign.consistency import median_interval, recording_findings
 from pneumafit.campaign.errors import CampaignError, PneumafitInputError, Problem
 from pneumafit.campaign.model import (
     CHAMBERS,
@@ -1534,6 +1534,13 @@ def _drop_before(
     )
 
 
+def _thinning(rate: float, max_rate: float) -> int:
+    """Samples per kept one of a recording at ``rate`` read at most at
+    ``max_rate`` (Hz): ceil(rate / max_rate), a rate equal to the limit
+    within rounding kept whole."""
+    return math.ceil(rate / max_rate * (1.0 - 1e-9))
+
+
 def _thinned(
     raw: _Raw, time: NDArray[np.float64], max_rate: float
 ) -> tuple[_Raw, NDArray[np.float64]]:
@@ -1547,10 +1554,8 @@ def _thinned(
     it, its value there interpolated between its real samples as everywhere
     else. Messages keep the file's line numbers.
     """
-    if time.size < 3:
-        return raw, time
-    rate = 1.0 / float(np.median(np.diff(time)))
-    k = math.ceil(rate / max_rate * (1.0 - 1e-9))
+    dt = median_interval(time)
+    k = _thinning(1.0 / dt, max_rate) if dt else 1
     if k <= 1:
         return raw, time
     starts = np.arange(0, time.size, k)
@@ -1573,9 +1578,16 @@ def _thinned(
     def thinned(i: int) -> str:
         return locate(i * k)
 
-    raw_time = raw.time[starts] if raw.time.size == time.size else raw.time
     return (
-        _Raw(raw_time, raw.time_unit, columns, raw.present, thinned, raw.description, raw.kind),
+        _Raw(
+            raw.time[starts],
+            raw.time_unit,
+            columns,
+            raw.present,
+            thinned,
+            raw.description,
+            raw.kind,
+        ),
         time[starts],
     )
 
@@ -1626,17 +1638,16 @@ def _build_recording(
         time = time[time >= meta.read.start]
     if meta.read.max_rate is not None:
         raw, time = _thinned(raw, time, meta.read.max_rate)
-    elif time.size >= 3:
-        rate = 1.0 / float(np.median(np.diff(time)))
-        if rate > FAST_RATE:
-            probs.warning(
-                file, "time",
-                f"a rate of at most {FAST_RATE / 1e3:g} kHz for the fits, or max_rate in [read] "
-                "(a fit's simulations step through every sample: their cost grows with the rate, "
-                "and the models' dynamics need no more)",
-                f"{rate:.4g} Hz, {rate / 1e3:.3g} times a 1-kHz recording's cost; "
-                f'max_rate = "1 kHz" keeps one sample in {math.ceil(rate / 1e3 * (1 - 1e-9))}',
-            )  # fmt: skip
+    elif (dt := median_interval(time)) is not None and 1.0 / dt > FAST_RATE:
+        rate = 1.0 / dt
+        probs.warning(
+            file, "time",
+            f"a rate of at most {FAST_RATE / 1e3:g} kHz for the fits, or max_rate in [read] "
+            "(a fit's simulations step through every sample: their cost grows with the rate, "
+            "and the models' dynamics need no more)",
+            f"{rate:.4g} Hz, {rate / 1e3:.3g} times a 1-kHz recording's cost; "
+            f'max_rate = "1 kHz" keeps one sample in {_thinning(rate, 1e3)}',
+        )  # fmt: skip
 
     channels: dict[str, NDArray[np.float64]] = {}
     masks: dict[str, NDArray[np.bool_]] = {}

@@ -515,6 +515,9 @@ def test_a_proposal_fitted_to_unsettled_walkers_is_fitted_again(
     import pneumafit.identification.sampling as sampling
 
     monkeypatch.setattr(sampling, "MAX_READAPT", 0)
+    # extended to the limit whatever the projection (EXTEND_REACH), as when
+    # this was measured: the projection stops this chain at 1020 steps
+    monkeypatch.setattr(sampling, "EXTEND_REACH", float("inf"))
     kept = run_mcmc(gaussian, params(), start, wide, **kw)
     assert kept.readapted_after == [] and kept.acceptance < 0.1 and kept.n_steps == 2000
 
@@ -569,6 +572,57 @@ def test_a_walker_held_in_the_tail_fits_the_proposal_again(
     import pneumafit.identification.sampling as sampling
 
     monkeypatch.setattr(sampling, "HELD_SHARE", float("inf"))
+    # extended to the limit whatever the projection, as when this was
+    # measured: the projection (EXTEND_REACH) stops this chain at 2170 steps
+    monkeypatch.setattr(sampling, "EXTEND_REACH", float("inf"))
     kept_t = run_mcmc(skewed, ps, start, tiny, **kw)
     assert kept_t.readapted_after == [] and kept_t.n_steps == 3000
     assert max(kept_t.rhat.values()) > 1.01
+
+
+def rugged(z: np.ndarray) -> np.ndarray:
+    """The Gaussian plus a deterministic field of pits 40 log units deep on a
+    0.01 grid: from a pit bottom nearly every proposal is refused, so the
+    walkers hold still where they stand (what a stick-slip likelihood whose
+    events move with the parameters does to a sampler)."""
+    d = np.atleast_2d(z)
+    cell = np.floor(d / 0.01)
+    h = np.sin(cell[:, 0] * 12.9898 + cell[:, 1] * 78.233) * 43758.5453
+    return gaussian(d) + 40.0 * (h - np.floor(h))
+
+
+def test_a_chain_that_cannot_converge_by_its_limit_is_not_extended(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Past its default length (500 steps) a chain is extended only while it
+    can converge by its limit (EXTEND_REACH). On the rugged posterior the
+    walkers hold still (R-hat far above 1.01, tau not estimable): the chain
+    stops at its default length with a warning naming why, where it ran to
+    its 3000-step limit before (shown by disabling the rule). Not extending
+    it changes nothing else: the same 500 steps, bit for bit. The analytic
+    Gaussian with the same settings still converges (the rule does not stop
+    a chain that mixes), and an interrupted run resumes to the same stop."""
+    import pneumafit.identification.sampling as sampling
+
+    kw = {"n_walkers": 8, "n_steps": 500, "seed": 4, "min_steps": 100, "max_steps": 3000,
+          "name": "stage"}  # fmt: skip
+    lines: list[str] = []
+    run = run_mcmc(
+        rugged, params(), MEAN, COV, log=lines.append, backend=tmp_path / "full.h5", **kw
+    )
+    assert run.n_steps == 500
+    assert max(run.rhat.values()) > 1.1
+    assert any("not extended past 500 steps" in w for w in run.warnings)
+    assert any("not extended past 500 steps" in line for line in lines)
+    resumed = _resumed_after_interrupt(tmp_path / "cut.h5", 450, MEAN, COV, log_prob=rugged, **kw)
+    assert resumed.n_steps == 500 and np.array_equal(resumed.chain, run.chain)
+
+    smooth = run_mcmc(gaussian, params(), MEAN, COV, **kw)
+    assert smooth.tau_multiple >= 50 and max(smooth.rhat.values()) <= 1.01
+    assert not any("not extended" in w for w in smooth.warnings)
+
+    monkeypatch.setattr(sampling, "EXTEND_REACH", float("inf"))
+    unruled = run_mcmc(rugged, params(), MEAN, COV, **kw)
+    assert unruled.n_steps == 3000
+    assert np.array_equal(unruled.chain[:500], run.chain)
+    assert max(unruled.rhat.values()) > 1.01

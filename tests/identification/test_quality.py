@@ -545,6 +545,30 @@ def test_a_fit_without_step_tests_names_the_friction_it_did_not_identify(tmp_pat
     assert any(p.startswith("not identified, held at") for p in result.quality.problems())
 
 
+def test_a_fit_of_flow_tests_only_gives_no_lambda_figure(tmp_path: Path) -> None:
+    """A campaign of flow tests only (the sparse plan's, fitted laws' own rig:
+    a reporting test, not a recovery one): the heat law is held at the rig's
+    default, named as not identified, and the fit gives no lambda at the
+    reference state (it printed the default with a one-point "interval",
+    e.g. 18.25 W/m^2/K [18.25, 18.25], as if measured), nor friction
+    figures; the console prints neither line."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.cli.fit import _reference_lines
+    from pneumafit.identification import FitOptions, identify
+    from pneumafit.virtual_rig import VirtualRig, get_protocol
+
+    sparse = get_protocol("sparse")
+    plan = dataclasses.replace(sparse, tests=tuple(t for t in sparse.tests if t.kind == "flow"))
+    VirtualRig(seed=3).write(tmp_path / "c", plan)
+    result = identify(read_campaign(tmp_path / "c"), "convection",
+                      options=FitOptions(mcmc=False), seed=3)  # fmt: skip
+    assert result.quality is not None
+    assert any(h.startswith("heat law (xi, beta") for h in result.quality.not_identified)
+    assert "lambda_reference" not in result.metrics
+    assert "friction_reference" not in result.metrics
+    assert _reference_lines(result.metrics) == []
+
+
 def _fit_channel(recording: str, channel: str, ratio: float) -> object:
     from pneumafit.identification.quality import ChannelQuality
 

@@ -2089,9 +2089,13 @@ def identify(
     # ------------------------------------------------------------ metrics
     say("replaying the fit on every recording")
     metrics, rep = _metrics(campaign, structure, values, joint_problem, est, opts)
-    metrics["lambda_reference"] = _lambda_reference(
-        structure, values, laplace, est, heat_draws, seeds[7]
-    )
+    if blocked or steps:
+        # as the friction figures below need a step test: without a test that
+        # informs the heat law, lambda is the rig's default, not a figure of
+        # this rig (its interval would be one point; quality.not_identified)
+        metrics["lambda_reference"] = _lambda_reference(
+            structure, values, laplace, est, heat_draws, seeds[7]
+        )
     if steps:
         metrics["friction_reference"] = _friction_reference(
             structure, values, rig, laplace, est, friction_draws, seeds[7]

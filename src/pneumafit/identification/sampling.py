@@ -752,15 +752,17 @@ def run_mcmc(
             need = _steps_needed(result)
             reach = kept + (limit - target)
             if need > EXTEND_REACH * reach:
-                where = (
-                    f"it would need about {math.ceil(need + result.discard)} steps to converge"
+                where, why = (
+                    (f"it would need about {math.ceil(need + result.discard)} steps to "
+                     "converge", "it mixes too slowly for its limit")
                     if math.isfinite(need)
-                    else "its convergence cannot be projected (tau not estimable)"
-                )
+                    else ("its convergence cannot be projected (tau not estimable)",
+                          "the walkers do not mix")
+                )  # fmt: skip
                 note = (
                     f"{name}: not extended past {target} steps: at {result.tau_multiple:.0f} "
                     f"tau and R-hat up to {max(result.rhat.values()):.3f} {where}, and its "
-                    f"limit is {limit}: the walkers do not mix, the intervals are not reliable"
+                    f"limit is {limit}: {why}, the intervals are not reliable"
                 )
                 result.warnings.append(note)
                 if log is not None:

@@ -1572,24 +1572,13 @@ def _thinned(
         sampled = np.add.reduceat(real.astype(np.int64), starts) > 0
         return replace(column, values=np.where(sampled, filled[starts], np.nan), mask=sampled)
 
-    columns = [kept(c) for c in raw.columns]
     locate = raw.locate
 
     def thinned(i: int) -> str:
         return locate(i * k)
 
-    return (
-        _Raw(
-            raw.time[starts],
-            raw.time_unit,
-            columns,
-            raw.present,
-            thinned,
-            raw.description,
-            raw.kind,
-        ),
-        time[starts],
-    )
+    columns = [kept(c) for c in raw.columns]
+    return replace(raw, time=raw.time[starts], columns=columns, locate=thinned), time[starts]
 
 
 def _build_recording(

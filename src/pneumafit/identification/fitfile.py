@@ -20,7 +20,9 @@ Keys (version 1; keys are only ever added):
   reads the file as a parameter file;
 - ``nuisance``: measurement parameters (sensor lags; since 2026-12-01 the
   pressure sensors' offsets ``offset:p_P`` and ``offset:p_N`` in Pa,
-  :func:`~pneumafit.identification.problem.pressure_offsets`) and
+  :func:`~pneumafit.identification.problem.pressure_offsets`, since
+  2026-12-04 only where the fit recordings agree on them; every sensor's
+  estimate and test in ``metrics.sensor_offsets``) and
   ``initial_states`` (the fitted initial pressures, temperatures and
   positions by recording);
 - ``correlation``: posterior correlation matrices by stage (``names``,

@@ -95,6 +95,7 @@ __all__ = [
     "Observation",
     "Prediction",
     "Problem",
+    "SensorOffset",
     "first_order_lag",
     "fit_sensor_lag",
     "fit_temperature_probe",
@@ -198,6 +199,29 @@ OFFSET_CHANNELS: tuple[str, ...] = ("p_P", "p_N")
 #: correction; chamber P's, on three recordings, at -1195 and -1264 against
 #: -960. Chosen after those fits.
 MIN_OFFSET_RECORDINGS = 3
+#: Chance (chi-square survival) below which one sensor's offsets, recording
+#: by recording, are taken to disagree (:class:`SensorOffset`): a transducer's
+#: zero is one number for the campaign, so its estimates from n recordings
+#: scatter about their weighted mean by their own uncertainty, chi-square on
+#: n - 1 degrees of freedom. A model whose laws are not the rig's bends each
+#: recording's initial pressure its own way instead: on the bundled demo
+#: (truth +166 Pa on both sensors; convection fit, --no-mcmc --seed 1,
+#: 2026-12-04) chamber P's seven estimates ran from -6.9 to +4.3 kPa
+#: (chi-square ~32 on 6 degrees of freedom, chance ~2e-5) and chamber N's
+#: from -13.2 to +0.9 kPa (charges about -7, discharges about +1 kPa), and
+#: the held-out step test started from its readings less those medians
+#: (-0.5 and -6.4 kPa) missed p_P by 3461 Pa RMS and y by 0.93 mm, against
+#: 1939 Pa and 0.69 mm from its readings as they are. One in a thousand:
+#: a test run on every fit of many campaigns should rarely refuse a sensor
+#: whose estimates do agree.
+OFFSET_AGREEMENT = 1e-3
+#: Largest pressure sensor offset (Pa) taken as a sensor's zero: three times
+#: the static error band of :data:`OFFSET_TOLERANCE` (the prior of a measured
+#: initial pressure says the same). Estimates that agree on more are the
+#: model's: on the practice rig of docs/tutorial.md (truth +2198 Pa on p_N)
+#: the polytropic fit's three chamber N estimates agreed within their wide
+#: sds (-18.0 to -5.1 kPa, chance 0.04) on -10.9 kPa.
+OFFSET_LIMIT = 3.0 * OFFSET_TOLERANCE["pressure"]
 
 
 #: Bounds of a fitted sensor lag (s): :func:`fit_sensor_lag`, and each lag
@@ -559,42 +583,167 @@ def initial_velocity(
     return slope
 
 
-def pressure_offsets(problem: Problem, values: Mapping[str, float]) -> dict[str, tuple[float, int]]:
-    """Each pressure sensor's offset (Pa) as a fit saw it, and how many
-    recordings it rests on.
+def _intercept(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float | None]:
+    """A straight line's value at x = 0 through (x, y), and its standard error
+    from the line's residuals (None with fewer than four points)."""
+    slope, icept = np.polyfit(x, y, 1)
+    n = len(x)
+    if n < 4:
+        return float(icept), None
+    rss = float(np.sum((y - (icept + slope * x)) ** 2))
+    sxx = float(np.sum((x - np.mean(x)) ** 2))
+    if sxx <= 0.0:
+        return float(icept), None
+    se = math.sqrt(rss / (n - 2) * (1.0 / n + float(np.mean(x)) ** 2 / sxx))
+    return float(icept), se
+
+
+@dataclass(frozen=True)
+class SensorOffset:
+    """One pressure sensor's offset as a fit saw it (:func:`pressure_offsets`).
+
+    Attributes
+    ----------
+    channel : str
+        ``"p_P"`` or ``"p_N"``.
+    value : float
+        The offset (Pa): the inverse-variance weighted mean of ``estimates``
+        when their sds are known, else their median.
+    estimates : tuple of float
+        Per recording started at rest, its initial reading less its fitted
+        initial pressure (Pa).
+    chi_square : float or None
+        Sum over the recordings of ((estimate - weighted mean) / sd)^2, the
+        sd of each being that of its fitted initial pressure (Laplace) and
+        of its reading (the line's intercept) in quadrature; None when the
+        sds are not known.
+    p_value : float or None
+        Chance of a chi-square at least that large on n - 1 degrees of
+        freedom were the estimates one offset's; None without sds.
+    moving : int
+        Recordings left out because they start on a moving piston.
+    """
+
+    channel: str
+    value: float
+    estimates: tuple[float, ...]
+    chi_square: float | None = None
+    p_value: float | None = None
+    moving: int = 0
+
+    @property
+    def n(self) -> int:
+        """Recordings the offset rests on."""
+        return len(self.estimates)
+
+    @property
+    def agrees(self) -> bool:
+        """The recordings agree on one offset (or were not tested):
+        ``p_value`` at least :data:`OFFSET_AGREEMENT`."""
+        return self.p_value is None or self.p_value >= OFFSET_AGREEMENT
+
+    @property
+    def plausible(self) -> bool:
+        """Within what a transducer's zero can be: at most :data:`OFFSET_LIMIT`."""
+        return abs(self.value) <= OFFSET_LIMIT
+
+    @property
+    def applies(self) -> bool:
+        """Taken off held-out recordings' initial readings: it agrees and is plausible."""
+        return self.agrees and self.plausible
+
+    def describe(self) -> str:
+        """One line: the value, the recordings, and whether they agree."""
+        head = f"{self.channel} {self.value:+.0f} Pa ({self.n} recordings"
+        if self.moving:
+            head += f", {self.moving} started moving left out"
+        span = f"{min(self.estimates):+.0f} to {max(self.estimates):+.0f} Pa"
+        if self.p_value is not None:
+            test = f"chi-square {self.chi_square:.1f} on {self.n - 1} dof"
+            head = f"{head}, {span}, {test}, chance {self.p_value:.1g}"
+        if not self.agrees:
+            return (
+                f"{head}: they disagree, so these are the model's initial pressures, not "
+                "the sensor's zero; not applied)"
+            )
+        if not self.plausible:
+            return (
+                f"{head}: beyond {OFFSET_LIMIT:.0f} Pa, three times a transducer's static "
+                "error band, so the model's initial pressures, not the sensor's zero; not applied)"
+            )
+        return head + ")"
+
+
+def pressure_offsets(
+    problem: Problem,
+    values: Mapping[str, float],
+    stds: Mapping[str, float | None] | None = None,
+) -> dict[str, SensorOffset]:
+    """Each pressure sensor's offset (Pa) as a fit saw it, the recordings it
+    rests on, and whether they agree on it.
 
     For every recording of ``problem`` whose initial pressure is fitted
-    (``initial:<file>:p_P`` in ``values``), its sensor read that pressure
-    plus its offset: the reading's line intercept over the initial window
-    (:attr:`Problem.measured_initial`) less the fitted initial pressure is
-    one estimate of the offset. The offset of a channel is the median of
-    these over the recordings (a segment cut on a moving piston reads its
-    intercept less well; the median keeps it out). A sensor's offset is
-    taken as the campaign's, as a transducer's zero is between tests: a
-    held-out recording, whose initial state is not fitted, then starts from
-    its reading less that offset (:data:`OFFSET_PREFIX`). On the fitted
+    (``initial:<file>:p_P`` in ``values``) and that starts at rest, its
+    sensor read that pressure plus its offset: the reading's line intercept
+    over the initial window (:attr:`Problem.measured_initial`) less the
+    fitted initial pressure is one estimate of the offset. (A segment cut on
+    a moving piston reads its intercept less well: on the control of the
+    sparse-long plan, the one started at 65 mm/s read -1607 and +2458 Pa
+    against -960 and +589, the five at rest -852 to -999 and +408 to +649.)
+    With ``stds``, the offset is the estimates' inverse-variance weighted
+    mean, and a chi-square about it tests whether they are one offset's
+    (:attr:`SensorOffset.agrees`, :data:`OFFSET_AGREEMENT`); without, their
+    median. A sensor's offset is taken as the campaign's, as a transducer's
+    zero is between tests: a held-out recording, whose initial state is not
+    fitted, then starts from its reading less that offset
+    (:data:`OFFSET_PREFIX`) where the recordings agree on it. On the fitted
     laws' own truth (sparse-long plan, seed 1; offsets -960 and +589 Pa)
-    the estimates were -961 and +543 Pa, and started from its readings the
-    held-out 8-s step test's piston was up to 0.7 mm off in its first two
-    seconds (29x the position noise), from the offset-free pressures 0.07
-    mm.
+    started from its readings the held-out 8-s step test's piston was up to
+    0.7 mm off in its first two seconds (29x the position noise), from the
+    offset-free pressures 0.07 mm.
+
+    Parameters
+    ----------
+    problem : Problem
+    values : mapping of str to float
+        The fit's values, with ``initial:<file>:<channel>`` (Pa).
+    stds : mapping of str to float or None, optional
+        Standard deviations (Pa) of those initial pressures; without them
+        (or with any missing or not positive) no agreement test.
 
     Returns
     -------
-    dict of str to (float, int)
-        Channel -> (offset in Pa, recordings); channels with fewer than
-        :data:`MIN_OFFSET_RECORDINGS` fitted initial pressures are left out
-        (their held-out recordings start from their readings, as before).
+    dict of str to SensorOffset
+        By channel; channels with fewer than :data:`MIN_OFFSET_RECORDINGS`
+        such recordings are left out (their held-out recordings start from
+        their readings, as before).
     """
-    out: dict[str, tuple[float, int]] = {}
+    from scipy.stats import chi2
+
+    moving = {e.name for e in problem.experiments if float(e.initial.get("v", 0.0)) != 0.0}
+    out: dict[str, SensorOffset] = {}
     for c in OFFSET_CHANNELS:
-        diffs = [
-            read[c] - float(values[key])
+        rows = [
+            (name, read[c], key)
             for name, read in problem.measured_initial.items()
             if c in read and (key := f"{INITIAL_PREFIX}{name}:{c}") in values
         ]
-        if len(diffs) >= MIN_OFFSET_RECORDINGS:
-            out[c] = (float(np.median(diffs)), len(diffs))
+        at_rest = [r for r in rows if r[0] not in moving]
+        if len(at_rest) < MIN_OFFSET_RECORDINGS:
+            continue
+        diffs = np.array([read - float(values[key]) for _n, read, key in at_rest])
+        fitted_sd = np.array([float((stds or {}).get(key) or np.nan) for _n, _r, key in at_rest])
+        read_se = np.array(
+            [problem.measured_initial_se.get(n, {}).get(c, 0.0) for n, _r, _k in at_rest]
+        )
+        sd = np.hypot(fitted_sd, read_se)
+        value, stat, p = float(np.median(diffs)), None, None
+        if stds is not None and np.all(np.isfinite(sd) & (sd > 0.0)):
+            w = 1.0 / sd**2
+            value = float(np.sum(w * diffs) / np.sum(w))
+            stat = float(np.sum(w * (diffs - value) ** 2))
+            p = float(chi2.sf(stat, len(diffs) - 1))
+        out[c] = SensorOffset(c, value, tuple(map(float, diffs)), stat, p, len(rows) - len(at_rest))
     return out
 
 
@@ -727,6 +876,9 @@ class Problem:
             if (v := dict(base or {}).get(f"{OFFSET_PREFIX}{c}")) is not None
         }
         self.measured_initial: dict[str, dict[str, float]] = {}
+        # the standard error of each of those readings (the line's intercept,
+        # from its residuals; absent when fewer than four samples)
+        self.measured_initial_se: dict[str, dict[str, float]] = {}
         # the temperature readings' line at the start, (reading K, rate K/s),
         # by experiment name: where the probe was and where it was going
         # (replay.replay starts the probe there and the gas ahead of it)
@@ -850,8 +1002,10 @@ class Problem:
                 m = window & rec.mask.get(name, np.ones(n, bool))
                 if m.sum() >= 3:
                     # the chamber drifts at rest (centre leakage): a line's intercept
-                    _slope, icept = np.polyfit(t[m] - t[0], rec.channels[name][m], 1)
-                    initial[name] = float(icept)
+                    icept, se = _intercept(t[m] - t[0], rec.channels[name][m])
+                    initial[name] = icept
+                    if se is not None:
+                        self.measured_initial_se.setdefault(exp.name, {})[name] = se
                 elif m.any():
                     initial[name] = float(np.mean(rec.channels[name][m]))
                 else:

@@ -472,6 +472,13 @@ class FitQuality:
         refinement takes above :data:`THRESHOLD` and :data:`TRADE_FACTOR`
         times this was given up for the others (:meth:`given_up`): under the
         model's laws the recordings disagree. Empty when not computed.
+    refused_offsets : list of str
+        Pressure sensors whose offset the fit did not apply to the held-out
+        recordings, each described (:meth:`SensorOffset.describe
+        <pneumafit.identification.problem.SensorOffset.describe>`): the fit
+        recordings' initial pressures disagree on it, or agree on more than a
+        transducer's zero can be off. A caveat: the model bends its initial
+        pressures to follow recordings it cannot.
     threshold : float
     """
 
@@ -485,6 +492,7 @@ class FitQuality:
     rest_positions: list[RestOffset] = field(default_factory=list)
     recorded_commands: dict[str, float | None] = field(default_factory=dict)
     staged: dict[str, float] = field(default_factory=dict)
+    refused_offsets: list[str] = field(default_factory=list)
     threshold: float = THRESHOLD
 
     def failing(self, role: str | None = None) -> list[ChannelQuality]:
@@ -647,7 +655,13 @@ class FitQuality:
     def caveats(self) -> list[str]:
         """One sentence per limit of the intervals that does not make the fit
         untrustworthy (empty when there is none)."""
-        return [one_recording_caveat(self.one_recording)] if self.one_recording else []
+        out = [one_recording_caveat(self.one_recording)] if self.one_recording else []
+        out += [
+            f"sensor offset {line}; the held-out recordings start from this sensor's "
+            "readings as they are"
+            for line in self.refused_offsets
+        ]
+        return out
 
     def verdict(self) -> str:
         """One line for the top of the console summary and the report."""
@@ -676,6 +690,7 @@ class FitQuality:
             "rest_positions": [r.as_dict() for r in self.rest_positions],
             "recorded_commands": dict(self.recorded_commands),
             "staged": dict(self.staged),
+            "refused_offsets": list(self.refused_offsets),
             "recordings": [c.as_dict() for c in self.channels],
         }
 

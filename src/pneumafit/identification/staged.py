@@ -2069,26 +2069,40 @@ def identify(
     # ------------------------------------------- the pressure sensors' offsets
     # from the fit recordings' fitted initial pressures; a held-out recording
     # starts from its readings less them (problem.pressure_offsets)
-    offsets = pressure_offsets(joint_problem, values)
-    for channel, (offset, n) in offsets.items():
-        values[f"{OFFSET_PREFIX}{channel}"] = offset
+    offsets = pressure_offsets(
+        joint_problem, values,
+        {p.name: p.std for p in laplace if p.group == "initial"},
+    )  # fmt: skip
+    for channel, off in offsets.items():
+        if not off.applies:
+            continue
+        values[f"{OFFSET_PREFIX}{channel}"] = off.value
         final = final.add(
             Parameter(
-                f"{OFFSET_PREFIX}{channel}", offset, "Pa", fixed=True, group="sensor",
-                description=f"{channel} sensor's offset: median over {n} fit recordings of "
-                "the initial reading less the fitted initial pressure",
+                f"{OFFSET_PREFIX}{channel}", off.value, "Pa", fixed=True, group="sensor",
+                description=f"{channel} sensor's offset: weighted mean over {off.n} fit "
+                "recordings of the initial reading less the fitted initial pressure",
             )
         )  # fmt: skip
     if offsets:
         say(
-            "pressure sensors' offsets (initial readings less the fitted initial pressures, "
-            "median over the fit recordings; taken off the held-out recordings' initial "
-            "readings): " + ", ".join(f"{c} {o:+.0f} Pa ({n})" for c, (o, n) in offsets.items())
+            "pressure sensors' offsets (initial readings less the fitted initial pressures "
+            "of the fit recordings started at rest, their weighted mean; taken off the "
+            "held-out recordings' initial readings where the recordings agree on it): "
+            + "; ".join(o.describe() for o in offsets.values())
         )
 
     # ------------------------------------------------------------ metrics
     say("replaying the fit on every recording")
     metrics, rep = _metrics(campaign, structure, values, joint_problem, est, opts)
+    if offsets:
+        metrics["sensor_offsets"] = {
+            c: {
+                "value": o.value, "unit": "Pa", "estimates": list(o.estimates),
+                "chi_square": o.chi_square, "p_value": o.p_value, "applied": o.applies,
+            }
+            for c, o in offsets.items()
+        }  # fmt: skip
     if blocked or steps:
         # as the friction figures below need a step test: without a test that
         # informs the heat law, lambda is the rig's default, not a figure of
@@ -2111,6 +2125,7 @@ def identify(
         if s.estimate is not None and not s.estimate.success and s.name == "joint"
     ]
     quality.not_identified = unidentified
+    quality.refused_offsets = [o.describe() for o in offsets.values() if not o.applies]
     say(f"quality: {quality.verdict()}")
     return FitResult(
         model=name, structure=structure, parameters=final, laplace=laplace, stages=stages,

@@ -720,7 +720,11 @@ def pressure_offsets(
     """
     from scipy.stats import chi2
 
-    moving = {e.name for e in problem.experiments if float(e.initial.get("v", 0.0)) != 0.0}
+    # started moving: as initial_velocity decides, faster than MIN_MOVING (a
+    # recording with a velocity channel starts from its first sample's noise)
+    moving = {
+        e.name for e in problem.experiments if abs(float(e.initial.get("v", 0.0))) > MIN_MOVING
+    }
     out: dict[str, SensorOffset] = {}
     for c in OFFSET_CHANNELS:
         rows = [

@@ -231,7 +231,7 @@ def test_a_sensor_offset_is_applied_only_where_its_recordings_agree(
     give chi-square 2 (chance e^-1 = 0.37 on 2 dof) and agree; -7000, +1000,
     -6000 Pa with sds 1000 Pa (the demo's charges and discharges,
     2026-12-04) give chi-square 38 (chance 5.6e-9) and do not, so their
-    mean is not applied (:data:`OFFSET_AGREEMENT`, 1e-3). The readings'
+    mean is not applied (:data:`OFFSET_AGREEMENT`, 1e-4). The readings'
     own standard errors (the line's intercept, ~110 Pa here) are set to
     zero, so that the arithmetic is the sds'."""
     cut, _ = segment_step_tests(read_campaign(long_campaign), "auto")

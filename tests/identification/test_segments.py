@@ -23,6 +23,7 @@ from pneumafit.identification.problem import (
     SensorOffset,
     initial_velocity,
     pressure_offsets,
+    started_moving,
 )
 from pneumafit.identification.segments import (
     AUTO_DURATION,
@@ -208,7 +209,7 @@ def test_held_out_recordings_start_from_readings_less_the_sensor_offsets(
     assert pressure_offsets(plain, dict(list(fitted.items())[:2])) == {}
     # a segment that starts on a moving piston is left out (its intercept is
     # read on a changing pressure): with it as the third, two remain, none
-    moving = [e.name for e in plain.experiments if abs(e.initial.get("v", 0.0)) > MIN_MOVING]
+    moving = sorted(started_moving(plain))
     assert moving and moving[0] not in names
     third = {f"initial:{moving[0]}:p_P": plain.measured_initial[moving[0]]["p_P"] - 1000.0}
     assert pressure_offsets(plain, {**dict(list(fitted.items())[:2]), **third}) == {}
@@ -216,7 +217,7 @@ def test_held_out_recordings_start_from_readings_less_the_sensor_offsets(
 
 def _at_rest(problem: Problem) -> list[str]:
     """The problem's recordings (segments) that start with the piston at rest."""
-    moving = {e.name for e in problem.experiments if abs(e.initial.get("v", 0.0)) > MIN_MOVING}
+    moving = started_moving(problem)
     return [n for n in problem.measured_initial if n not in moving]
 
 

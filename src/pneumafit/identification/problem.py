@@ -101,6 +101,7 @@ __all__ = [
     "fit_temperature_probe",
     "initial_velocity",
     "pressure_offsets",
+    "started_moving",
 ]
 
 #: Channels a problem can compare, and the quantity each measures.
@@ -589,17 +590,21 @@ def initial_velocity(
 
 def _intercept(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float | None]:
     """A straight line's value at x = 0 through (x, y), and its standard error
-    from the line's residuals (None with fewer than four points)."""
-    slope, icept = np.polyfit(x, y, 1)
-    n = len(x)
-    if n < 4:
-        return float(icept), None
-    rss = float(np.sum((y - (icept + slope * x)) ** 2))
-    sxx = float(np.sum((x - np.mean(x)) ** 2))
-    if sxx <= 0.0:
-        return float(icept), None
-    se = math.sqrt(rss / (n - 2) * (1.0 / n + float(np.mean(x)) ** 2 / sxx))
-    return float(icept), se
+    from the line's residuals (numpy's scaled covariance, as
+    :func:`initial_velocity` reads its slope's; None with fewer than four
+    points)."""
+    if len(x) < 4:
+        return float(np.polyfit(x, y, 1)[1]), None
+    coef, cov = np.polyfit(x, y, 1, cov=True)
+    return float(coef[1]), math.sqrt(max(float(cov[1, 1]), 0.0))
+
+
+def started_moving(problem: Problem) -> set[str]:
+    """Names of the problem's recordings (segments) that start on a moving
+    piston, as :func:`initial_velocity` decides: faster than
+    :data:`MIN_MOVING` (a recording with a velocity channel starts from its
+    first sample, whose noise alone is not a motion)."""
+    return {e.name for e in problem.experiments if abs(float(e.initial.get("v", 0.0))) > MIN_MOVING}
 
 
 @dataclass(frozen=True)
@@ -724,11 +729,7 @@ def pressure_offsets(
     """
     from scipy.stats import chi2
 
-    # started moving: as initial_velocity decides, faster than MIN_MOVING (a
-    # recording with a velocity channel starts from its first sample's noise)
-    moving = {
-        e.name for e in problem.experiments if abs(float(e.initial.get("v", 0.0))) > MIN_MOVING
-    }
+    moving = started_moving(problem)
     out: dict[str, SensorOffset] = {}
     for c in OFFSET_CHANNELS:
         rows = [

@@ -1772,7 +1772,18 @@ def test_a_dahl_law_of_one_s_own_on_a_dahl_rig(registered: None, tmp_path: Path)
     3x, and the Coulomb level within 5 % (the seal term the law lacks costs
     1.4 %). Also the plumbing of a law without a static level: the fit's
     reference figures quote its Coulomb level only (the fit crashed there
-    before 2026-11-30)."""
+    before 2026-11-30).
+
+    Since 2026-12-04 (night) the verdict judges pressures less one zero per
+    sensor: the offset the held-out starts take off where the fit
+    recordings agree on one (chamber P here, -996 Pa against the truth's
+    -960), else the fit recordings' mean residual (chamber N, one step
+    test: -105 Pa against the truth's +589). The held-out step test is then
+    p_P 2.3x and p_N 3.6x (with the truth's zeros 2.3x and 3.0x). What this
+    test holds is the law's: the held-out pressures' shape within 3x (each
+    recording's own mean off, as the figures above were measured; 2.50x
+    and 2.85x), and chamber P's, whose zero the recordings agree on,
+    within 3x in the verdict."""
     import pneumafit as pf
     from pneumafit.identification.staged import FitOptions
     from pneumafit.virtual_rig import VirtualRig
@@ -1796,8 +1807,19 @@ def test_a_dahl_law_of_one_s_own_on_a_dahl_rig(registered: None, tmp_path: Path)
     assert "static" not in reference and "sliding" not in reference
     coulomb = reference["coulomb"]["value"]
     assert abs(coulomb / truth["friction_coulomb"] - 1.0) < 0.05
-    held_out = [
-        c for c in fit.quality.channels
+    held_out = {
+        c.channel: c for c in fit.quality.channels
         if c.role == "validate" and c.kind == "step" and c.channel in ("p_P", "p_N")
-    ]  # fmt: skip
-    assert held_out and all(c.ratio is not None and c.ratio < 3.0 for c in held_out)
+    }  # fmt: skip
+    assert set(held_out) == {"p_P", "p_N"} and fit.quality.zeros_applied == ["p_P"]
+    assert held_out["p_P"].ratio is not None and held_out["p_P"].ratio < 3.0
+    # the shape: the replay's residuals less each recording's own mean
+    from pneumafit.identification.replay import replay
+
+    rep = replay(campaign, fit.structure, fit.parameters.values())
+    shape = {
+        (f, c): float(np.sqrt(np.nanmean(r * r))) / held_out[c].noise
+        for f, c, _i, r in rep.offset_free()
+        if f == held_out["p_P"].recording and c in held_out
+    }  # fmt: skip
+    assert len(shape) == 2 and all(v < 3.0 for v in shape.values()), shape

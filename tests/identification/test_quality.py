@@ -649,3 +649,66 @@ def test_the_fit_names_the_test_its_joint_refinement_gave_up(tmp_path: Path) -> 
             "step_1.h5",
         }
     assert named == {"constant b": ["discharge_P_1.h5"], "preset": []}
+
+
+def test_one_zero_per_pressure_sensor_from_the_fit_recordings() -> None:
+    """Plumbing and arithmetic, exact (made-up residuals, not a fit): the
+    verdict takes one zero per pressure channel off every recording, the
+    pooled mean of the fit recordings' residuals (sample-weighted), and
+    never a constant fitted to a held-out recording; other quantities and a
+    channel no fit recording compares are left as read."""
+    from pneumafit.identification.quality import zeros_phrase
+    from pneumafit.identification.replay import Compared, RecordingReplay, Replay
+
+    def rec(file: str, role: str, channels: dict[str, tuple[str, list[float]]]):
+        compared = {}
+        for ch, (quantity, res) in channels.items():
+            r = np.asarray(res, dtype=float)
+            rows = np.arange(r.size)
+            compared[ch] = Compared(ch, quantity, rows, rows * 0.01, r + 1e5, np.full(r.size, 1e5))
+        return RecordingReplay(file, "charge", role, np.arange(4) * 0.01, {}, 0, compared)
+
+    rep = Replay(
+        structure=fit_structure("convection"),
+        recordings=(
+            rec("a.h5", "fit", {"p_P": ("pressure", [1000.0, 1200.0])}),
+            rec(
+                "b.h5",
+                "fit",
+                {
+                    "p_P": ("pressure", [-300.0, -300.0, -300.0, -300.0]),
+                    "y": ("position", [1e-3, 2e-3]),
+                },
+            ),
+            rec(
+                "c.h5",
+                "validate",
+                {"p_P": ("pressure", [500.0, 700.0]), "p_N": ("pressure", [50.0, 70.0])},
+            ),
+        ),
+        probe=None,
+        lag_source="none",
+    )
+    zeros = rep.sensor_zeros()
+    # (1000 + 1200 - 4 x 300) / 6 samples; p_N is in no fit recording
+    assert zeros == pytest.approx({"p_P": 1000.0 / 6.0}, rel=1e-12)
+    out = {(f, c): r for f, c, _i, r in rep.sensor_offset_free()}
+    np.testing.assert_allclose(out[("c.h5", "p_P")], np.array([500.0, 700.0]) - 1000.0 / 6.0)
+    np.testing.assert_allclose(out[("c.h5", "p_N")], [50.0, 70.0])  # as read
+    np.testing.assert_allclose(out[("b.h5", "y")], [1e-3, 2e-3])  # not a pressure
+    # each recording's own mean (the fit's profiled offset) leaves the held-out
+    # recording's level error out; the sensor's zero keeps it
+    own = {(f, c): r for f, c, _i, r in rep.offset_free()}
+    np.testing.assert_allclose(own[("c.h5", "p_P")], [-100.0, 100.0])
+    assert zeros_phrase(zeros) == (
+        "pressures less one zero per sensor: p_P +167 Pa (the fit recordings' mean residual)"
+    )
+    assert zeros_phrase({"p_N": 20.0, "p_P": -5.0}, ["p_N"]) == (
+        "pressures less one zero per sensor: p_N +20 Pa (its offset), "
+        "p_P -5 Pa (the fit recordings' mean residual)"
+    )
+    assert zeros_phrase({}) == "pressures as read"
+    # given zeros (a fit's: the offsets its held-out starts take off) are used as given
+    given = {(f, c): r for f, c, _i, r in rep.sensor_offset_free({"p_N": 20.0})}
+    np.testing.assert_allclose(given[("c.h5", "p_P")], [500.0, 700.0])
+    np.testing.assert_allclose(given[("c.h5", "p_N")], [30.0, 50.0])

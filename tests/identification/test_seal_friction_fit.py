@@ -83,7 +83,14 @@ def test_friction_growing_with_pressure_is_found_on_a_truth_of_another_law(
     Held to: kept; first segment within 4x and held-out within 8x (half
     way, in ratio, between the two outcomes); static and Coulomb within 5 %
     (the truth's multiplicative law is not the fit's additive one; 5 % is
-    twice the worst error measured)."""
+    twice the worst error measured).
+
+    Since 2026-12-04 (night) the verdict takes one zero per pressure sensor
+    off every recording (not each recording's own mean): measured then,
+    kept first segment 4.42x and held-out 8.49x (p_N), and the fit without
+    the effect (``FitOptions(seal="off")``, the rejected outcome) 31.95x and
+    18.79x. The same rule, half way in ratio between the two outcomes, gives
+    11.9x and 12.6x: the bounds are 11.9 and 12.6."""
     from pneumafit.api import fit
     from pneumafit.identification import FitOptions
 
@@ -97,8 +104,8 @@ def test_friction_growing_with_pressure_is_found_on_a_truth_of_another_law(
         return max(c.ratio for c in result.quality.channels
                    if c.recording == recording and c.channel in ("p_P", "p_N"))  # fmt: skip
 
-    assert worst("step_1.h5@0.000s") < 4.0
-    assert worst("step_2.h5") < 8.0
+    assert worst("step_1.h5@0.000s") < 11.9
+    assert worst("step_2.h5") < 12.6
     ref = result.metrics["friction_reference"]
     assert ref["static"]["value"] == pytest.approx(truth["friction_static"], rel=0.05)
     assert ref["coulomb"]["value"] == pytest.approx(truth["friction_coulomb"], rel=0.05)

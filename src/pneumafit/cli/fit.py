@@ -51,6 +51,7 @@ from pneumafit.cli.console import (
 )
 from pneumafit.identification.fitfile import widening_label
 from pneumafit.identification.problem import NOISE_POOLINGS, QUANTITIES
+from pneumafit.identification.quality import zeros_phrase
 from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
@@ -275,7 +276,13 @@ def _quality_table(result: FitResult, console: Console) -> None:
     table = Table(
         title=Text(
             f"residual over sensor noise (noise from the recordings' quiet windows; "
-            f"above {quality.threshold:g}x: does not reach the noise)"
+            f"above {quality.threshold:g}x: does not reach the noise"
+            + (
+                f"; {zeros_phrase(quality.sensor_zeros, quality.zeros_applied)}"
+                if any(QUANTITIES.get(c.channel) == "pressure" for c in quality.channels)
+                else ""
+            )
+            + ")"
         )
     )
     for col in ("recording", "role", "channel", "RMS", "noise", "RMS/noise", "phases over"):

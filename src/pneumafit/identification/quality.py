@@ -65,6 +65,7 @@ __all__ = [
     "one_recording_caveat",
     "phases",
     "rest_offsets",
+    "zeros_phrase",
 ]
 
 #: RMS residual over noise above which a recording "does not reach the noise".
@@ -479,6 +480,22 @@ class FitQuality:
         recordings' initial pressures disagree on it, or agree on more than a
         transducer's zero can be off. A caveat: the model bends its initial
         pressures to follow recordings it cannot.
+    sensor_zeros : dict of str to float
+        Pressure channel -> the zero (Pa) taken off every recording's
+        pressure residual before its RMS (``channels``). A fit takes the
+        sensor's offset where its fit recordings agree on one, the same that
+        its held-out recordings' starts take off
+        (:func:`~pneumafit.identification.problem.pressure_offsets`;
+        ``zeros_applied``), else the mean of the fit recordings' residuals
+        of that channel, pooled
+        (:meth:`~pneumafit.identification.replay.Replay.sensor_zeros`); a
+        channel no fit recording compares is judged as read. One per
+        sensor, as a transducer has: a held-out recording's figure includes
+        its own mean error, and a fit recording's the part of the offset the
+        likelihood profiles on it that the other fit recordings do not share.
+    zeros_applied : list of str
+        The channels of ``sensor_zeros`` that are the sensor's offset, also
+        taken off the held-out recordings' initial readings.
     threshold : float
     """
 
@@ -493,6 +510,8 @@ class FitQuality:
     recorded_commands: dict[str, float | None] = field(default_factory=dict)
     staged: dict[str, float] = field(default_factory=dict)
     refused_offsets: list[str] = field(default_factory=list)
+    sensor_zeros: dict[str, float] = field(default_factory=dict)
+    zeros_applied: list[str] = field(default_factory=list)
     threshold: float = THRESHOLD
 
     def failing(self, role: str | None = None) -> list[ChannelQuality]:
@@ -691,8 +710,25 @@ class FitQuality:
             "recorded_commands": dict(self.recorded_commands),
             "staged": dict(self.staged),
             "refused_offsets": list(self.refused_offsets),
+            "sensor_zeros": dict(self.sensor_zeros),
+            "zeros_applied": list(self.zeros_applied),
             "recordings": [c.as_dict() for c in self.channels],
         }
+
+
+def zeros_phrase(zeros: Mapping[str, float], applied: Sequence[str] = ()) -> str:
+    """How the pressure residuals of the quality table were taken
+    (:attr:`FitQuality.sensor_zeros`, ``zeros_applied``), e.g. ``"pressures
+    less one zero per sensor: p_N +457 Pa (the fit recordings' mean
+    residual), p_P -827 Pa (its offset)"``."""
+    if not zeros:
+        return "pressures as read"
+    return "pressures less one zero per sensor: " + ", ".join(
+        f"{c} {v:+.0f} Pa ("
+        + ("its offset" if c in applied else "the fit recordings' mean residual")
+        + ")"
+        for c, v in sorted(zeros.items())
+    )
 
 
 def one_recording_caveat(one_recording: Mapping[str, str]) -> str:
@@ -719,8 +755,9 @@ def assess_residuals(
     ----------
     campaign : Campaign
     residuals : sequence of (recording file, channel, sample indices, residual)
-        The replay's residuals on the recording's own samples (SI), pressure
-        offsets already removed.
+        The replay's residuals on the recording's own samples (SI), the
+        pressure sensors' zeros already taken off
+        (:meth:`~pneumafit.identification.replay.Replay.sensor_offset_free`).
     fitted_channels : sequence of str
         Channels of the likelihood.
 

@@ -192,13 +192,59 @@ class Replay:
         return out
 
     def offset_free(self) -> list[tuple[str, str, NDArray[np.int64], NDArray[np.float64]]]:
-        """Every role's residuals, pressure offsets removed (for the quality check)."""
+        """Every role's residuals, each recording's own pressure offset removed
+        (the mean of its pressure residual: what the likelihood profiles on a
+        fit recording). On a held-out recording that is a constant fitted to
+        the recording itself; the quality check uses
+        :meth:`sensor_offset_free` instead."""
         out = []
         for items in self.residuals.values():
             for file, channel, quantity, idx, res in items:
                 if quantity == "pressure":
                     good = np.isfinite(res)
                     res = res - (np.mean(res[good]) if np.any(good) else 0.0)
+                out.append((file, channel, idx, res))
+        return out
+
+    def sensor_zeros(self, role: str = "fit") -> dict[str, float]:
+        """One zero per pressure sensor (Pa, measured less predicted), from the
+        ``role`` recordings only.
+
+        A transducer has one zero for the campaign, so the fit recordings'
+        pressure residuals of one channel, pooled sample by sample, give it
+        (their mean: the least-squares constant over all of them). A channel
+        no ``role`` recording compares has no entry.
+        """
+        sums: dict[str, list[float]] = {}
+        for _file, channel, quantity, _idx, res in self.residuals.get(role, []):
+            if quantity != "pressure":
+                continue
+            r = np.asarray(res, dtype=float)
+            r = r[np.isfinite(r)]
+            acc = sums.setdefault(channel, [0.0, 0.0])
+            acc[0] += float(np.sum(r))
+            acc[1] += r.size
+        return {c: s / n for c, (s, n) in sums.items() if n > 0}
+
+    def sensor_offset_free(
+        self, zeros: Mapping[str, float] | None = None
+    ) -> list[tuple[str, str, NDArray[np.int64], NDArray[np.float64]]]:
+        """Every role's residuals less one zero per pressure sensor (the quality check).
+
+        Parameters
+        ----------
+        zeros : mapping of str to float, optional
+            Pressure channel -> the sensor's zero (Pa); default
+            :meth:`sensor_zeros` of this replay's fit recordings. A channel
+            without one is compared as read (zero 0): nothing fitted to a
+            held-out recording enters its figure.
+        """
+        zeros = self.sensor_zeros() if zeros is None else zeros
+        out = []
+        for items in self.residuals.values():
+            for file, channel, quantity, idx, res in items:
+                if quantity == "pressure":
+                    res = res - float(zeros.get(channel, 0.0))
                 out.append((file, channel, idx, res))
         return out
 

@@ -2115,10 +2115,14 @@ def identify(
             structure, values, rig, laplace, est, friction_draws, seeds[7]
         )
     runs = [s.mcmc for s in stages if s.mcmc is not None]
+    # the verdict judges every recording's pressures less one zero per sensor:
+    # its offset where the fit recordings agree on one (what the held-out
+    # recordings' starts take off), else the fit recordings' mean residual
+    zeros = {**rep.sensor_zeros(), **{c: o.value for c, o in offsets.items() if o.applies}}
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels,
                      one_recording=one_recording, values=values,
                      max_step=opts.max_step, staged_values=staged_values,
-                     fit_recordings=all_fit)  # fmt: skip
+                     fit_recordings=all_fit, zeros=zeros)  # fmt: skip
     quality.unconverged = [
         f"{s.name} ({s.estimate.message})"
         for s in stages
@@ -2126,6 +2130,7 @@ def identify(
     ]
     quality.not_identified = unidentified
     quality.refused_offsets = [o.describe() for o in offsets.values() if not o.applies]
+    quality.zeros_applied = sorted(c for c, o in offsets.items() if o.applies)
     say(f"quality: {quality.verdict()}")
     return FitResult(
         model=name, structure=structure, parameters=final, laplace=laplace, stages=stages,
@@ -2458,6 +2463,7 @@ def assess(
     max_step: float | None = MAX_STEP,
     staged_values: Mapping[str, float] | None = None,
     fit_recordings: Sequence[Recording] = (),
+    zeros: Mapping[str, float] | None = None,
 ) -> FitQuality:
     """Everything that says whether a fit can be trusted (:mod:`.quality`);
     ``one_recording``: parameter -> the one recording its interval rests on
@@ -2466,7 +2472,10 @@ def assess(
     piston rests elsewhere with the recorded commands too
     (:attr:`FitQuality.recorded_commands`; not without ``values``);
     ``staged_values`` (the estimate before the joint refinement): replay
-    ``fit_recordings`` with it (:attr:`FitQuality.staged`)."""
+    ``fit_recordings`` with it (:attr:`FitQuality.staged`); ``zeros``
+    (pressure channel -> Pa): taken off every recording's pressure residual,
+    and from the staged and recorded-command replays' too (a channel without
+    one is judged as read); default :meth:`Replay.sensor_zeros` of ``rep``."""
     recs = {r.file: r for r in campaign.recordings}
     rest = [
         offset
@@ -2474,22 +2483,26 @@ def assess(
         if r.ok and r.file in recs
         for offset in rest_offsets(recs[r.file], r.simulated)
     ]
+    # one zero per pressure sensor: nothing fitted to a held-out recording
+    # enters its figure
+    zeros = rep.sensor_zeros() if zeros is None else dict(zeros)
     quality = FitQuality(
-        channels=assess_residuals(campaign, rep.offset_free(), channels),
+        channels=assess_residuals(campaign, rep.sensor_offset_free(zeros), channels),
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
         one_recording=dict(one_recording or {}),
         rest_positions=rest,
+        sensor_zeros=zeros,
     )
     if staged_values is not None and fit_recordings:
         quality.staged = _staged_ratios(
-            campaign, fit_recordings, rep.structure, staged_values, channels, max_step
+            campaign, fit_recordings, rep.structure, staged_values, channels, max_step, zeros
         )
     if values is not None:
         named = [recs[r.recording] for r in quality.stops_elsewhere()]
         quality.recorded_commands = _recorded_commands(
-            campaign, named, rep.structure, values, max_step
+            campaign, named, rep.structure, values, max_step, zeros
         )
     return quality
 
@@ -2501,14 +2514,18 @@ def _staged_ratios(
     values: Mapping[str, float],
     channels: Sequence[str],
     max_step: float | None,
+    zeros: Mapping[str, float],
 ) -> dict[str, float]:
     """Largest RMS over noise of the fitted ``channels`` of each of
-    ``recordings`` replayed with ``values`` (:attr:`FitQuality.staged`); no
-    entry for a recording whose replay fails."""
+    ``recordings`` replayed with ``values`` (:attr:`FitQuality.staged`), the
+    pressures less ``zeros`` as the verdict's; no entry for a recording
+    whose replay fails."""
     rep = replay(list(recordings), structure, values, channels=tuple(channels),
                  estimate_lag=False, max_step=max_step)  # fmt: skip
     ok = {r.file for r in rep.recordings if r.ok}
-    worst = FitQuality(assess_residuals(campaign, rep.offset_free(), channels)).worst_fitted()
+    worst = FitQuality(
+        assess_residuals(campaign, rep.sensor_offset_free(zeros), channels)
+    ).worst_fitted()
     return {f: v for f, v in worst.items() if f in ok}
 
 
@@ -2518,12 +2535,16 @@ def _recorded_commands(
     structure: ModelStructure,
     values: Mapping[str, float],
     max_step: float | None,
+    zeros: Mapping[str, float] | None = None,
 ) -> dict[str, float | None]:
     """Largest pressure RMS over noise of each closed-loop step test of
     ``recordings`` replayed with the recorded commands instead of the model's
     controller (:func:`~pneumafit.identification.replay.with_recorded_commands`;
-    :attr:`FitQuality.recorded_commands`); None where that replay fails, no
-    entry for a test that cannot be driven so."""
+    :attr:`FitQuality.recorded_commands`), less the pressure sensors'
+    ``zeros`` (Pa, :meth:`Replay.sensor_zeros` of the fit's replay; default:
+    those of each test's own replay when it is a fit recording, none for a
+    held-out one); None where that replay fails, no entry for a test that
+    cannot be driven so."""
     out: dict[str, float | None] = {}
     for rec in recordings:
         opened = with_recorded_commands(rec)
@@ -2532,7 +2553,7 @@ def _recorded_commands(
         rep = replay([opened], structure, values, channels=("p_P", "p_N"), max_step=max_step)
         ratios = [
             c.ratio
-            for c in assess_residuals(campaign, rep.offset_free(), ())
+            for c in assess_residuals(campaign, rep.sensor_offset_free(zeros), ())
             if c.ratio is not None
         ]
         out[rec.file] = max(ratios) if ratios and rep.recordings[0].ok else None

@@ -37,6 +37,7 @@ from pneumafit.campaign.units import display_unit
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.fileio import check_output, write_text_atomic
 from pneumafit.identification.fitfile import widening_label
+from pneumafit.identification.quality import zeros_phrase
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.report_html import (
     Section,
@@ -604,7 +605,17 @@ def _quality_html(doc: Mapping[str, Any]) -> str:
             ["recording", "role", "channel", "RMS residual", "sensor noise", "RMS / noise",
              "phases above the threshold"], rows,
             caption="Residual over sensor noise (noise from each recording's quiet windows; "
-            f"above {quality.get('threshold', 3):g}x the fit does not reach the noise)",
+            f"above {quality.get('threshold', 3):g}x the fit does not reach the noise"
+            + (
+                f"; {zeros_phrase(quality['sensor_zeros'], quality.get('zeros_applied') or ())}"
+                if "sensor_zeros" in quality
+                and any(
+                    str(r.get("channel", "")).startswith("p_")
+                    for r in quality.get("recordings") or []
+                )
+                else ""
+            )
+            + ")",
         ))  # fmt: skip
     return "\n".join(parts)
 

@@ -700,14 +700,16 @@ def test_one_zero_per_pressure_sensor_from_the_fit_recordings() -> None:
     # recording's level error out; the sensor's zero keeps it
     own = {(f, c): r for f, c, _i, r in rep.offset_free()}
     np.testing.assert_allclose(own[("c.h5", "p_P")], [-100.0, 100.0])
-    assert zeros_phrase(zeros) == (
+    tables = ("p_P", "y")  # the quality table's channels
+    assert zeros_phrase(zeros, (), tables) == (
         "pressures less one zero per sensor: p_P +167 Pa (the fit recordings' mean residual)"
     )
-    assert zeros_phrase({"p_N": 20.0, "p_P": -5.0}, ["p_N"]) == (
+    assert zeros_phrase({"p_N": 20.0, "p_P": -5.0}, ["p_N"], tables) == (
         "pressures less one zero per sensor: p_N +20 Pa (its offset), "
         "p_P -5 Pa (the fit recordings' mean residual)"
     )
-    assert zeros_phrase({}) == "pressures as read"
+    assert zeros_phrase({}, (), tables) == "pressures as read"
+    assert zeros_phrase(zeros, (), ("F", "y")) == ""  # no pressure in the table
     # given zeros (a fit's: the offsets its held-out starts take off) are used as given
     given = {(f, c): r for f, c, _i, r in rep.sensor_offset_free({"p_N": 20.0})}
     np.testing.assert_allclose(given[("c.h5", "p_P")], [500.0, 700.0])

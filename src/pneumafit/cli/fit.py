@@ -273,15 +273,14 @@ def _quality_table(result: FitResult, console: Console) -> None:
     quality = result.quality
     if quality is None or not quality.channels:
         return
+    zeros = zeros_phrase(
+        quality.sensor_zeros, quality.zeros_applied, (c.channel for c in quality.channels)
+    )
     table = Table(
         title=Text(
             f"residual over sensor noise (noise from the recordings' quiet windows; "
             f"above {quality.threshold:g}x: does not reach the noise"
-            + (
-                f"; {zeros_phrase(quality.sensor_zeros, quality.zeros_applied)}"
-                if any(QUANTITIES.get(c.channel) == "pressure" for c in quality.channels)
-                else ""
-            )
+            + (f"; {zeros}" if zeros else "")
             + ")"
         )
     )

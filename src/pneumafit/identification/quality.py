@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.identification.noise import detect_resolution
+from pneumafit.identification.problem import QUANTITIES
 
 __all__ = [
     "THRESHOLD",
@@ -716,11 +717,16 @@ class FitQuality:
         }
 
 
-def zeros_phrase(zeros: Mapping[str, float], applied: Sequence[str] = ()) -> str:
+def zeros_phrase(
+    zeros: Mapping[str, float], applied: Sequence[str] = (), channels: Iterable[str] = ()
+) -> str:
     """How the pressure residuals of the quality table were taken
     (:attr:`FitQuality.sensor_zeros`, ``zeros_applied``), e.g. ``"pressures
     less one zero per sensor: p_N +457 Pa (the fit recordings' mean
-    residual), p_P -827 Pa (its offset)"``."""
+    residual), p_P -827 Pa (its offset)"``; empty when none of the table's
+    ``channels`` is a pressure."""
+    if not any(QUANTITIES.get(c) == "pressure" for c in channels):
+        return ""
     if not zeros:
         return "pressures as read"
     return "pressures less one zero per sensor: " + ", ".join(

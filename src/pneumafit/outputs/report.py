@@ -601,21 +601,21 @@ def _quality_html(doc: Mapping[str, Any]) -> str:
             cell, esc(", ".join(over)),
         ])  # fmt: skip
     if rows:
+        # a fit.json written before 2026-12-04 has no zeros: no phrase
+        zeros = (
+            zeros_phrase(
+                quality["sensor_zeros"], quality.get("zeros_applied") or (),
+                (str(r.get("channel", "")) for r in quality.get("recordings") or []),
+            )
+            if "sensor_zeros" in quality
+            else ""
+        )  # fmt: skip
         parts.append(table(
             ["recording", "role", "channel", "RMS residual", "sensor noise", "RMS / noise",
              "phases above the threshold"], rows,
             caption="Residual over sensor noise (noise from each recording's quiet windows; "
             f"above {quality.get('threshold', 3):g}x the fit does not reach the noise"
-            + (
-                f"; {zeros_phrase(quality['sensor_zeros'], quality.get('zeros_applied') or ())}"
-                if "sensor_zeros" in quality
-                and any(
-                    str(r.get("channel", "")).startswith("p_")
-                    for r in quality.get("recordings") or []
-                )
-                else ""
-            )
-            + ")",
+            + (f"; {zeros}" if zeros else "") + ")",
         ))  # fmt: skip
     return "\n".join(parts)
 

@@ -456,13 +456,14 @@ def bad_option(draw: st.DrawFn) -> tuple[str, list[str], str]:
     command = draw(st.sampled_from(["fit", "compare", "discover"]))
     choices = {
         "fit": ["--steps", "--walkers", "--seed", "--model", "--valve", "--friction",
-                "--seal-friction", "--noise-pooling", "--inputs", "--segments"],
+                "--seal-friction", "--noise-pooling", "--inputs", "--segments",
+                "--offset-scope"],
         "compare": ["--steps", "--walkers", "--seed"],
         "discover": ["--rounds", "--per-round", "--seed"],
     }[command]  # fmt: skip
     option = draw(st.sampled_from(choices))
     if option in ("--model", "--valve", "--friction", "--seal-friction", "--noise-pooling",
-                  "--inputs", "--segments"):  # fmt: skip
+                  "--inputs", "--segments", "--offset-scope"):  # fmt: skip
         known = (*MODELS, "iso6358", "map", "auto", "switch", "lugre", "on", "off", "recording",
                  "sensor", "hold", "linear")  # fmt: skip
         value = draw(WORD.filter(lambda w: w not in known))

@@ -310,10 +310,13 @@ def test_noise_pooled_per_sensor_shares_one_sigma(small: tuple) -> None:
         _setup(small, ("charge",), noise_pooling="channel")
 
 
-def test_the_noise_pooling_goes_with_the_fit() -> None:
-    """fit.json records FitOptions.noise_pooling; discovery's refits read it
-    (a fit.json written before the option existed was pooled per recording),
-    and the fit's command line says it when it is not the default."""
+@pytest.mark.parametrize("option", ["noise_pooling", "offset_scope"])
+def test_the_option_goes_with_the_fit(option: str) -> None:
+    """fit.json records FitOptions.noise_pooling and .offset_scope (both
+    "recording" by default); discovery's refits read them (a fit.json
+    written before the option existed was "recording": a noise level, a
+    pressure offset per recording), and the fit's command line says them
+    when they are not the default."""
     import json
     from types import SimpleNamespace
 
@@ -323,16 +326,91 @@ def test_the_noise_pooling_goes_with_the_fit() -> None:
     from pneumafit.identification.staged import FitResult
     from pneumafit.services.fit import fit_command_line
 
+    assert getattr(FitOptions(), option) == "recording"
     result = FitResult(
         model="convection", structure=STRUCTURE, parameters=ParameterSet.for_model(STRUCTURE),
-        laplace=None, stages=[], metrics={}, options=FitOptions(noise_pooling="sensor"),
+        laplace=None, stages=[], metrics={}, options=FitOptions(**{option: "sensor"}),
     )  # fmt: skip
     camp = SimpleNamespace(name="test", path=None, sha256={})
     doc = json.loads(json.dumps(fit_document(result, camp, seed=0)))
-    assert doc["provenance"]["options"]["noise_pooling"] == "sensor"
-    assert BaseFit.from_document(doc).noise_pooling == "sensor"
-    del doc["provenance"]["options"]["noise_pooling"]
-    assert BaseFit.from_document(doc).noise_pooling == "recording"
-    line = fit_command_line("c", "convection", "o", None, None, 0, False, noise_pooling="sensor")
-    assert line.endswith("--noise-pooling sensor")
-    assert "--noise-pooling" not in fit_command_line("c", "convection", "o", None, None, 0, False)
+    assert doc["provenance"]["options"][option] == "sensor"
+    assert getattr(BaseFit.from_document(doc), option) == "sensor"
+    del doc["provenance"]["options"][option]
+    assert getattr(BaseFit.from_document(doc), option) == "recording"
+    flag = "--" + option.replace("_", "-")
+    line = fit_command_line("c", "convection", "o", None, None, 0, False, **{option: "sensor"})
+    assert line.endswith(f"{flag} sensor")
+    assert flag not in fit_command_line("c", "convection", "o", None, None, 0, False)
+
+
+def test_one_offset_per_pressure_sensor_is_the_joint_least_squares(small: tuple) -> None:
+    """Exact, on the linear algebra: with ``offset_scope="sensor"`` the
+    residuals are those of the joint weighted least squares over one
+    constant per channel, shared by its blocks, and each block's own
+    initial-state sensitivities (weights: the blocks' tempering powers),
+    computed here by brute force on the stacked blocks; a constant added to
+    every reading of one sensor leaves them unchanged, and
+    :meth:`Problem.sensor_offsets` gives it back. ``"recording"`` keeps one
+    constant per block (its residuals each sum to zero)."""
+    prob, _ps, truth = _setup(small, ("charge", "discharge", "step"), offset_scope="sensor")
+    assert prob.offset_scope == "sensor"
+    prob.linearize(truth)
+    rng = np.random.default_rng(3)
+    prob.tempering = rng.uniform(0.05, 1.0, len(prob.observations))
+    off = {**truth, "xi": truth["xi"] * 1.3, "friction_static": truth["friction_static"] * 0.8}
+    pred = prob.predict({k: np.array([v]) for k, v in off.items()}, 1)
+    got = prob.residuals(pred)
+    raw = prob.raw_residuals(pred)
+    members = [j for j, o in enumerate(prob.observations) if o.channel == "p_P"]
+    assert len(members) >= 3
+    assert any(prob.bases[j] is not None for j in members)
+    # brute force: columns [Q_1 .. Q_k (block-diagonal), ones], rows scaled by sqrt(t_b)
+    sizes = [prob.observations[j].n for j in members]
+    starts = np.cumsum([0, *sizes])
+    ncol = sum(0 if prob.bases[j] is None else prob.bases[j].shape[1] for j in members) + 1
+    mat = np.zeros((starts[-1], ncol))
+    rhs = np.zeros(starts[-1])
+    col = 0
+    for b, j in enumerate(members):
+        o, q = prob.observations[j], prob.bases[j]
+        rows = slice(starts[b], starts[b + 1])
+        w = np.ones(o.n) if o.weight is None else o.weight
+        s = np.sqrt(prob.tempering[j])
+        rhs[rows] = s * raw[j][0] * w
+        mat[rows, -1] = s * w
+        if q is not None:
+            mat[rows, col : col + q.shape[1]] = s * q
+            col += q.shape[1]
+    coef, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+    brute = rhs - mat @ coef
+    for b, j in enumerate(members):
+        s = np.sqrt(prob.tempering[j])
+        np.testing.assert_allclose(
+            got[j][0], brute[starts[b] : starts[b + 1]] / s, atol=1e-9 * np.abs(rhs).max()
+        )
+    np.testing.assert_allclose(prob.sensor_offsets(pred)["p_P"][0], coef[-1], rtol=1e-9)
+    # a shared sensor zero is taken off whole
+    shifted = [
+        dataclasses.replace(o, data=o.data + 750.0) if o.channel == "p_P" else o
+        for o in prob.observations
+    ]
+    plain = prob.observations
+    prob.observations = shifted
+    again = prob.residuals(pred)
+    np.testing.assert_allclose(prob.sensor_offsets(pred)["p_P"][0], coef[-1] + 750.0, rtol=1e-9)
+    prob.observations = plain
+    for j in members:
+        np.testing.assert_allclose(again[j], got[j], atol=1e-6)
+    # one per recording: each block's weighted residual sums to zero
+    own, _, _ = _setup(small, ("charge", "discharge", "step"))
+    assert own.offset_scope == "recording"  # the default
+    own.linearize(truth)
+    for j, r in enumerate(own.residuals(pred)):
+        o = own.observations[j]
+        if o.channel == "p_P":
+            w = np.ones(o.n) if o.weight is None else o.weight
+            assert abs(float(r[0] @ w)) < 1e-6 * float(np.abs(r[0]).sum())
+    assert own.sensor_offsets(pred) == {}
+    assert own.n_nuisance > prob.n_nuisance
+    with pytest.raises(ValueError, match="offset_scope"):
+        _setup(small, ("charge",), offset_scope="campaign")

@@ -38,6 +38,7 @@ from pneumafit.cli.console import (
     release_output,
 )
 from pneumafit.errors import PneumafitComputationError
+from pneumafit.identification.problem import OFFSET_SCOPE
 from pneumafit.models.parts import Friction, Model, Valve
 from pneumafit.models.structure import INPUT_MODE
 
@@ -363,6 +364,15 @@ def fit(
             "6 s or more), on (every fit step test) or off. Held-out tests are replayed whole.",
         ),
     ] = "auto",
+    offset_scope: Annotated[
+        str,
+        typer.Option(
+            "--offset-scope",
+            help="recording (one profiled pressure offset per recording and sensor, the "
+            "default) or sensor (one per sensor, shared by the recordings: a model whose "
+            "levels are wrong at rest is not excused recording by recording).",
+        ),
+    ] = OFFSET_SCOPE,
 ) -> None:
     """Staged identification (valve, heat transfer, friction, joint) with MCMC.
 
@@ -374,7 +384,7 @@ def fit(
 
     code = fit_command(
         campaign, model, out, walkers, steps, seed, not no_mcmc, console, strict, valve,
-        friction, seal_friction, noise_pooling, inputs, segments,
+        friction, seal_friction, noise_pooling, inputs, segments, offset_scope,
     )  # fmt: skip
     raise typer.Exit(code)
 

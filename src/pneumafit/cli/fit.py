@@ -50,7 +50,7 @@ from pneumafit.cli.console import (
     run_guarded,
 )
 from pneumafit.identification.fitfile import widening_label
-from pneumafit.identification.problem import NOISE_POOLINGS, QUANTITIES
+from pneumafit.identification.problem import NOISE_POOLINGS, OFFSET_SCOPE, OFFSET_SCOPES, QUANTITIES
 from pneumafit.identification.quality import zeros_phrase
 from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.identification.staged import (
@@ -120,6 +120,7 @@ def fit_command(
     noise_pooling: str = "recording",
     inputs: str = INPUT_MODE,
     segments: str = "auto",
+    offset_scope: str = OFFSET_SCOPE,
 ) -> int:
     """Fit a model to a campaign and write ``OUT/fit.json`` and ``OUT/chains.h5``.
 
@@ -155,6 +156,9 @@ def fit_command(
     segments : {"auto", "on", "off"}
         ``--segments``: long closed-loop step tests fitted in segments
         (:class:`FitOptions`).
+    offset_scope : {"sensor", "recording"}
+        ``--offset-scope``: one profiled pressure offset per sensor or per
+        recording (:class:`FitOptions`).
 
     Returns
     -------
@@ -196,6 +200,11 @@ def fit_command(
         problems.append(
             f"option --segments: expected one of {', '.join(SEGMENT_MODES)}, found {segments!r}"
         )
+    if offset_scope not in OFFSET_SCOPES:
+        problems.append(
+            f"option --offset-scope: expected one of {', '.join(OFFSET_SCOPES)}, "
+            f"found {offset_scope!r}"
+        )
     out = Path(out)
     problems.append(folder_problem(out))
     if report_problems(console, problems):
@@ -206,11 +215,11 @@ def fit_command(
     command = fit_command_line(campaign, model, out, walkers, steps, seed, mcmc, strict=strict,
                                valve=valve, friction=friction, seal=seal,
                                noise_pooling=noise_pooling, inputs=inputs,
-                               segments=segments)  # fmt: skip
+                               segments=segments, offset_scope=offset_scope)  # fmt: skip
     options = FitOptions(
         mcmc=mcmc, walkers=walkers, steps=steps, progress=console.is_terminal, valve=valve,
         friction=friction, seal=seal, noise_pooling=noise_pooling, inputs=inputs,
-        segments=segments,
+        segments=segments, offset_scope=offset_scope,
     )  # fmt: skip
     try:
         out.mkdir(parents=True, exist_ok=True)

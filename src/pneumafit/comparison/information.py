@@ -49,7 +49,7 @@ from pneumafit.campaign.model import Campaign
 from pneumafit.comparison.elpd import WAIC_VARIANCE_LIMIT, psis_loo, waic
 from pneumafit.comparison.evaluate import fit_values
 from pneumafit.errors import PneumafitInputError
-from pneumafit.identification.fitfile import noise_pooling_of
+from pneumafit.identification.fitfile import noise_pooling_of, offset_scope_of
 from pneumafit.identification.noise import AR1, Gaussian
 from pneumafit.identification.problem import MAX_STEP, Problem
 from pneumafit.identification.staged import DEFAULT_CHANNELS
@@ -215,7 +215,7 @@ def posterior_criteria(
             fit_recs, structure, values, channels=channels, noise=noise,
             sensor_lags=lags, max_step=options.get("max_step", MAX_STEP),
             offsets=tuple(options.get("offsets") or ("pressure",)), initial_nuisance=True,
-            noise_pooling=noise_pooling_of(options),
+            offset_scope=offset_scope_of(options), noise_pooling=noise_pooling_of(options),
         )  # fmt: skip
     except ValueError as exc:
         return _unavailable(f"cannot set up the likelihood of the fit recordings: {exc}")

@@ -69,7 +69,13 @@ from pneumafit.identification.fitfile import SavedFit
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares, information_stall
 from pneumafit.identification.parameters import ParameterSet
-from pneumafit.identification.problem import MAX_STEP, NOISE_POOLING, OFFSET_PREFIX, Problem
+from pneumafit.identification.problem import (
+    MAX_STEP,
+    NOISE_POOLING,
+    OFFSET_PREFIX,
+    OFFSET_SCOPE,
+    Problem,
+)
 from pneumafit.identification.quality import campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
 from pneumafit.identification.segments import segment_step_tests
@@ -182,6 +188,9 @@ class BaseFit:
         Channels compared in the likelihood.
     offsets : tuple of str
         Quantities with a profiled sensor offset.
+    offset_scope : str
+        How widely the base fit shared them (``FitOptions.offset_scope``;
+        ``recording`` for a fit.json written before the option existed).
     max_step : float or None
         Largest integration step (s).
     correct_solver : bool
@@ -208,6 +217,7 @@ class BaseFit:
     free: tuple[str, ...]
     channels: tuple[str, ...] = DEFAULT_CHANNELS
     offsets: tuple[str, ...] = ("pressure",)
+    offset_scope: str = OFFSET_SCOPE
     max_step: float | None = MAX_STEP
     correct_solver: bool = True
     noise_pooling: str = NOISE_POOLING
@@ -239,6 +249,7 @@ class BaseFit:
             free=free,
             channels=tuple(opts.get("channels") or DEFAULT_CHANNELS),
             offsets=tuple(opts.get("offsets") or ("pressure",)),
+            offset_scope=fit.offset_scope,
             max_step=opts.get("max_step", MAX_STEP),
             correct_solver=bool(opts.get("correct_solver", True)),
             noise_pooling=fit.noise_pooling,
@@ -404,8 +415,8 @@ def _problem(
     lags = {c: "temperature_sensor_lag" for c in ("T_P", "T_N") if c in chans}
     return Problem(
         campaign.by_role("fit"), structure, values, channels=chans, sensor_lags=lags,
-        max_step=base.max_step, offsets=base.offsets, initial_nuisance=False,
-        noise_pooling=base.noise_pooling,
+        max_step=base.max_step, offsets=base.offsets, offset_scope=base.offset_scope,
+        initial_nuisance=False, noise_pooling=base.noise_pooling,
     )  # fmt: skip
 
 

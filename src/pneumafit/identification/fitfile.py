@@ -84,6 +84,9 @@ except ``friction``, which came with the LuGre law):
 - ``provenance.options.noise_pooling`` absent: ``"recording"`` (every fit
   written before the option profiled a noise level per recording and
   channel; :func:`noise_pooling_of`);
+- ``provenance.options.offset_scope`` absent: ``"recording"`` (every fit
+  written before the option profiled a pressure offset per recording and
+  channel; :func:`offset_scope_of`);
 - ``provenance.parts`` absent: "" (written before 2026-11-30, seventeenth
   session; a run reuses such a fit only without outside parts).
 """
@@ -127,6 +130,7 @@ __all__ = [
     "is_fit_document",
     "load_fit",
     "noise_pooling_of",
+    "offset_scope_of",
     "write_fit_json",
 ]
 
@@ -136,6 +140,14 @@ FIT_VERSION = 1
 FIT_FILE = "fit.json"
 #: The emcee chains beside fit.json, when ``mcmc.chains.file`` names none.
 CHAINS_FILE = "chains.h5"
+
+
+def offset_scope_of(options: Mapping[str, Any] | None) -> str:
+    """How widely a fit shared its profiled sensor offsets, from its
+    ``provenance.options`` (``FitOptions.offset_scope``); ``"recording"``
+    when absent (the module doc's fallback)."""
+    scope = (options or {}).get("offset_scope")
+    return str(scope) if scope else "recording"
 
 
 def noise_pooling_of(options: Mapping[str, Any] | None) -> str:
@@ -490,6 +502,11 @@ class SavedFit:
         """``provenance.options``: the settings the fit was made with (JSON form)."""
         options = self.provenance.get("options")
         return dict(options) if isinstance(options, Mapping) else None
+
+    @property
+    def offset_scope(self) -> str:
+        """``provenance.options.offset_scope`` (:func:`offset_scope_of`)."""
+        return offset_scope_of(self.options)
 
     @property
     def noise_pooling(self) -> str:

@@ -77,6 +77,7 @@ from pneumafit.identification.problem import (
     MAX_STEP,
     NOISE_POOLING,
     OFFSET_PREFIX,
+    OFFSET_SCOPE,
     Problem,
     pressure_offsets,
 )
@@ -694,7 +695,12 @@ class FitOptions:
     max_step : float or None
         Largest integration step (s), see :class:`Problem`.
     offsets : tuple of str
-        Quantities given a per-recording sensor offset (profiled).
+        Quantities given a profiled sensor offset.
+    offset_scope : {"recording", "sensor"}
+        One profiled offset per recording and channel (default), or one per
+        sensor, shared by the recordings of a stage
+        (:class:`~pneumafit.identification.problem.Problem`,
+        :data:`~pneumafit.identification.problem.OFFSET_SCOPE`).
     initial_nuisance : bool
         Profile the initial-state errors (see :meth:`Problem.linearize`).
     random_starts : int
@@ -765,6 +771,7 @@ class FitOptions:
     air_properties: str = "sutherland"
     max_step: float | None = MAX_STEP
     offsets: tuple[str, ...] = ("pressure",)
+    offset_scope: str = OFFSET_SCOPE
     initial_nuisance: bool = True
     random_starts: int = 0
     correct_solver: bool = True
@@ -1028,8 +1035,8 @@ def _problem(
     lags = {c: "temperature_sensor_lag" for c in ("T_P", "T_N") if c in chans}
     return Problem(
         recs, structure, values, channels=chans, noise=options.noise, sensor_lags=lags,
-        max_step=options.max_step, offsets=options.offsets, initial_nuisance=initial_nuisance,
-        noise_pooling=options.noise_pooling,
+        max_step=options.max_step, offsets=options.offsets, offset_scope=options.offset_scope,
+        initial_nuisance=initial_nuisance, noise_pooling=options.noise_pooling,
     )  # fmt: skip
 
 
@@ -1104,7 +1111,7 @@ def _valve_key(
         repr(VALVE_LAWS[structure.valve]),
         int(seed),
         repr((opts.valve, opts.max_step, opts.noise, opts.channels, opts.offsets,
-              opts.initial_nuisance, opts.random_starts)),
+              opts.initial_nuisance, opts.random_starts, opts.offset_scope)),
     )  # fmt: skip
 
 
@@ -1123,6 +1130,7 @@ def _pressure_rms(
         prob = Problem(
             list(recordings), structure, values, channels=("p_P", "p_N"),
             max_step=opts.max_step, initial_nuisance=False, offsets=("pressure",),
+            offset_scope="recording",
         )  # fmt: skip
     except ValueError:
         return None

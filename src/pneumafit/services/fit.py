@@ -29,6 +29,7 @@ import h5py
 from pneumafit.campaign.model import Campaign
 from pneumafit.errors import PneumafitComputationError
 from pneumafit.identification.fitfile import CHAINS_FILE, FIT_FILE, _version
+from pneumafit.identification.problem import OFFSET_SCOPE
 from pneumafit.identification.replay import replay, with_recorded_commands
 from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.staged import FitOptions, FitResult, identify
@@ -184,6 +185,7 @@ def fit_command_line(
     walkers: int | None, steps: int | None, seed: int, mcmc: bool, *, strict: bool = False,
     valve: str = "iso6358", friction: str = "auto", seal: str = "long",
     noise_pooling: str = "recording", inputs: str = INPUT_MODE, segments: str = "auto",
+    offset_scope: str = OFFSET_SCOPE,
 ) -> str:  # fmt: skip
     """The ``pneumafit fit`` command line of these options (fit.json's
     ``provenance.command``): the defaults are left out."""
@@ -200,6 +202,7 @@ def fit_command_line(
         + (f" --noise-pooling {noise_pooling}" if noise_pooling != "recording" else "")
         + (f" --inputs {inputs}" if inputs != INPUT_MODE else "")
         + (f" --segments {segments}" if segments != "auto" else "")
+        + (f" --offset-scope {offset_scope}" if offset_scope != OFFSET_SCOPE else "")
     )
 
 

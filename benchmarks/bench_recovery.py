@@ -27,6 +27,7 @@ Markdown.
 
     python benchmarks/bench_recovery.py [--seeds 1 2 3] [--cases NAME ...]
            [--valve iso6358|map] [--friction auto|switch|lugre] [--mcmc] [--no-robust]
+           [--offset-scope sensor|recording]
            [--table docs/recovery-table.md]
 """
 
@@ -45,6 +46,7 @@ import numpy as np
 
 from pneumafit.campaign import read_campaign
 from pneumafit.identification import FitOptions, identify
+from pneumafit.identification.problem import OFFSET_SCOPE, OFFSET_SCOPES
 from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.models.structure import INPUT_MODE, INPUT_MODES
 from pneumafit.virtual_rig import VirtualRig, get_protocol
@@ -100,6 +102,7 @@ def run_case(
     friction: str = "auto",
     seal: str = "off",
     noise_pooling: str = "recording",
+    offset_scope: str = OFFSET_SCOPE,
     inputs: str = INPUT_MODE,
     robust: bool = True,
     segments: str = "auto",
@@ -121,6 +124,7 @@ def run_case(
             friction=friction,
             seal=seal,
             noise_pooling=noise_pooling,
+            offset_scope=offset_scope,
             inputs=inputs,
             robust=robust,
             segments=segments,
@@ -248,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seal", default="long", choices=("long", "off", "auto", "on"))
     ap.add_argument("--noise-pooling", default="recording", choices=("recording", "sensor"))
     ap.add_argument("--inputs", default=INPUT_MODE, choices=INPUT_MODES)
+    ap.add_argument("--offset-scope", default=OFFSET_SCOPE, choices=OFFSET_SCOPES)
     ap.add_argument("--mcmc", action="store_true", help="sample the posteriors (slow)")
     ap.add_argument(
         "--segments",
@@ -280,6 +285,7 @@ def main(argv: list[str] | None = None) -> int:
             row = run_case(preset, protocol, seed, valve=args.valve, mcmc=args.mcmc,
                            friction=args.friction, seal=args.seal,
                            noise_pooling=args.noise_pooling, inputs=args.inputs,
+                           offset_scope=args.offset_scope,
                            robust=not args.no_robust, segments=args.segments)  # fmt: skip
             rows.append(row)
             if args.json is not None:  # every finished case kept, also if interrupted
@@ -301,6 +307,7 @@ def main(argv: list[str] | None = None) -> int:
         "seconds": round(time.perf_counter() - t0, 1),
         "valve": args.valve,
         "friction": args.friction, "seal": args.seal, "noise_pooling": args.noise_pooling,
+        "offset_scope": args.offset_scope,
         "inputs": args.inputs,
         "segments": args.segments, "mcmc": args.mcmc, "robust": not args.no_robust,
         "worst_pressure_ratio": max(ratios, default=math.nan),

@@ -631,3 +631,54 @@ def test_a_chain_that_cannot_converge_by_its_limit_is_not_extended(
     assert unruled.n_steps == 3000
     assert np.array_equal(unruled.chain[:500], run.chain)
     assert max(unruled.rhat.values()) > 1.01
+
+
+def test_the_buffered_chain_file_is_emcee_s_own(tmp_path: Path) -> None:
+    """Exact: the chain file written every FLUSH_STEPS steps holds what
+    emcee's HDFBackend, which opens the file at every step, writes (chain,
+    log-probabilities, acceptance counts, generator state), and a run
+    stopped by an exception between two writes keeps every step it made."""
+    import emcee
+
+    from pneumafit.identification.sampling import FLUSH_STEPS, BufferedHDFBackend
+
+    def run(backend: emcee.backends.Backend, steps: int, stop_at: int | None = None) -> None:
+        calls = 0
+
+        def lp(z: np.ndarray) -> np.ndarray:
+            nonlocal calls
+            calls += 1
+            if stop_at is not None and calls > stop_at:
+                raise KeyboardInterrupt
+            return -0.5 * np.sum(z * z, axis=1)
+
+        backend.reset(8, 3)
+        sampler = emcee.EnsembleSampler(8, 3, lp, vectorize=True, backend=backend)
+        sampler._random.seed(5)
+        start = np.random.default_rng(0).normal(size=(8, 3))
+        try:
+            sampler.run_mcmc(start, steps)
+        finally:
+            if isinstance(backend, BufferedHDFBackend):
+                backend.flush()
+
+    plain = emcee.backends.HDFBackend(str(tmp_path / "plain.h5"), name="s")
+    run(plain, 3 * FLUSH_STEPS + 7)
+    buffered = BufferedHDFBackend(str(tmp_path / "buffered.h5"), name="s")
+    run(buffered, 3 * FLUSH_STEPS + 7)
+    a = emcee.backends.HDFBackend(str(tmp_path / "plain.h5"), name="s", read_only=True)
+    b = emcee.backends.HDFBackend(str(tmp_path / "buffered.h5"), name="s", read_only=True)
+    assert a.iteration == b.iteration == 3 * FLUSH_STEPS + 7
+    assert np.array_equal(a.get_chain(), b.get_chain())
+    assert np.array_equal(a.get_log_prob(), b.get_log_prob())
+    assert np.array_equal(a.accepted, b.accepted)
+    for x, y in zip(a.random_state, b.random_state, strict=True):
+        assert np.array_equal(x, y)
+    # stopped after 30 steps of the second write's 50: none lost
+    cut = BufferedHDFBackend(str(tmp_path / "cut.h5"), name="s")
+    with pytest.raises(KeyboardInterrupt):
+        # call 1 is the start; the stretch move calls once per half-ensemble
+        run(cut, 3 * FLUSH_STEPS, stop_at=1 + 2 * (FLUSH_STEPS + 30))
+    c = emcee.backends.HDFBackend(str(tmp_path / "cut.h5"), name="s", read_only=True)
+    assert c.iteration == FLUSH_STEPS + 30
+    assert np.array_equal(c.get_chain(), a.get_chain()[: FLUSH_STEPS + 30])

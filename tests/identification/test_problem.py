@@ -381,6 +381,8 @@ def test_one_offset_per_pressure_sensor_is_the_joint_least_squares(small: tuple)
         if q is not None:
             mat[rows, col : col + q.shape[1]] = s * q
             col += q.shape[1]
+    # tolerances: float rounding of two solutions of one linear least
+    # squares (QR here, normal equations per block there), ~1e-12 relative
     coef, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
     brute = rhs - mat @ coef
     for b, j in enumerate(members):

@@ -1518,6 +1518,24 @@ class Problem:
         of the tempered likelihood over one constant per sensor; blocks with
         their own sigmas weigh it by the tempering alone.
         """
+        out = self._projected(prediction)
+        for members, c in zip(self._offset_members, self._shared_offsets(out), strict=True):
+            for j in members:
+                out[j] = out[j] - c[:, None] * self._offset_columns[j][None, :]
+        return out
+
+    def sensor_offsets(self, prediction: Prediction) -> dict[str, NDArray[np.float64]]:
+        """The offset (SI, (n_sets,)) profiled per shared channel
+        (``offset_scope="sensor"``; empty otherwise): what :meth:`residuals`
+        took off each channel's blocks."""
+        shared = self._shared_offsets(self._projected(prediction))
+        return {
+            self.observations[members[0]].channel: c
+            for members, c in zip(self._offset_members, shared, strict=True)
+        }
+
+    def _projected(self, prediction: Prediction) -> list[NDArray[np.float64]]:
+        """Weighted residuals per block, each block's own nuisances profiled out."""
         out = []
         for o, r, q in zip(
             self.observations, self.raw_residuals(prediction), self.bases, strict=True
@@ -1525,38 +1543,19 @@ class Problem:
             if o.weight is not None:
                 r = r * o.weight
             out.append(r if q is None else r - (r @ q) @ q.T)
-        for members in self._offset_members:
-            num = 0.0
-            den = 0.0
-            for j in members:
-                u = self._offset_columns[j]
-                num = num + self.tempering[j] * (out[j] @ u)
-                den += float(self.tempering[j] * (u @ u))
-            if den <= 0.0:
-                continue
-            c = num / den
-            for j in members:
-                out[j] = out[j] - np.asarray(c)[:, None] * self._offset_columns[j][None, :]
         return out
 
-    def sensor_offsets(self, prediction: Prediction) -> dict[str, NDArray[np.float64]]:
-        """The offset (SI, (n_sets,)) profiled per shared channel
-        (``offset_scope="sensor"``; empty otherwise): what :meth:`residuals`
-        took off each channel's blocks."""
-        raw = self.raw_residuals(prediction)
-        out: dict[str, NDArray[np.float64]] = {}
+    def _shared_offsets(self, blocks: list[NDArray[np.float64]]) -> list[NDArray[np.float64]]:
+        """One offset (n_sets,) per group of :attr:`_offset_members`, from the
+        blocks' projected residuals (:meth:`residuals`)."""
+        out = []
         for members in self._offset_members:
-            num = 0.0
-            den = 0.0
-            for j in members:
-                o, q, u = self.observations[j], self.bases[j], self._offset_columns[j]
-                r = raw[j] if o.weight is None else raw[j] * o.weight
-                if q is not None:
-                    r = r - (r @ q) @ q.T
-                num = num + self.tempering[j] * (r @ u)
-                den += float(self.tempering[j] * (u @ u))
-            if den > 0.0:
-                out[self.observations[members[0]].channel] = np.asarray(num / den)
+            num = sum(self.tempering[j] * (blocks[j] @ self._offset_columns[j]) for j in members)
+            den = sum(
+                float(self.tempering[j] * (self._offset_columns[j] @ self._offset_columns[j]))
+                for j in members
+            )
+            out.append(np.asarray(num, dtype=float) / den)
         return out
 
     def log_weight(self, index: int) -> float:

@@ -462,9 +462,11 @@ def _initial_walkers(
 
 #: Steps a chain file's backend holds in memory before it writes them
 #: (:class:`BufferedHDFBackend`). emcee's HDFBackend opens the file at every
-#: step, ~2.3 ms each (measured 2026-12-05: 2.44 ms a step against 0.17 ms
-#: in memory, 32 walkers, 8 parameters, a trivial log-probability), about
-#: 7 s of a convection fit's ~3000 sampled steps. Fifty steps are under a
+#: step, 2.3-2.5 ms each (measured 2026-12-05 in two runs: 2.44 and 2.70 ms
+#: a step against 0.17 ms in memory and 0.23 ms buffered, 32 walkers, 8
+#: parameters, a trivial log-probability): about 2 s of the demo's
+#: convection fit (775 sampled steps), 5 s of a 2100-step chain (the clean
+#: demo's friction chain with --offset-scope sensor). Fifty steps are under a
 #: second of sampling: what an interruption that skips the final write (a
 #: killed process) can lose; Ctrl-C writes them (:func:`run_mcmc`).
 FLUSH_STEPS = 50

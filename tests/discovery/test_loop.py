@@ -142,6 +142,30 @@ def test_clean_campaign_selects_nothing(discovery_cases: object) -> None:
     assert res.final is res.base
 
 
+def test_the_statement_judges_the_held_out_recordings_as_the_fit_does(
+    discovery_cases: object,
+) -> None:
+    """The held-out figures discovery's statement reads (refit.judged_held_out)
+    are the fit's own verdict's (fit.json ``quality.recordings``: the held-out
+    pressures started from the chambers' pressures, less one zero per sensor),
+    computed by another path; the tolerance is rounding (both are the same
+    replay's residuals, summed in another order). Before 2026-12-05 the
+    statement read them from the sensors' readings with their offsets kept."""
+    import json
+
+    case = discovery_cases(None)  # type: ignore[operator]
+    fit = json.loads(case.fit_path.read_text())  # type: ignore[attr-defined]
+    verdict = {
+        f"{r['recording']} {r['channel']}": r["rms"]
+        for r in fit["quality"]["recordings"]
+        if r["role"] == "validate" and r["channel"] in ("p_P", "p_N")
+    }
+    judged = case.result.base.held_out  # type: ignore[attr-defined]
+    assert verdict and set(judged) == set(verdict)
+    for key, rms in verdict.items():
+        assert judged[key] == pytest.approx(rms, rel=1e-9), key
+
+
 def test_effect_outside_the_catalog_is_not_claimed(discovery_cases: object) -> None:
     """A power-law supply path (no catalog effect describes a valve law,
     recorded by the independent truth): whatever is kept had to pass BIC and

@@ -70,13 +70,15 @@ from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.optimise import fit_least_squares, information_stall
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import (
+    INITIAL_PREFIX,
     MAX_STEP,
     NOISE_POOLING,
     OFFSET_PREFIX,
     OFFSET_SCOPE,
     Problem,
+    pressure_offsets,
 )
-from pneumafit.identification.quality import campaign_noise, noise_estimates
+from pneumafit.identification.quality import THRESHOLD, campaign_noise, noise_estimates
 from pneumafit.identification.replay import replay
 from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.staged import (
@@ -141,14 +143,18 @@ MIN_HELD_OUT_GAIN = 0.05
 #: sampling spread of an RMSE is 1 / sqrt(2 n_eff) = 0.1. A pragmatic bound
 #: with these two reasons, not a test at a stated level.
 MAX_CHANNEL_LOSS = 0.10
-#: The held-out pressure residual counts as far above the noise beyond this
-#: factor of the sensor noise. Held-out recordings keep their sensor offsets
-#: (a pressure transmitter's is up to ~0.25 % of a 10-bar span, 2.5 kPa, six
-#: times a 400-Pa noise), so the factor is well above the fit's 1.2: clean
-#: virtual-rig campaigns give 1.4-2.1x (docs/effects.md), the demo with its
-#: external leak found 8.6x; on a tabulated-valve truth's quick plan the
-#: held-out error stayed at 164x while the fit recordings were at the noise.
-HELD_OUT_FACTOR = 10.0
+#: The held-out pressure residual counts as above the noise beyond this
+#: factor of the sensor noise: the fit's own verdict's threshold
+#: (:data:`pneumafit.identification.quality.THRESHOLD`, "does not reach the
+#: noise"), on the verdict's figure (:func:`judged_held_out`: each held-out
+#: recording's pressure channel less one zero per sensor, started from the
+#: chambers' pressures). Until 2026-12-05 the statement compared the
+#: held-out recordings pooled, started from their readings and with their
+#: sensor offsets kept, against 10x the noise: a fit at the noise on its fit
+#: recordings and at 3.9x on a held-out one (the power-law valve truth's
+#: sparse plan, seed 1) read "nothing to explain" under a verdict that said
+#: "does not reach the noise".
+HELD_OUT_FACTOR = THRESHOLD
 #: An effect's interval "reaches" a bound within this fraction of it (a
 #: range spanning decades: of the bound itself, else of the range).
 UNPINNED_MARGIN = 0.01
@@ -203,6 +209,11 @@ class BaseFit:
         (``FitOptions.segments``, :mod:`~pneumafit.identification.segments`);
         ``off`` for a fit.json written before the option existed (those were
         fitted whole). Discovery's refits cut them the same way.
+    sensor_offsets : dict of str to float
+        The base fit's pressure sensors' offsets (``offset:p_P``, Pa), kept
+        out of ``values`` (see :meth:`from_document`) and used only to judge
+        the held-out recordings as the fit's verdict did
+        (:func:`judged_held_out`).
     lead : TemperatureProbe or None
         The probe that sets how far a held-out step or free test's gas starts
         ahead of its reading (:func:`~pneumafit.identification.replay.replay`'s
@@ -222,6 +233,7 @@ class BaseFit:
     correct_solver: bool = True
     noise_pooling: str = NOISE_POOLING
     segments: str = "off"
+    sensor_offsets: dict[str, float] = field(default_factory=dict)
     lead: TemperatureProbe | None = None
 
     @classmethod
@@ -254,6 +266,9 @@ class BaseFit:
             correct_solver=bool(opts.get("correct_solver", True)),
             noise_pooling=fit.noise_pooling,
             segments=str(opts.get("segments", "off")),
+            sensor_offsets={
+                k: float(v) for k, v in fit.all_values.items() if k.startswith(OFFSET_PREFIX)
+            },
         )
 
 
@@ -283,6 +298,10 @@ class Model:
         Pressure channel -> RMSE (Pa) on the fit recordings with each
         recording's mean residual removed (its sensor offset): the misfit
         the noise is judged against.
+    held_out : dict
+        ``"FILE CHANNEL"`` -> RMSE (Pa) of each held-out recording's pressure
+        channel as the fit's verdict judges it (:func:`judged_held_out`);
+        set by :func:`discover` on the base and the final model only.
     seconds : float
     evaluations : int
     """
@@ -296,6 +315,7 @@ class Model:
     n_data: int
     rmse: dict[str, dict[str, float]]
     offset_free: dict[str, float] = field(default_factory=dict)
+    held_out: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
     evaluations: int = 0
     probe: TemperatureProbe | None = None
@@ -311,6 +331,16 @@ class Model:
     def pressure_rmse(self, role: str) -> float:
         """Root of the mean square of the pressure RMSEs of ``role`` (Pa)."""
         return _root_mean_square([self.rmse.get(role, {}).get(c) for c in PRESSURES])
+
+    def worst_held_out(self) -> tuple[str, float]:
+        """The held-out pressure channel farthest from its measurement,
+        ``("FILE CHANNEL", RMSE in Pa)`` (:attr:`held_out`); ``("", nan)``
+        without one."""
+        finite = {k: v for k, v in self.held_out.items() if math.isfinite(v)}
+        if not finite:
+            return "", math.nan
+        key = max(finite, key=lambda k: finite[k])
+        return key, finite[key]
 
     @property
     def misfit(self) -> float:
@@ -483,6 +513,72 @@ def scores(
     )  # fmt: skip
     fit = rep.rmse(remove_offsets=True).get("fit", {})
     return rep.rmse(), {c: v for c, v in fit.items() if c in PRESSURES}, rep.probe
+
+
+def judged_held_out(
+    campaign: Campaign, base: BaseFit, model: Model, offsets: Mapping[str, float]
+) -> dict[str, float]:
+    """The held-out pressures of ``model`` as the fit's verdict judges them.
+
+    The held-out recordings are replayed from the chambers' pressures (their
+    initial readings less the sensors' ``offsets``, ``offset:p_P`` in Pa, as
+    the fit's own replays start them), and each pressure channel's residual
+    is taken less one zero per sensor, as the verdict takes it: that offset
+    where there is one, else the fit recordings' mean residual of the
+    channel (:meth:`~pneumafit.identification.replay.Replay.sensor_zeros`).
+    One difference: a sensor that no fit recording reads (the quick plan's
+    chamber N) has no zero, and the verdict compares it as read; here the
+    recording's own mean is taken off instead, so that a sensor's unknown
+    zero is not read as the model's error (on the kernel's own truth with an
+    orifice leak, the quick plan, seed 4: held-out p_N 2057 Pa as read, of
+    which 1865 Pa is the level, the truth's sensor offset 1500 Pa).
+    The refits' decisions read their held-out recordings from the readings
+    (:meth:`BaseFit.from_document`); this figure only judges the result
+    (:func:`_statement`).
+
+    Returns
+    -------
+    dict of str to float
+        ``"FILE CHANNEL"`` -> RMSE (Pa), one per held-out pressure channel.
+    """
+    values = {k: v for k, v in model.values.items() if not k.startswith(OFFSET_PREFIX)}
+    values.update(offsets)
+    rep = replay(
+        campaign, model.structure, values, channels=PRESSURES, max_step=base.max_step,
+        estimate_lag=False, lead=base.lead,
+    )  # fmt: skip
+    # the verdict's zeros (staged.identify): each sensor's offset where one
+    # applies, else the fit recordings' mean residual of that channel
+    zeros = {
+        **rep.sensor_zeros("fit"),
+        **{k.removeprefix(OFFSET_PREFIX): float(v) for k, v in offsets.items()},
+    }
+    out: dict[str, float] = {}
+    for file, channel, quantity, _idx, res in rep.residuals.get("validate", []):
+        r = np.asarray(res, dtype=float)
+        r = r[np.isfinite(r)]
+        if quantity == "pressure" and r.size:
+            # a sensor that no fit recording reads has no zero to take off:
+            # the recording's own mean instead (the verdict compares it as
+            # read; a level alone says nothing of the model there)
+            r = r - (float(zeros[channel]) if channel in zeros else float(np.mean(r)))
+            out[f"{file} {channel}"] = float(np.sqrt(np.mean(r * r)))
+    return out
+
+
+def own_offsets(campaign: Campaign, base: BaseFit, model: Model) -> dict[str, float]:
+    """A refit's pressure sensors' offsets, read off its own fitted initial
+    pressures as the fit reads its own (:func:`~pneumafit.identification.
+    problem.pressure_offsets`, with the refit's Laplace standard deviations):
+    ``offset:p_P`` -> Pa, those that apply."""
+    prob = _problem(campaign, model.structure, model.values, base)
+    stds = {
+        p.name: p.std
+        for p in (model.parameters or ())
+        if p.name.startswith(INITIAL_PREFIX) and p.std is not None
+    }
+    found = pressure_offsets(prob, model.values, stds or None)
+    return {f"{OFFSET_PREFIX}{c}": off.value for c, off in found.items() if off.applies}
 
 
 def _n_parameters(problem: Problem, ps: ParameterSet) -> int:
@@ -956,6 +1052,20 @@ def discover(
             say(f"round {r}: kept {best[0].effect}")
         if not kept:
             break
+    # the held-out recordings as the fit's verdict judges them, for the
+    # statement: the base with the fit's own sensor offsets, a refit with
+    # those read off its own initial pressures
+    say("held-out recordings as the fit's verdict judges them ...")
+    base_model = dataclasses.replace(
+        base_model, held_out=judged_held_out(campaign, base, base_model, base.sensor_offsets)
+    )
+    if current.effects:
+        offsets = own_offsets(campaign, base, current)
+        current = dataclasses.replace(
+            current, held_out=judged_held_out(campaign, base, current, offsets)
+        )
+    else:
+        current = base_model
     unexplained, statement = _statement(base_model, current, selected, noise, attributions)
     say(statement)
     return Discovery(
@@ -1047,12 +1157,19 @@ def _statement(
     # which the fit profiles and no effect explains)
     fit_before, fit_after = base.misfit, final.misfit
     at_noise = fit_after <= NOISE_FACTOR * noise
-    # the held-out recordings (their sensor offsets kept: nothing fits them)
-    held = final.pressure_rmse("validate")
+    # the held-out recordings as the fit's verdict judges them (judged_held_out)
+    where, held = final.worst_held_out()
     held_far = math.isfinite(held) and held > HELD_OUT_FACTOR * noise
     held_line = (
-        f"; the held-out recordings are not: {held:.0f} Pa RMS ({held / noise:.0f}x the "
-        "noise), which the fit recordings do not show"
+        f"; the held-out recordings are not: {where} {held:.0f} Pa RMS ({held / noise:.1f}x "
+        f"the noise, above {HELD_OUT_FACTOR:g}x; less the sensor's zero), which the fit "
+        "recordings do not show"
+    )
+    held_note = (
+        f" The held-out recordings' worst pressure: {where} {held:.0f} Pa RMS "
+        f"({held / noise:.1f}x the noise, less the sensor's zero)."
+        if math.isfinite(held)
+        else ""
     )
     if at_noise and not selected:
         if held_far:
@@ -1062,10 +1179,16 @@ def _statement(
                 + held_line
                 + ": unexplained, no catalog effect the data support describes it."
             )
+        held_ok = (
+            f", and the held-out recordings within {HELD_OUT_FACTOR:g}x of it (worst {where} "
+            f"{held:.0f} Pa less the sensor's zero)"
+            if math.isfinite(held)
+            else ""
+        )
         return False, (
             f"The base model leaves a pressure residual of {fit_after:.0f} Pa RMS (sensor offsets "
-            f"removed), at the sensor "
-            f"noise ({noise:.0f} Pa): nothing to explain, no effect added."
+            f"removed), at the sensor noise ({noise:.0f} Pa){held_ok}: nothing to explain, no "
+            "effect added."
         )
     if at_noise:
         moved = "falls" if fit_after < fit_before else "goes"
@@ -1082,11 +1205,11 @@ def _statement(
             f"With {', '.join(selected)} the pressure residual of the fit recordings goes from "
             f"{fit_before:.0f} to {fit_after:.0f} Pa RMS but stays above the sensor noise "
             f"({noise:.0f} Pa): partly explained; the rest is not described by any catalog "
-            "effect the data support."
+            "effect the data support." + held_note
         )
     return True, (
         f"The pressure residual ({fit_after:.0f} Pa RMS without the sensor offsets, against "
         f"{noise:.0f} Pa of sensor noise) "
         "stays unexplained: no catalog effect improves both the held-out error and the "
-        "information criterion without making a measured channel worse."
+        "information criterion without making a measured channel worse." + held_note
     )

@@ -12,7 +12,9 @@ records them) with a known model, runs
   ``effect``, ``score``, ``evidence``), ``rounds`` (every round's candidates
   and attribution summary), ``refits`` (every refit tried, why kept or
   rejected), ``selected``, ``rmse_before`` / ``rmse_after`` (``fit`` and
-  ``validate``: channel -> SI), ``aic_before`` / ``aic_after``,
+  ``validate``: channel -> SI), ``held_out_pressure_before`` / ``_after``
+  (``"FILE CHANNEL"`` -> RMSE in Pa of each held-out pressure less the
+  sensor's zero: the statement's figure), ``aic_before`` / ``aic_after``,
   ``bic_before`` / ``bic_after``, ``log_likelihood_before`` / ``_after``,
   ``effect_parameters`` (name -> ``value``, ``unit``, ``std``,
   ``interval_90`` (Laplace), ``effect``), ``parameters_after`` (every
@@ -285,6 +287,9 @@ def discovery_document(
         "rmse_after": final.rmse,
         "pressure_rmse_before": {r: base.pressure_rmse(r) for r in ("fit", "validate")},
         "pressure_rmse_after": {r: final.pressure_rmse(r) for r in ("fit", "validate")},
+        # the held-out pressures as the fit's verdict judges them (the statement's)
+        "held_out_pressure_before": base.held_out,
+        "held_out_pressure_after": final.held_out,
         "aic_before": base.aic,
         "aic_after": final.aic,
         "bic_before": base.bic,

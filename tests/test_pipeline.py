@@ -97,6 +97,11 @@ def test_every_stage_writes_its_outputs(finished_run: tuple) -> None:
         assert summary["simulations_per_second"][f"fit {model}"] > 0
     assert summary["total_simulations"] == sum(summary["simulations"].values())
     assert "simulations" in log and "per second" in log
+    # what the comparison and discovery concluded, at the end, where one looks first
+    tail = log[log.rindex("done") :]
+    assert "comparison: held-out pressure RMSE" in tail
+    assert all(f"{m} " in tail for m in RUN_MODELS)
+    assert "discovery: selected" in tail and discovery["statement"][:40] in tail
 
 
 def test_a_second_run_reuses_every_stage(finished_run: tuple) -> None:
@@ -241,3 +246,35 @@ def test_run_takes_a_friction_law(finished_run: tuple, tmp_path: Path) -> None:
     other = "switch" if chosen == "lugre" else "lugre"
     camp = read_campaign(campaign)
     assert not fit_is_reusable(out / "fits" / "convection", camp, "convection", friction=other)
+
+
+def test_the_conclusions_read_what_the_stages_saved(tmp_path: Path) -> None:
+    """The end of the run's console: each model's held-out pressure RMSE
+    from comparison.json with the lowest named, discovery's selection, its
+    held-out figures and statement; nothing for a stage that saved nothing
+    (a run without held-out recordings, or stopped before discovery)."""
+    from pneumafit.pipeline import _conclusions
+
+    console = _console()
+    _conclusions(tmp_path, console)
+    assert console.file.getvalue() == ""
+    (tmp_path / "comparison").mkdir()
+    (tmp_path / "discovery").mkdir()
+    by_model = {"convection": 2500.0, "constant-lambda": 1900.0, "polytropic": 4100.0}
+    comparison = {"models": list(by_model)} | {
+        m: {"rmse_by_quantity": {"validate": {"pressure": v}}} for m, v in by_model.items()
+    }
+    (tmp_path / "comparison" / "comparison.json").write_text(json.dumps(comparison))
+    discovery = {
+        "selected": ["external_leakage"], "unexplained": True, "statement": "partly explained.",
+        "pressure_rmse_before": {"validate": 12145.5}, "pressure_rmse_after": {"validate": 2536.6},
+    }  # fmt: skip
+    (tmp_path / "discovery" / "discovery.json").write_text(json.dumps(discovery))
+    _conclusions(tmp_path, console)
+    text = console.file.getvalue()
+    assert (
+        "comparison: held-out pressure RMSE convection 2500 Pa, constant-lambda 1900 Pa, "
+        "polytropic 4100 Pa; lowest: constant-lambda" in text
+    )
+    assert "discovery: selected external_leakage; held-out pressure RMSE 12146 -> 2537 Pa" in text
+    assert "partly explained." in text

@@ -309,6 +309,7 @@ def run(
     total = _summary(out, campaign, path, timings, started, sims, conv_fit=conv)
     console.rule("done")
     trusted = _verdicts(fit_files, console)
+    _conclusions(out, console)
     console.print(f"report: {out / 'report.html'}")
     _print_stage_times(console, timings, sims)
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
@@ -348,6 +349,43 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
             for line in quality.get("problems") or []:
                 console.print(Text(f"  - {line}", style="red"))
     return trusted
+
+
+def _conclusions(out: Path, console: Console) -> None:
+    """Print what the comparison and discovery concluded, from their saved
+    files (nothing for a stage that wrote none): the held-out pressure RMSE
+    of each model with the best named, and discovery's selection, its
+    held-out pressure RMSE before and after, and its statement."""
+    try:
+        comp = json.loads((out / "comparison" / "comparison.json").read_text())
+        held = {
+            m: comp[m]["rmse_by_quantity"]["validate"]["pressure"]
+            for m in comp.get("models") or ()
+            if "pressure" in ((comp.get(m) or {}).get("rmse_by_quantity") or {}).get("validate", {})
+        }
+    except (OSError, ValueError, KeyError, TypeError):
+        held = {}
+    if held:
+        best = min(held, key=lambda m: held[m])
+        console.print(
+            "comparison: held-out pressure RMSE "
+            + ", ".join(f"{m} {v:.0f} Pa" for m, v in held.items())
+            + f"; lowest: {best}"
+        )
+    try:
+        disc = json.loads((out / "discovery" / "discovery.json").read_text())
+        before = disc["pressure_rmse_before"]["validate"]
+        after = disc["pressure_rmse_after"]["validate"]
+        selected = ", ".join(disc.get("selected") or ()) or "none"
+        statement = str(disc["statement"])
+        unexplained = bool(disc.get("unexplained"))
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    line = f"discovery: selected {selected}"
+    if isinstance(before, (int, float)) and isinstance(after, (int, float)):
+        line += f"; held-out pressure RMSE {before:.0f} -> {after:.0f} Pa"
+    console.print(Text(line, style="yellow" if unexplained else "green"))
+    console.print(Text(f"  {statement}", style="yellow" if unexplained else "green"))
 
 
 def _fits(

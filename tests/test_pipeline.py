@@ -253,10 +253,10 @@ def test_the_conclusions_read_what_the_stages_saved(tmp_path: Path) -> None:
     from comparison.json with the lowest named, discovery's selection, its
     held-out figures and statement; nothing for a stage that saved nothing
     (a run without held-out recordings, or stopped before discovery)."""
-    from pneumafit.pipeline import _conclusions
+    from pneumafit.pipeline import print_conclusions
 
     console = _console()
-    _conclusions(tmp_path, console)
+    print_conclusions(tmp_path, console)
     assert console.file.getvalue() == ""
     (tmp_path / "comparison").mkdir()
     (tmp_path / "discovery").mkdir()
@@ -270,7 +270,7 @@ def test_the_conclusions_read_what_the_stages_saved(tmp_path: Path) -> None:
         "pressure_rmse_before": {"validate": 12145.5}, "pressure_rmse_after": {"validate": 2536.6},
     }  # fmt: skip
     (tmp_path / "discovery" / "discovery.json").write_text(json.dumps(discovery))
-    _conclusions(tmp_path, console)
+    print_conclusions(tmp_path, console)
     text = console.file.getvalue()
     assert (
         "comparison: held-out pressure RMSE convection 2500 Pa, constant-lambda 1900 Pa, "
@@ -278,3 +278,21 @@ def test_the_conclusions_read_what_the_stages_saved(tmp_path: Path) -> None:
     )
     assert "discovery: selected external_leakage; held-out pressure RMSE 12146 -> 2537 Pa" in text
     assert "partly explained." in text
+
+
+def test_a_friction_jobs_conclusion_gives_the_held_out_force(tmp_path: Path) -> None:
+    """A friction-test job saves no comparison and a force, not pressures."""
+    from pneumafit.pipeline import print_conclusions
+
+    (tmp_path / "discovery").mkdir()
+    discovery = {
+        "selected": ["seal_pressure"], "unexplained": False, "statement": "explained.",
+        "rmse_before": {"fit": {"F": 2.4}, "validate": {"F": 5.934}},
+        "rmse_after": {"fit": {"F": 0.3}, "validate": {"F": 0.412}},
+    }  # fmt: skip
+    (tmp_path / "discovery" / "discovery.json").write_text(json.dumps(discovery))
+    console = _console()
+    print_conclusions(tmp_path, console)
+    text = console.file.getvalue()
+    assert "comparison" not in text
+    assert "discovery: selected seal_pressure; held-out force RMSE 5.934 -> 0.412 N" in text

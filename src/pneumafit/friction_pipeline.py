@@ -133,6 +133,9 @@ def run_friction(
     console.rule("done")
     console.print(Text(f"fit friction: {quality.get('verdict', '-')}",
                        style="green" if ok else "red"))  # fmt: skip
+    from pneumafit.pipeline import print_conclusions
+
+    print_conclusions(out, console)
     console.print(f"report: {report}")
     total = time.perf_counter() - started
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")

@@ -309,7 +309,7 @@ def run(
     total = _summary(out, campaign, path, timings, started, sims, conv_fit=conv)
     console.rule("done")
     trusted = _verdicts(fit_files, console)
-    _conclusions(out, console)
+    print_conclusions(out, console)
     console.print(f"report: {out / 'report.html'}")
     _print_stage_times(console, timings, sims)
     console.print(f"total time {total:.0f} s ({total / 60:.1f} min)")
@@ -351,11 +351,12 @@ def _verdicts(fit_files: dict[str, Path], console: Console) -> bool:
     return trusted
 
 
-def _conclusions(out: Path, console: Console) -> None:
+def print_conclusions(out: Path, console: Console) -> None:
     """Print what the comparison and discovery concluded, from their saved
     files (nothing for a stage that wrote none): the held-out pressure RMSE
-    of each model with the best named, and discovery's selection, its
-    held-out pressure RMSE before and after, and its statement."""
+    of each model with the lowest named, and discovery's selection, its
+    held-out pressure (a friction-test job's: force) RMSE before and after,
+    and its statement."""
     try:
         comp = json.loads((out / "comparison" / "comparison.json").read_text())
         held = {
@@ -374,16 +375,23 @@ def _conclusions(out: Path, console: Console) -> None:
         )
     try:
         disc = json.loads((out / "discovery" / "discovery.json").read_text())
-        before = disc["pressure_rmse_before"]["validate"]
-        after = disc["pressure_rmse_after"]["validate"]
         selected = ", ".join(disc.get("selected") or ()) or "none"
         statement = str(disc["statement"])
         unexplained = bool(disc.get("unexplained"))
     except (OSError, ValueError, KeyError, TypeError):
         return
+    # the chamber models' held-out pressures; a friction-test job's force
+    if "pressure_rmse_before" in disc:
+        what, unit, digits = "pressure", "Pa", 0
+        before = (disc.get("pressure_rmse_before") or {}).get("validate")
+        after = (disc.get("pressure_rmse_after") or {}).get("validate")
+    else:
+        what, unit, digits = "force", "N", 3
+        before = ((disc.get("rmse_before") or {}).get("validate") or {}).get("F")
+        after = ((disc.get("rmse_after") or {}).get("validate") or {}).get("F")
     line = f"discovery: selected {selected}"
     if isinstance(before, (int, float)) and isinstance(after, (int, float)):
-        line += f"; held-out pressure RMSE {before:.0f} -> {after:.0f} Pa"
+        line += f"; held-out {what} RMSE {before:.{digits}f} -> {after:.{digits}f} {unit}"
     console.print(Text(line, style="yellow" if unexplained else "green"))
     console.print(Text(f"  {statement}", style="yellow" if unexplained else "green"))
 

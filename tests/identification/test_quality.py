@@ -655,8 +655,11 @@ def test_one_zero_per_pressure_sensor_from_the_fit_recordings() -> None:
     """Plumbing and arithmetic, exact (made-up residuals, not a fit): the
     verdict takes one zero per pressure channel off every recording, the
     pooled mean of the fit recordings' residuals (sample-weighted), and
-    never a constant fitted to a held-out recording; other quantities and a
-    channel no fit recording compares are left as read."""
+    never a constant fitted to a held-out recording; other quantities are
+    left as read, and a pressure sensor that no fit recording reads (its
+    zero unknown) is taken less each recording's own mean (since
+    2026-12-05; it was compared as read, and the sensor's zero counted as
+    the model's error)."""
     from pneumafit.identification.quality import zeros_phrase
     from pneumafit.identification.replay import Compared, RecordingReplay, Replay
 
@@ -694,7 +697,7 @@ def test_one_zero_per_pressure_sensor_from_the_fit_recordings() -> None:
     assert zeros == pytest.approx({"p_P": 1000.0 / 6.0}, rel=1e-12)
     out = {(f, c): r for f, c, _i, r in rep.sensor_offset_free()}
     np.testing.assert_allclose(out[("c.h5", "p_P")], np.array([500.0, 700.0]) - 1000.0 / 6.0)
-    np.testing.assert_allclose(out[("c.h5", "p_N")], [50.0, 70.0])  # as read
+    np.testing.assert_allclose(out[("c.h5", "p_N")], [-10.0, 10.0])  # its own mean off
     np.testing.assert_allclose(out[("b.h5", "y")], [1e-3, 2e-3])  # not a pressure
     # each recording's own mean (the fit's profiled offset) leaves the held-out
     # recording's level error out; the sensor's zero keeps it
@@ -708,9 +711,15 @@ def test_one_zero_per_pressure_sensor_from_the_fit_recordings() -> None:
         "pressures less one zero per sensor: p_N +20 Pa (its offset), "
         "p_P -5 Pa (the fit recordings' mean residual)"
     )
-    assert zeros_phrase({}, (), tables) == "pressures as read"
+    assert zeros_phrase({}, (), tables) == (
+        "pressures: p_P: no fit recording reads it, so each recording less its own mean"
+    )
+    assert zeros_phrase(zeros, (), ("p_P", "p_N")) == (
+        "pressures less one zero per sensor: p_P +167 Pa (the fit recordings' mean residual); "
+        "p_N: no fit recording reads it, so each recording less its own mean"
+    )
     assert zeros_phrase(zeros, (), ("F", "y")) == ""  # no pressure in the table
     # given zeros (a fit's: the offsets its held-out starts take off) are used as given
     given = {(f, c): r for f, c, _i, r in rep.sensor_offset_free({"p_N": 20.0})}
-    np.testing.assert_allclose(given[("c.h5", "p_P")], [500.0, 700.0])
+    np.testing.assert_allclose(given[("c.h5", "p_P")], [-100.0, 100.0])  # no zero given
     np.testing.assert_allclose(given[("c.h5", "p_N")], [30.0, 50.0])

@@ -526,12 +526,9 @@ def judged_held_out(
     is taken less one zero per sensor, as the verdict takes it: that offset
     where there is one, else the fit recordings' mean residual of the
     channel (:meth:`~pneumafit.identification.replay.Replay.sensor_zeros`).
-    One difference: a sensor that no fit recording reads (the quick plan's
-    chamber N) has no zero, and the verdict compares it as read; here the
-    recording's own mean is taken off instead, so that a sensor's unknown
-    zero is not read as the model's error (on the kernel's own truth with an
-    orifice leak, the quick plan, seed 4: held-out p_N 2057 Pa as read, of
-    which 1865 Pa is the level, the truth's sensor offset 1500 Pa).
+    A sensor that no fit recording reads (the quick plan's chamber N) has no
+    zero: each of its recordings is taken less its own mean, as the verdict
+    takes it (:meth:`~pneumafit.identification.replay.Replay.sensor_offset_free`).
     The refits' decisions read their held-out recordings from the readings
     (:meth:`BaseFit.from_document`); this figure only judges the result
     (:func:`_statement`).
@@ -548,20 +545,18 @@ def judged_held_out(
         estimate_lag=False, lead=base.lead,
     )  # fmt: skip
     # the verdict's zeros (staged.identify): each sensor's offset where one
-    # applies, else the fit recordings' mean residual of that channel
+    # applies, else the fit recordings' mean residual of that channel (a
+    # sensor no fit recording reads: each recording less its own mean)
     zeros = {
         **rep.sensor_zeros("fit"),
         **{k.removeprefix(OFFSET_PREFIX): float(v) for k, v in offsets.items()},
     }
+    held = {r.file for r in rep.recordings if r.role == "validate"}
     out: dict[str, float] = {}
-    for file, channel, quantity, _idx, res in rep.residuals.get("validate", []):
+    for file, channel, _idx, res in rep.sensor_offset_free(zeros):
         r = np.asarray(res, dtype=float)
         r = r[np.isfinite(r)]
-        if quantity == "pressure" and r.size:
-            # a sensor that no fit recording reads has no zero to take off:
-            # the recording's own mean instead (the verdict compares it as
-            # read; a level alone says nothing of the model there)
-            r = r - (float(zeros[channel]) if channel in zeros else float(np.mean(r)))
+        if file in held and channel in PRESSURES and r.size:
             out[f"{file} {channel}"] = float(np.sqrt(np.mean(r * r)))
     return out
 

@@ -490,7 +490,8 @@ class FitQuality:
         ``zeros_applied``), else the mean of the fit recordings' residuals
         of that channel, pooled
         (:meth:`~pneumafit.identification.replay.Replay.sensor_zeros`); a
-        channel no fit recording compares is judged as read. One per
+        sensor no fit recording reads has no zero, and each of its
+        recordings is judged less its own mean. One per
         sensor, as a transducer has: a held-out recording's figure includes
         its own mean error, and a fit recording's the part of the offset the
         likelihood profiles on it that the other fit recordings do not share.
@@ -725,15 +726,28 @@ def zeros_phrase(
     less one zero per sensor: p_N +457 Pa (the fit recordings' mean
     residual), p_P -827 Pa (its offset)"``; empty when none of the table's
     ``channels`` is a pressure."""
-    if not any(QUANTITIES.get(c) == "pressure" for c in channels):
+    pressures = sorted({c for c in channels if QUANTITIES.get(c) == "pressure"})
+    if not pressures:
         return ""
+    unknown = [c for c in pressures if c not in zeros]
+    tail = (
+        "; " + ", ".join(unknown) + ": no fit recording reads "
+        + ("it" if len(unknown) == 1 else "them")
+        + ", so each recording less its own mean"
+        if unknown
+        else ""
+    )  # fmt: skip
     if not zeros:
-        return "pressures as read"
-    return "pressures less one zero per sensor: " + ", ".join(
-        f"{c} {v:+.0f} Pa ("
-        + ("its offset" if c in applied else "the fit recordings' mean residual")
-        + ")"
-        for c, v in sorted(zeros.items())
+        return "pressures: " + tail.removeprefix("; ")
+    return (
+        "pressures less one zero per sensor: "
+        + ", ".join(
+            f"{c} {v:+.0f} Pa ("
+            + ("its offset" if c in applied else "the fit recordings' mean residual")
+            + ")"
+            for c, v in sorted(zeros.items())
+        )
+        + tail
     )
 
 

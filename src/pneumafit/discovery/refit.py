@@ -544,13 +544,9 @@ def judged_held_out(
         campaign, model.structure, values, channels=PRESSURES, max_step=base.max_step,
         estimate_lag=False, lead=base.lead,
     )  # fmt: skip
-    # the verdict's zeros (staged.identify): each sensor's offset where one
-    # applies, else the fit recordings' mean residual of that channel (a
-    # sensor no fit recording reads: each recording less its own mean)
-    zeros = {
-        **rep.sensor_zeros("fit"),
-        **{k.removeprefix(OFFSET_PREFIX): float(v) for k, v in offsets.items()},
-    }
+    # the verdict's zeros (a sensor no fit recording reads: each recording
+    # less its own mean, Replay.sensor_offset_free)
+    zeros = rep.verdict_zeros({k.removeprefix(OFFSET_PREFIX): v for k, v in offsets.items()})
     held = {r.file for r in rep.recordings if r.role == "validate"}
     out: dict[str, float] = {}
     for file, channel, _idx, res in rep.sensor_offset_free(zeros):

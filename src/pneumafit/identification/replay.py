@@ -226,6 +226,12 @@ class Replay:
             acc[1] += r.size
         return {c: s / n for c, (s, n) in sums.items() if n > 0}
 
+    def verdict_zeros(self, offsets: Mapping[str, float]) -> dict[str, float]:
+        """The zero the fit's verdict takes off each pressure sensor (Pa):
+        its offset where ``offsets`` gives one (pressure channel -> Pa, those
+        that apply), else :meth:`sensor_zeros` of the fit recordings."""
+        return {**self.sensor_zeros(), **{c: float(v) for c, v in offsets.items()}}
+
     def sensor_offset_free(
         self, zeros: Mapping[str, float] | None = None
     ) -> list[tuple[str, str, NDArray[np.int64], NDArray[np.float64]]]:

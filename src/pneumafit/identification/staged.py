@@ -2126,7 +2126,7 @@ def identify(
     # the verdict judges every recording's pressures less one zero per sensor:
     # its offset where the fit recordings agree on one (what the held-out
     # recordings' starts take off), else the fit recordings' mean residual
-    zeros = {**rep.sensor_zeros(), **{c: o.value for c, o in offsets.items() if o.applies}}
+    zeros = rep.verdict_zeros({c: o.value for c, o in offsets.items() if o.applies})
     quality = assess(campaign, rep, final, joint_free, runs, opts.channels,
                      one_recording=one_recording, values=values,
                      max_step=opts.max_step, staged_values=staged_values,

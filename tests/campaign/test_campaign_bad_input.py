@@ -126,7 +126,11 @@ CASES = [
         delete("campaign.toml"),
         "campaign.toml",
         "",
-        ["no such file"],
+        [
+            "no such file",
+            "but 4 data files (charge_P_1.h5, ",
+            "write a campaign.toml that names them",
+        ],
         "error",
         id="missing-campaign-toml",
     ),
@@ -799,6 +803,26 @@ def test_missing_folder(tmp_path: Path) -> None:
     assert "no such folder" in str(problem)
     with pytest.raises(CampaignError, match="no such folder"):
         read_campaign(missing)
+
+
+def test_a_recording_given_for_its_campaign(campaign_dir: Path) -> None:
+    """A recording's file where its campaign is expected: named, with what
+    to give instead, not read as TOML (the message was "expected valid
+    TOML" at line 1)."""
+    given = campaign_dir / "step_1.csv"
+    (problem,) = validate_campaign(given)
+    assert problem.file == str(given)
+    assert "expected a campaign folder or its campaign.toml" in str(problem)
+    assert "found a .csv file" in str(problem)
+    with pytest.raises(CampaignError, match=r"found a \.csv file"):
+        read_campaign(given)
+    # the campaign.toml itself is still a way to name the campaign
+    assert read_campaign(campaign_dir / "campaign.toml").recordings
+
+
+def test_an_empty_folder_is_told_only_what_is_missing(tmp_path: Path) -> None:
+    (problem,) = validate_campaign(tmp_path)
+    assert str(problem).endswith("found no such file")
 
 
 def test_campaign_error_is_a_value_error(campaign_dir: Path) -> None:

@@ -1832,8 +1832,30 @@ def inspect_campaign(path: str | os.PathLike[str]) -> CampaignReport:
             str(given), "", f"a campaign folder containing {CAMPAIGN_FILE}", "no such folder"
         )
         return report
+    if given.is_file() and given.suffix.lower() != ".toml":
+        # a recording given where its campaign is expected: say what to write
+        probs.error(
+            str(given), "", f"a campaign folder or its {CAMPAIGN_FILE} (a recording is read "
+            f"through the {CAMPAIGN_FILE} that names it; docs/campaign-format.md)",
+            f"a {given.suffix or 'data'} file",
+        )  # fmt: skip
+        return report
     if not toml_path.is_file():
-        probs.error(CAMPAIGN_FILE, "", f"a {CAMPAIGN_FILE} in {folder}", "no such file")
+        data = sorted(
+            f.name
+            for f in folder.iterdir()
+            if f.is_file() and f.suffix.lower() in HDF5_SUFFIXES + CSV_SUFFIXES
+        )
+        found = "no such file"
+        if data:
+            shown = ", ".join(data[:3]) + (f" and {len(data) - 3} more" if len(data) > 3 else "")
+            found += (
+                f", but {len(data)} data file{'s' if len(data) > 1 else ''} ({shown}): write a "
+                f"{CAMPAIGN_FILE} that names them, their kind, role and rig "
+                "(docs/campaign-format.md; data/measured/NAP310/campaign.toml is one for "
+                "a bench's CSV exports)"
+            )
+        probs.error(CAMPAIGN_FILE, "", f"a {CAMPAIGN_FILE} in {folder}", found)
         return report
     toml_name = toml_path.name
     sha: dict[str, str] = {}

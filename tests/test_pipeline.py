@@ -278,6 +278,34 @@ def test_the_conclusions_read_what_the_stages_saved(tmp_path: Path) -> None:
     )
     assert "discovery: selected external_leakage; held-out pressure RMSE 12146 -> 2537 Pa" in text
     assert "partly explained." in text
+    assert "sensors' readings" not in text  # no base model named: nothing to reconcile
+
+
+def test_the_conclusions_say_why_discovery_and_comparison_differ(tmp_path: Path) -> None:
+    """One fit, two held-out figures: discovery replays its held-out
+    recordings from the sensors' readings, the comparison from the fit's
+    sensor offsets. Where they differ (a truth outside the presets, the
+    sparse-long plan: 5222 against 6056 Pa) the line says which is which;
+    where they agree (the bundled demo, no offset applied) nothing is added."""
+    from pneumafit.pipeline import print_conclusions
+
+    (tmp_path / "comparison").mkdir()
+    (tmp_path / "discovery").mkdir()
+    held = {"rmse_by_quantity": {"validate": {"pressure": 6056.0}}}
+    comparison = {"models": ["convection"], "convection": held}
+    (tmp_path / "comparison" / "comparison.json").write_text(json.dumps(comparison))
+    for before, said in ((5222.3, True), (6080.0, False)):
+        discovery = {
+            "base_model": "convection", "selected": ["effective_area"], "unexplained": True,
+            "statement": "partly explained.", "pressure_rmse_before": {"validate": before},
+            "pressure_rmse_after": {"validate": 3279.4},
+        }  # fmt: skip
+        (tmp_path / "discovery" / "discovery.json").write_text(json.dumps(discovery))
+        console = _console()
+        print_conclusions(tmp_path, console)
+        text = " ".join(console.file.getvalue().split())
+        assert f"held-out pressure RMSE {before:.0f} -> 3279 Pa" in text
+        assert ("the comparison's 6056 Pa starts from the fit's sensor offsets" in text) is said
 
 
 def test_a_friction_jobs_conclusion_gives_the_held_out_force(tmp_path: Path) -> None:

@@ -54,7 +54,10 @@ fitted laws' own truth (seed 1) the friction chain accepted 0.04 and ended
 unconverged at its 4000-step limit (36 tau, R-hat 1.03, 50 s); fitted again
 at step 400, it converged at 1000 steps (104 tau, R-hat 1.010, 11 s).
 The decision is read from the stored chain, so a resumed run makes it at
-the same step.
+the same step. A window that still accepts under
+:data:`READAPT_ACCEPTANCE` after those fits drops the t: no t fits that
+posterior, and the chain goes on with the adaptation's moves alone
+(:data:`FALLBACK`, ``MCMCResult.fallback_after``).
 """
 
 from __future__ import annotations
@@ -146,9 +149,24 @@ PHASE_MIXED = 0.3
 #: 0.014 under one fitted to the 100 steps after it (importance weights of
 #: the stored draws).
 HELD_SHARE = 0.5
-#: Fits of the t after the first, at most (a posterior that no t fits keeps
-#: a low acceptance whatever the fit: the chain then goes on with the last).
+#: Fits of the t after the first, at most. A posterior that no t fits keeps
+#: a low acceptance whatever the fit: a check window after the last fit
+#: that still accepts fewer than :data:`READAPT_ACCEPTANCE` of its
+#: walker-steps drops the t, and the chain goes on with the adaptation's
+#: moves alone (differential evolution by default), the steps before it
+#: burn-in (``MCMCResult.fallback_after``). Found on a truth outside the
+#: presets (sparse-long plan, seed 2; docs/identification.md, "A friction
+#: chain that mixes slowly"): the friction posterior is smooth but piled
+#: against the F_s >= F_c wall, with a funnel in the Stribeck velocity;
+#: 27 % of the draws of a Gaussian fitted to the settled walkers fall
+#: beyond the wall and the rest lie 5 log units below the walkers' median.
+#: The t accepted 0.02-0.05 after each fit (11 tau, R-hat 1.64 at 2000
+#: steps); DE alone accepts 0.17 there.
 MAX_READAPT = 2
+#: Whether a chain whose t still misses after :data:`MAX_READAPT` new fits
+#: goes on with the adaptation's moves alone (False: with the last t, as
+#: before 2026-12-05; the tests measure the difference with it).
+FALLBACK = True
 #: A chain past its default length is extended only while it can still
 #: converge by its limit: at each check from the default length on, the
 #: kept steps it would need (:func:`_steps_needed`: R-hat - 1 falls as
@@ -235,6 +253,10 @@ class MCMCResult:
     readapted_after : list of int
         Steps at which the independence proposal was fitted again
         (:data:`READAPT_ACCEPTANCE`); the summaries start after the last.
+    fallback_after : int or None
+        Step from which the chain went on without the independence proposal,
+        which still missed the posterior after :data:`MAX_READAPT` new fits
+        (None: it did not); the summaries start after it.
     phase_fits : list of int
         Checks of the adaptation phase at which the walkers had not settled
         and the t was fitted to them to carry on the phase with
@@ -263,6 +285,7 @@ class MCMCResult:
     resumed_from: int = 0
     adapted_after: int = 0
     readapted_after: list[int] = field(default_factory=list)
+    fallback_after: int | None = None
     phase_fits: list[int] = field(default_factory=list)
     seed: int = 0
 
@@ -309,6 +332,7 @@ class MCMCResult:
             "resumed_from": self.resumed_from,
             "adapted_after": self.adapted_after,
             "readapted_after": list(self.readapted_after),
+            "fallback_after": self.fallback_after,
             "phase_fits": list(self.phase_fits),
             "seed": self.seed,
             "warnings": list(self.warnings),
@@ -746,6 +770,7 @@ def run_mcmc(
                 _flush(store)
     burn = adapt
     readapted: list[int] = []
+    fallback: int | None = None
     target = min(check, n_steps) if check > 0 else n_steps
     if adapt:
         n_steps = max(n_steps, adapt + 2)
@@ -823,6 +848,23 @@ def run_mcmc(
             burn = target
             target = min(limit, target + check)
             continue
+        if (FALLBACK and missed and moved < READAPT_ACCEPTANCE and fallback is None
+                and len(readapted) >= MAX_READAPT > 0 and target - check >= burn):  # fmt: skip
+            # no t fits this posterior (MAX_READAPT new fits and it still
+            # refuses nearly every draw): the adaptation's moves alone from
+            # here, a function of the stored chain as above
+            sampler = sampler_with(default_moves() if moves is None else moves)
+            adapted = True
+            last = None
+            fallback = target
+            if log is not None:
+                log(
+                    f"mcmc {name}: acceptance {moved:.2f} over steps {target - check}-{target} "
+                    f"after {len(readapted)} new fits of the proposal: no t fits this "
+                    "posterior; differential evolution alone from here"
+                )
+            target = min(limit, target + check)
+            continue
         # past the default length, extended only while it can converge by the
         # limit (EXTEND_REACH): a projection from the stored chain, so a
         # resumed run stops at the same step
@@ -863,6 +905,7 @@ def run_mcmc(
     result.resumed_from = done
     result.adapted_after = adapt
     result.readapted_after = readapted
+    result.fallback_after = fallback
     result.phase_fits = phase_fits
     return result
 

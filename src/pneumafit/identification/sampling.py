@@ -153,8 +153,9 @@ HELD_SHARE = 0.5
 #: a low acceptance whatever the fit: a check window after the last fit
 #: that still accepts fewer than :data:`READAPT_ACCEPTANCE` of its
 #: walker-steps drops the t, and the chain goes on with the adaptation's
-#: moves alone (differential evolution by default), the steps before it
-#: burn-in (``MCMCResult.fallback_after``). Found on a truth outside the
+#: moves alone (differential evolution by default), its steps kept: each
+#: kernel leaves the posterior invariant (``MCMCResult.fallback_after``).
+#: Found on a truth outside the
 #: presets (sparse-long plan, seed 2; docs/identification.md, "A friction
 #: chain that mixes slowly"): the friction posterior is smooth but piled
 #: against the F_s >= F_c wall, with a funnel in the Stribeck velocity;
@@ -256,7 +257,8 @@ class MCMCResult:
     fallback_after : int or None
         Step from which the chain went on without the independence proposal,
         which still missed the posterior after :data:`MAX_READAPT` new fits
-        (None: it did not); the summaries start after it.
+        (None: it did not); the steps before it stay in the summaries (the
+        burn-in is still the last new fit's).
     phase_fits : list of int
         Checks of the adaptation phase at which the walkers had not settled
         and the t was fitted to them to carry on the phase with
@@ -704,7 +706,10 @@ def run_mcmc(
         )
 
     adapt = max(int(adapt), 0)
-    sampler = sampler_with(default_moves() if moves is None else moves)
+    # the adaptation phase's moves, and a fallback's (no state of their own:
+    # emcee draws from the sampler's random state)
+    phase_moves = default_moves() if moves is None else moves
+    sampler = sampler_with(phase_moves)
     adapted = False
     last: emcee.State | None = None
     check = int(min_steps) if min_steps else 0
@@ -848,12 +853,12 @@ def run_mcmc(
             burn = target
             target = min(limit, target + check)
             continue
-        if (FALLBACK and missed and moved < READAPT_ACCEPTANCE and fallback is None
+        if (FALLBACK and moved < READAPT_ACCEPTANCE and fallback is None
                 and len(readapted) >= MAX_READAPT > 0 and target - check >= burn):  # fmt: skip
             # no t fits this posterior (MAX_READAPT new fits and it still
             # refuses nearly every draw): the adaptation's moves alone from
             # here, a function of the stored chain as above
-            sampler = sampler_with(default_moves() if moves is None else moves)
+            sampler = sampler_with(phase_moves)
             adapted = True
             last = None
             fallback = target

@@ -712,14 +712,64 @@ def test_one_zero_per_pressure_sensor_from_the_fit_recordings() -> None:
         "p_P -5 Pa (the fit recordings' mean residual)"
     )
     assert zeros_phrase({}, (), tables) == (
-        "pressures: p_P: no fit recording reads it, so each recording less its own mean"
+        "pressures: p_P: no fit recording reads it, so each recording less its own mean "
+        "(at most 7500 Pa)"
     )
     assert zeros_phrase(zeros, (), ("p_P", "p_N")) == (
         "pressures less one zero per sensor: p_P +167 Pa (the fit recordings' mean residual); "
-        "p_N: no fit recording reads it, so each recording less its own mean"
+        "p_N: no fit recording reads it, so each recording less its own mean (at most 7500 Pa)"
     )
     assert zeros_phrase(zeros, (), ("F", "y")) == ""  # no pressure in the table
     # given zeros (a fit's: the offsets its held-out starts take off) are used as given
     given = {(f, c): r for f, c, _i, r in rep.sensor_offset_free({"p_N": 20.0})}
     np.testing.assert_allclose(given[("c.h5", "p_P")], [-100.0, 100.0])  # no zero given
     np.testing.assert_allclose(given[("c.h5", "p_N")], [30.0, 50.0])
+
+
+def test_a_zero_beyond_a_transducer_s_is_the_model_s() -> None:
+    """Plumbing and arithmetic, exact (made-up residuals, not a fit): a mean
+    pressure residual beyond what a transducer's zero can be
+    (problem.OFFSET_LIMIT, 7.5 kPa) is held at the limit, for the fit
+    recordings' zero and for a recording's own mean alike, and the phrase
+    says the rest counts as the model's misfit. Before 2026-12-05 the whole
+    mean was taken off: on the bundled demo the convection fit's chamber N
+    (truth offset +165 Pa) was judged less -11.7 kPa."""
+    from pneumafit.identification.problem import OFFSET_LIMIT
+    from pneumafit.identification.quality import zeros_phrase
+    from pneumafit.identification.replay import Compared, RecordingReplay, Replay
+
+    def rec(file: str, role: str, channels: dict[str, list[float]]) -> RecordingReplay:
+        compared = {}
+        for ch, res in channels.items():
+            r = np.asarray(res, dtype=float)
+            rows = np.arange(r.size)
+            level = np.full(r.size, 5e5)
+            compared[ch] = Compared(ch, "pressure", rows, rows * 0.01, r + level, level)
+        return RecordingReplay(file, "step", role, np.arange(4) * 0.01, {}, 0, compared)
+
+    rep = Replay(
+        structure=fit_structure("convection"),
+        recordings=(
+            rec("a.h5", "fit", {"p_N": [-12000.0, -10000.0]}),
+            rec("b.h5", "validate", {"p_N": [-6000.0, -4000.0], "p_P": [-9000.0, -11000.0]}),
+            rec("c.h5", "validate", {"p_P": [-7000.0, -7400.0]}),
+        ),
+        probe=None,
+        lag_source="none",
+    )
+    zeros = rep.sensor_zeros()
+    assert OFFSET_LIMIT == 7500.0
+    # p_N's mean over the fit recordings, -11000 Pa, is held at -7500
+    assert zeros == pytest.approx({"p_N": -7500.0}, rel=1e-12)
+    out = {(f, c): r for f, c, _i, r in rep.sensor_offset_free()}
+    np.testing.assert_allclose(out[("a.h5", "p_N")], [-4500.0, -2500.0])
+    np.testing.assert_allclose(out[("b.h5", "p_N")], [1500.0, 3500.0])
+    # p_P, which no fit recording reads: each recording's own mean, held
+    # (-10000 Pa) or not (-7200 Pa, within the limit)
+    np.testing.assert_allclose(out[("b.h5", "p_P")], [-1500.0, -3500.0])
+    np.testing.assert_allclose(out[("c.h5", "p_P")], [200.0, -200.0])
+    assert zeros_phrase(zeros, (), ("p_N",)) == (
+        "pressures less one zero per sensor: p_N -7500 Pa (the fit recordings' mean residual "
+        "is beyond what a transducer's zero can be, 7500 Pa: the rest counts as the model's "
+        "misfit)"
+    )

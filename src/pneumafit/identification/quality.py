@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.identification.noise import detect_resolution
-from pneumafit.identification.problem import QUANTITIES
+from pneumafit.identification.problem import OFFSET_LIMIT, QUANTITIES
 
 __all__ = [
     "THRESHOLD",
@@ -733,20 +733,28 @@ def zeros_phrase(
     tail = (
         "; " + ", ".join(unknown) + ": no fit recording reads "
         + ("it" if len(unknown) == 1 else "them")
-        + ", so each recording less its own mean"
+        + f", so each recording less its own mean (at most {OFFSET_LIMIT:.0f} Pa)"
         if unknown
         else ""
     )  # fmt: skip
     if not zeros:
         return "pressures: " + tail.removeprefix("; ")
+
+    def source(c: str, v: float) -> str:
+        if c in applied:
+            return "its offset"
+        if abs(v) >= OFFSET_LIMIT:
+            # Replay.sensor_zeros holds a mean residual within a transducer's
+            # zero (replay.plausible_zero): the rest is the model's misfit
+            return (
+                "the fit recordings' mean residual is beyond what a transducer's zero can "
+                f"be, {OFFSET_LIMIT:.0f} Pa: the rest counts as the model's misfit"
+            )
+        return "the fit recordings' mean residual"
+
     return (
         "pressures less one zero per sensor: "
-        + ", ".join(
-            f"{c} {v:+.0f} Pa ("
-            + ("its offset" if c in applied else "the fit recordings' mean residual")
-            + ")"
-            for c, v in sorted(zeros.items())
-        )
+        + ", ".join(f"{c} {v:+.0f} Pa ({source(c, v)})" for c, v in sorted(zeros.items()))
         + tail
     )
 

@@ -39,6 +39,7 @@ from pneumafit.identification.problem import (
     COMPARABLE_CHANNELS,
     INITIAL_PREFIX,
     MAX_STEP,
+    OFFSET_LIMIT,
     QUANTITIES,
     Problem,
     fit_temperature_probe,
@@ -54,6 +55,7 @@ __all__ = [
     "Compared",
     "RecordingReplay",
     "Replay",
+    "plausible_zero",
     "replay",
     "with_recorded_commands",
 ]
@@ -212,8 +214,13 @@ class Replay:
 
         A transducer has one zero for the campaign, so the fit recordings'
         pressure residuals of one channel, pooled sample by sample, give it
-        (their mean: the least-squares constant over all of them). A channel
-        no ``role`` recording compares has no entry.
+        (their mean: the least-squares constant over all of them), held
+        within what a transducer's zero can be (:func:`plausible_zero`): a
+        mean residual beyond :data:`~pneumafit.identification.problem.OFFSET_LIMIT`
+        is the model's, as a sensor offset that large is
+        (:attr:`~pneumafit.identification.problem.SensorOffset.plausible`),
+        and only the limit is taken off. A channel no ``role`` recording
+        compares has no entry.
         """
         sums: dict[str, list[float]] = {}
         for _file, channel, quantity, _idx, res in self.residuals.get(role, []):
@@ -224,7 +231,7 @@ class Replay:
             acc = sums.setdefault(channel, [0.0, 0.0])
             acc[0] += float(np.sum(r))
             acc[1] += r.size
-        return {c: s / n for c, (s, n) in sums.items() if n > 0}
+        return {c: plausible_zero(s / n) for c, (s, n) in sums.items() if n > 0}
 
     def verdict_zeros(self, offsets: Mapping[str, float]) -> dict[str, float]:
         """The zero the fit's verdict takes off each pressure sensor (Pa):
@@ -248,7 +255,9 @@ class Replay:
             2026-12-05 it was compared as read (on the quick plan of the
             kernel's own truth, whose fit tests are all of chamber P, a
             held-out p_N then read 2057 Pa, 5.1x the noise, of which the
-            level was 1865 Pa: the rig's sensor offset, 1500 Pa).
+            level was 1865 Pa: the rig's sensor offset, 1500 Pa). That
+            mean is held within a transducer's zero too
+            (:func:`plausible_zero`).
         """
         zeros = self.sensor_zeros() if zeros is None else zeros
         out = []
@@ -259,9 +268,29 @@ class Replay:
                         res = res - float(zeros[channel])
                     else:
                         good = np.isfinite(res)
-                        res = res - (float(np.mean(res[good])) if np.any(good) else 0.0)
+                        own = float(np.mean(res[good])) if np.any(good) else 0.0
+                        res = res - plausible_zero(own)
                 out.append((file, channel, idx, res))
         return out
+
+
+def plausible_zero(mean_residual: float) -> float:
+    """A pressure sensor's zero (Pa) from a mean residual, held within
+    +-:data:`~pneumafit.identification.problem.OFFSET_LIMIT`.
+
+    A transducer's zero is at most a few times its static error band
+    (7.5 kPa); a mean pressure residual beyond that is the model's, as the
+    fit already says of a sensor offset that large. Taking the whole mean
+    off hid it from the verdict: on a rig with a bore 1.5 % wider than
+    declared (benchmarks/truths/novel.toml, sparse-long plan, seed 2;
+    convection fit, --no-mcmc --seed 2) chamber N read 10.2 kPa below the
+    model over the fit recordings, against the sensor's true offset of
+    -0.3 kPa. The verdict took all of it off: the fit step test's four
+    segments showed p_N at 4.3-6.4x the noise; held at 7.5 kPa, 5.7-10.6x.
+    The held-out step test's own mean is nearer the limit than the fit
+    recordings' (its p_N went from 19.2x to 13.6x).
+    """
+    return float(np.clip(mean_residual, -OFFSET_LIMIT, OFFSET_LIMIT))
 
 
 def _gas_temperature_blocks(

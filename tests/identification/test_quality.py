@@ -773,3 +773,27 @@ def test_a_zero_beyond_a_transducer_s_is_the_model_s() -> None:
         "is beyond what a transducer's zero can be, 7500 Pa: the rest counts as the model's "
         "misfit)"
     )
+
+
+def test_the_estimates_table_tells_a_short_chain_from_one_not_mixed() -> None:
+    """Plumbing, exact (made-up diagnostics, not a fit): a chain under 50 tau
+    is flagged ``chain short``; one long enough whose R-hat is above 1.01,
+    ``not mixed`` (the novel truth's friction chain, 84 tau and R-hat 1.017,
+    read "chain short" before 2026-12-05); a bound wins over either."""
+    from types import SimpleNamespace
+
+    from pneumafit.cli.fit import _flags
+    from pneumafit.identification.quality import chain_problems
+
+    run = SimpleNamespace(
+        name="friction", names=["a", "b", "c", "d"], n_steps=4000, discard=0,
+        tau={"a": 40.0, "b": 100.0, "c": 100.0, "d": 40.0},  # steps: 100, 40, 40, 100 tau
+        rhat={"a": 1.05, "b": 1.001, "c": 1.02, "d": 1.002},
+    )  # fmt: skip
+    quality = FitQuality([], at_bounds=["c (lower bound 0)"], unreliable=chain_problems([run]))
+    assert quality.unreliable == [
+        "a (friction: R-hat 1.050)",
+        "b (friction: 40 tau)",
+        "c (friction: 40 tau, R-hat 1.020)",
+    ]
+    assert _flags(quality) == {"a": "not mixed", "b": "chain short", "c": "at bound"}

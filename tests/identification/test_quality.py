@@ -797,3 +797,46 @@ def test_the_estimates_table_tells_a_short_chain_from_one_not_mixed() -> None:
         "c (friction: 40 tau, R-hat 1.020)",
     ]
     assert _flags(quality) == {"a": "not mixed", "b": "chain short", "c": "at bound"}
+
+
+def test_an_interval_that_leaves_the_order_of_magnitude_open_is_named() -> None:
+    """Plumbing, exact (made-up estimates, not a fit). A positive parameter
+    whose 90 % interval spans more than a factor 10 or reaches 0, or a signed
+    one whose interval covers more than half its range, is "not determined":
+    a caveat (console in yellow, the report's notes, fit.json), the flag
+    ``not determined`` in the estimates table, and the fit stays trustworthy
+    on that account. Found on the novel truth's sparse-long plan with
+    ``--valve map`` (2026-12-05): friction_coulomb 4.48 N, 90 % [0.072,
+    278] N, with an empty flag column. Initial states, parameters not free
+    and estimates at a bound (named as such) are not judged."""
+    from pneumafit.cli.fit import _flags
+    from pneumafit.identification.parameters import Parameter
+    from pneumafit.identification.quality import undetermined_problems
+
+    def par(name, value, iv, lower=0.0, upper=1e3, **kw):
+        return Parameter(name, value, unit="N", lower=lower, upper=upper, interval_90=iv, **kw)
+
+    pars = [
+        par("nine", 3.0, (1.0, 9.0)),  # a factor 9: determined
+        par("eleven", 3.0, (1.0, 11.0)),  # a factor 11
+        par("zero", 3.0, (0.0, 5.0)),  # reaches 0
+        par("signed_wide", 0.1, (-0.35, 0.25), lower=-0.5, upper=0.5),  # 60 % of the range
+        par("signed_narrow", 0.1, (-0.15, 0.25), lower=-0.5, upper=0.5),  # 40 %
+        par("at_bound", 1e-20, (0.0, 5.0)),  # at its lower bound: bound_problems' item
+        par("initial", 3.0, (0.1, 9.0), group="initial"),
+        par("held", 3.0, (0.1, 9.0)),  # not free
+    ]
+    free = [p.name for p in pars if p.name != "held"]
+    items = undetermined_problems(pars, free)
+    assert [i.split(" ", 1)[0] for i in items] == ["eleven", "zero", "signed_wide"]
+    assert items[0] == "eleven 3 N, 90 % [1, 11]: a factor 11"
+    assert items[1].endswith(": reaches 0") and items[2].endswith(": 60% of its range")
+    quality = FitQuality([], undetermined=items, at_bounds=["at_bound (lower bound 0)"])
+    (caveat,) = quality.caveats()
+    assert caveat.startswith("not determined by the fit recordings") and items[1] in caveat
+    assert quality.as_dict()["undetermined"] == items
+    assert FitQuality([], undetermined=items).trustworthy  # a caveat, not a problem
+    assert _flags(quality) == {
+        "eleven": "not determined", "zero": "not determined",
+        "signed_wide": "not determined", "at_bound": "at bound",
+    }  # fmt: skip

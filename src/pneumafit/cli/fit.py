@@ -357,13 +357,16 @@ def _reference_lines(metrics: dict[str, Any]) -> list[str]:
 
 def _flags(quality: FitQuality) -> dict[str, str]:
     """The estimates table's flag per parameter: ``at bound``, ``outside
-    interval``, ``chain short`` (its chain under 50 tau) or ``not mixed``
-    (long enough, R-hat above 1.01; quality.chain_problems)."""
+    interval``, ``not determined`` (quality.undetermined_problems), ``chain
+    short`` (its chain under 50 tau) or ``not mixed`` (long enough, R-hat
+    above 1.01; quality.chain_problems)."""
     flagged: dict[str, str] = {}
     for item in quality.at_bounds:
         flagged[item.split(" ", 1)[0]] = "at bound"
     for item in quality.outside_interval:
         flagged[item.split(" ", 1)[0]] = "outside interval"
+    for item in quality.undetermined:
+        flagged.setdefault(item.split(" ", 1)[0], "not determined")
     for item in quality.unreliable:
         # "NAME (STAGE: 31 tau, R-hat 1.020)" or "NAME (STAGE: R-hat 1.020)"
         why = "chain short" if " tau" in item else "not mixed"

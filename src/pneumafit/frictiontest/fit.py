@@ -75,6 +75,7 @@ from pneumafit.identification.quality import (
     chain_problems,
     estimate_noise,
     interval_problems,
+    undetermined_problems,
 )
 from pneumafit.identification.sampling import run_mcmc
 from pneumafit.identification.staged import (
@@ -529,6 +530,7 @@ def identify_friction(
         at_bounds=bound_problems(parameters, parameters.free_names),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
+        undetermined=undetermined_problems(parameters, parameters.free_names),
         unconverged=[] if est.success else [f"joint: {est.message}"],
     )  # fmt: skip
     n_data = int(sum(o.n for o in problem.observations))

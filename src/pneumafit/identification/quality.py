@@ -66,6 +66,7 @@ __all__ = [
     "one_recording_caveat",
     "phases",
     "rest_offsets",
+    "undetermined_problems",
     "zeros_phrase",
 ]
 
@@ -98,6 +99,19 @@ PHASE_MARGIN = 0.05
 MAX_RHAT = 1.01
 #: Chain length in autocorrelation times below which it is unreliable.
 MIN_TAU = 50.0
+#: A positive parameter whose 90 % interval's ends are further apart than
+#: this factor (or whose interval reaches 0) is not determined by the fit
+#: recordings (:func:`undetermined_problems`): its order of magnitude is
+#: open. Measured on fits of the virtual rig (2026-12-05, ``--no-mcmc``):
+#: on data/demo (MCMC) and on the mixed truth's demo plan every interval
+#: spans less than a factor 7 (heat_area_ends, 6.8); on the novel truth's
+#: sparse-long plan the Stribeck velocity spans its range [1e-4, 1] m/s,
+#: and with ``--valve map`` xi [0.0015, 0.68] and friction_coulomb [0.072,
+#: 278] N, reported as 0.032 and 4.5 N with an empty flag column.
+UNDETERMINED_FACTOR = 10.0
+#: A parameter that may be negative is not determined when its 90 %
+#: interval covers more than this share of its range.
+UNDETERMINED_SHARE = 0.5
 
 PHASES = ("rest", "filling", "motion", "flow")
 #: Shortest rest phase (s) of a step test whose rest position is compared
@@ -445,6 +459,11 @@ class FitQuality:
         Parameter groups no fit recording informs, held at the rig's
         defaults (e.g. ``"friction (no fit step test)"``): the fit reports,
         exports and designs on values it did not estimate.
+    undetermined : list of str
+        Free parameters whose 90 % interval leaves their order of magnitude
+        open (:func:`undetermined_problems`), each with its value and
+        interval. A caveat (:meth:`caveats`): the model's predictions may
+        not depend on them, but their values mean little on their own.
     one_recording : dict of str to str
         Parameter -> the recording its interval rests on, for every parameter
         whose information comes from one recording
@@ -507,6 +526,7 @@ class FitQuality:
     unreliable: list[str] = field(default_factory=list)
     unconverged: list[str] = field(default_factory=list)
     not_identified: list[str] = field(default_factory=list)
+    undetermined: list[str] = field(default_factory=list)
     one_recording: dict[str, str] = field(default_factory=dict)
     rest_positions: list[RestOffset] = field(default_factory=list)
     recorded_commands: dict[str, float | None] = field(default_factory=dict)
@@ -677,6 +697,17 @@ class FitQuality:
         """One sentence per limit of the intervals that does not make the fit
         untrustworthy (empty when there is none)."""
         out = [one_recording_caveat(self.one_recording)] if self.one_recording else []
+        if self.undetermined:
+            out.append(
+                "not determined by the fit recordings (90 % interval over a factor "
+                f"{UNDETERMINED_FACTOR:g} or reaching 0; for a signed parameter, over "
+                f"{UNDETERMINED_SHARE:.0%} of its range): "
+                + "; ".join(self.undetermined)
+                + ": these values mean little on their own (a combination with a "
+                "correlated partner may still be determined, as lambda at the reference "
+                "state is for xi and beta: see the posterior correlation); a test that "
+                "moves them would determine them"
+            )
         out += [
             f"sensor offset {line}; the held-out recordings start from this sensor's "
             "readings as they are"
@@ -706,6 +737,7 @@ class FitQuality:
             "unreliable": list(self.unreliable),
             "unconverged": list(self.unconverged),
             "not_identified": list(self.not_identified),
+            "undetermined": list(self.undetermined),
             "one_recording": [f"{n} ({f})" for n, f in self.one_recording.items()],
             "caveats": self.caveats(),
             "rest_positions": [r.as_dict() for r in self.rest_positions],
@@ -899,6 +931,46 @@ def interval_problems(parameters: Iterable[Any]) -> list[str]:
         slack = 1e-9 * max(abs(lo), abs(hi), 1e-300)
         if not (lo - slack <= p.value <= hi + slack):
             out.append(f"{p.name} {p.value:.6g} not in [{lo:.6g}, {hi:.6g}]")
+    return out
+
+
+def undetermined_problems(parameters: Iterable[Any], free: Iterable[str]) -> list[str]:
+    """Free estimates whose 90 % interval leaves their order of magnitude open.
+
+    A parameter that cannot be negative (lower bound >= 0) with a positive
+    estimate: its interval reaches 0 or its ends are more than
+    :data:`UNDETERMINED_FACTOR` apart. Any other with finite bounds: its
+    interval covers more than :data:`UNDETERMINED_SHARE` of its range.
+    Initial states, rig constants and estimates at a bound
+    (:func:`bound_problems`) are not judged. Each item is
+    ``"name value unit, 90 % [lo, hi]: why"``.
+    """
+    names = set(free)
+    out = []
+    for p in parameters:
+        iv = p.interval_90
+        if p.name not in names or iv is None or p.group in ("initial", "rig"):
+            continue
+        lo, hi = float(iv[0]), float(iv[1])
+        if (
+            not (math.isfinite(lo) and math.isfinite(hi))
+            or hi <= lo
+            or bound_problems([p], [p.name])
+        ):
+            continue  # an estimate at a bound is named as such (bound_problems)
+        why = ""
+        if p.lower >= 0.0 and p.value > 0.0:
+            if lo <= 0.0:
+                why = "reaches 0"
+            elif hi / lo > UNDETERMINED_FACTOR:
+                why = f"a factor {hi / lo:.3g}"
+        elif math.isfinite(p.lower) and math.isfinite(p.upper) and p.upper > p.lower:
+            share = (hi - lo) / (p.upper - p.lower)
+            if share > UNDETERMINED_SHARE:
+                why = f"{share:.0%} of its range"
+        if why:
+            unit = f" {p.unit}" if p.unit and p.unit != "-" else ""
+            out.append(f"{p.name} {p.value:.4g}{unit}, 90 % [{lo:.3g}, {hi:.3g}]: {why}")
     return out
 
 

@@ -89,6 +89,7 @@ from pneumafit.identification.quality import (
     interval_problems,
     one_recording_caveat,
     rest_offsets,
+    undetermined_problems,
 )
 from pneumafit.identification.reference import (
     REFERENCE_STATE,
@@ -2499,6 +2500,7 @@ def assess(
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
+        undetermined=undetermined_problems(parameters, free),
         one_recording=dict(one_recording or {}),
         rest_positions=rest,
         sensor_zeros=zeros,

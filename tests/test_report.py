@@ -28,7 +28,7 @@ from pneumafit.campaign import read_campaign
 from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.identification import FitOptions, fit_document, identify, write_fit_json
 from pneumafit.identification.fitfile import WIDENING_SHOWN, widening_label
-from pneumafit.identification.quality import one_recording_caveat
+from pneumafit.identification.quality import one_recording_caveat, parameter_flags
 from pneumafit.outputs.report import SECTIONS, write_report
 from pneumafit.virtual_rig import BlockedTest, FlowTest, Protocol, StepTest, VirtualRig
 
@@ -176,7 +176,9 @@ def test_the_parameter_table_shows_the_interval_widening(
     """fit.json's ``interval_widening`` (written only where the robust
     covariance widened an interval) is the table's "widened" column: a copy
     of the run whose xi was widened 3.47x shows "x3.5" on xi's row; the
-    quality's caveats are shown under its verdict."""
+    quality's caveats are shown under its verdict; the last column is the
+    flag the console's table gives (quality.parameter_flags): xi made
+    "not determined" in the copy's quality shows it, beta its own."""
     run, _ = run_folder
     copy = tmp_path / "run"
     shutil.copytree(run, copy)
@@ -186,6 +188,7 @@ def test_the_parameter_table_shows_the_interval_widening(
     fit["parameters"]["beta"].pop("interval_widening", None)
     caveat = one_recording_caveat({"friction_static": "step_1.h5"})
     fit["quality"]["caveats"] = [caveat]
+    fit["quality"]["undetermined"] = ["xi 0.4, 90 % [0.01, 0.9]: a factor 90"]
     path.write_text(json.dumps(fit))
     params = _section_html(write_report(copy, tmp_path / "r.html").read_text(), "parameters")
     rows = {re.sub("<[^>]+>", "", row.split("</td>", 1)[0]): row
@@ -193,7 +196,12 @@ def test_the_parameter_table_shows_the_interval_widening(
     assert "widened" in params
     assert "<td>x3.5</td>" in rows["xi"]
     assert html.escape(caveat) in params  # the quality's caveats, under its verdict
-    assert "<td>x3.5</td>" not in rows["beta"] and rows["beta"].rstrip().endswith("<td>-</td></tr>")
+    assert "<td>x3.5</td><td><strong>not determined</strong></td></tr>" in rows["xi"]
+    assert "<td>x3.5</td>" not in rows["beta"]
+    # beta's flag is its own fit's (the test run's short chains: "chain short")
+    flag = parameter_flags(fit["quality"]).get("beta")
+    cell = f"<td><strong>{flag}</strong></td>" if flag else "<td></td>"
+    assert rows["beta"].rstrip().endswith(f"<td>-</td>{cell}</tr>")
 
 
 def test_an_empty_run_folder_gives_not_run_sections(tmp_path: Path) -> None:

@@ -782,8 +782,7 @@ def test_the_estimates_table_tells_a_short_chain_from_one_not_mixed() -> None:
     read "chain short" before 2026-12-05); a bound wins over either."""
     from types import SimpleNamespace
 
-    from pneumafit.cli.fit import _flags
-    from pneumafit.identification.quality import chain_problems
+    from pneumafit.identification.quality import chain_problems, parameter_flags
 
     run = SimpleNamespace(
         name="friction", names=["a", "b", "c", "d"], n_steps=4000, discard=0,
@@ -796,7 +795,7 @@ def test_the_estimates_table_tells_a_short_chain_from_one_not_mixed() -> None:
         "b (friction: 40 tau)",
         "c (friction: 40 tau, R-hat 1.020)",
     ]
-    assert _flags(quality) == {"a": "not mixed", "b": "chain short", "c": "at bound"}
+    assert parameter_flags(quality) == {"a": "not mixed", "b": "chain short", "c": "at bound"}
 
 
 def test_an_interval_that_leaves_the_order_of_magnitude_open_is_named() -> None:
@@ -809,9 +808,8 @@ def test_an_interval_that_leaves_the_order_of_magnitude_open_is_named() -> None:
     ``--valve map`` (2026-12-05): friction_coulomb 4.48 N, 90 % [0.072,
     278] N, with an empty flag column. Initial states, parameters not free
     and estimates at a bound (named as such) are not judged."""
-    from pneumafit.cli.fit import _flags
     from pneumafit.identification.parameters import Parameter
-    from pneumafit.identification.quality import undetermined_problems
+    from pneumafit.identification.quality import parameter_flags, undetermined_problems
 
     def par(name, value, iv, lower=0.0, upper=1e3, **kw):
         return Parameter(name, value, unit="N", lower=lower, upper=upper, interval_90=iv, **kw)
@@ -836,7 +834,7 @@ def test_an_interval_that_leaves_the_order_of_magnitude_open_is_named() -> None:
     assert caveat.startswith("not determined by the fit recordings") and items[1] in caveat
     assert quality.as_dict()["undetermined"] == items
     assert FitQuality([], undetermined=items).trustworthy  # a caveat, not a problem
-    assert _flags(quality) == {
+    assert parameter_flags(quality) == {
         "eleven": "not determined", "zero": "not determined",
         "signed_wide": "not determined", "at_bound": "at bound",
     }  # fmt: skip

@@ -51,7 +51,7 @@ from pneumafit.cli.console import (
 )
 from pneumafit.identification.fitfile import widening_label
 from pneumafit.identification.problem import NOISE_POOLINGS, OFFSET_SCOPE, OFFSET_SCOPES, QUANTITIES
-from pneumafit.identification.quality import FitQuality, zeros_phrase
+from pneumafit.identification.quality import parameter_flags, zeros_phrase
 from pneumafit.identification.segments import SEGMENT_MODES
 from pneumafit.identification.staged import (
     FRICTION_PARAMETERS,
@@ -355,25 +355,6 @@ def _reference_lines(metrics: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _flags(quality: FitQuality) -> dict[str, str]:
-    """The estimates table's flag per parameter: ``at bound``, ``outside
-    interval``, ``not determined`` (quality.undetermined_problems), ``chain
-    short`` (its chain under 50 tau) or ``not mixed`` (long enough, R-hat
-    above 1.01; quality.chain_problems)."""
-    flagged: dict[str, str] = {}
-    for item in quality.at_bounds:
-        flagged[item.split(" ", 1)[0]] = "at bound"
-    for item in quality.outside_interval:
-        flagged[item.split(" ", 1)[0]] = "outside interval"
-    for item in quality.undetermined:
-        flagged.setdefault(item.split(" ", 1)[0], "not determined")
-    for item in quality.unreliable:
-        # "NAME (STAGE: 31 tau, R-hat 1.020)" or "NAME (STAGE: R-hat 1.020)"
-        why = "chain short" if " tau" in item else "not mixed"
-        flagged.setdefault(item.split(" ", 1)[0], why)
-    return flagged
-
-
 def _summary(result: FitResult, console: Console) -> None:
     """The verdict first, then the fitted parameters with their uncertainty and
     MCMC diagnostics, and the residual over noise per recording."""
@@ -385,7 +366,7 @@ def _summary(result: FitResult, console: Console) -> None:
             console.print(Text(f"  - {line}", style="red"))
         for line in quality.caveats():
             console.print(Text(f"  - {line}", style="yellow"))
-    flagged = _flags(quality) if quality is not None else {}
+    flagged = parameter_flags(quality) if quality is not None else {}
     diag: dict[str, tuple[float, float, float]] = {}
     for run in result.mcmc:
         for n in run.names:

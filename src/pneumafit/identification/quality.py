@@ -64,6 +64,7 @@ __all__ = [
     "assess_residuals",
     "estimate_noise",
     "one_recording_caveat",
+    "parameter_flags",
     "phases",
     "rest_offsets",
     "undetermined_problems",
@@ -748,6 +749,38 @@ class FitQuality:
             "zeros_applied": list(self.zeros_applied),
             "recordings": [c.as_dict() for c in self.channels],
         }
+
+
+def parameter_flags(quality: FitQuality | Mapping[str, Any]) -> dict[str, str]:
+    """The flag of every flagged parameter, for the console's and the
+    report's parameter tables: ``at bound``, ``outside interval``, ``not
+    determined`` (:func:`undetermined_problems`), ``chain short`` (its chain
+    under 50 tau) or ``not mixed`` (long enough, R-hat above 1.01;
+    :func:`chain_problems`), the first that applies in that order.
+
+    Parameters
+    ----------
+    quality : FitQuality or mapping
+        A fit's quality, or its fit.json ``quality`` section
+        (:meth:`FitQuality.as_dict`; a key a file lacks counts as empty).
+    """
+
+    def items(key: str) -> list[str]:
+        if isinstance(quality, Mapping):
+            found = quality.get(key)
+            return [str(i) for i in found] if isinstance(found, list) else []
+        return list(getattr(quality, key))
+
+    flagged: dict[str, str] = {}
+    for key, flag in (("at_bounds", "at bound"), ("outside_interval", "outside interval"),
+                      ("undetermined", "not determined")):  # fmt: skip
+        for item in items(key):
+            flagged.setdefault(item.split(" ", 1)[0], flag)
+    for item in items("unreliable"):
+        # "NAME (STAGE: 31 tau, R-hat 1.020)" or "NAME (STAGE: R-hat 1.020)"
+        why = "chain short" if " tau" in item else "not mixed"
+        flagged.setdefault(item.split(" ", 1)[0], why)
+    return flagged
 
 
 def zeros_phrase(

@@ -37,7 +37,7 @@ from pneumafit.campaign.units import display_unit
 from pneumafit.comparison.result import COMPARISON_FILE
 from pneumafit.fileio import check_output, write_text_atomic
 from pneumafit.identification.fitfile import widening_label
-from pneumafit.identification.quality import zeros_phrase
+from pneumafit.identification.quality import parameter_flags, zeros_phrase
 from pneumafit.models.parts import MODEL_NAMES
 from pneumafit.outputs.report_html import (
     Section,
@@ -641,7 +641,9 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
         "(<em>laplace</em>); 90 % interval: the 5 and 95 % quantiles of the same posterior; "
         "widened: the factor by which the disagreement between recordings and the profile "
         "likelihood's curvature widened it (docs/identification.md, \"Intervals where the "
-        "recordings disagree\"). Rig parameters are fixed from the campaign."
+        "recordings disagree\"); flag: at bound, outside interval, not determined (a 90 % "
+        "interval over a factor 10 or reaching 0), chain short or not mixed, as in the fit's "
+        "verdict. Rig parameters are fixed from the campaign."
     )]  # fmt: skip
     fixed_rows: dict[str, list[str]] = {}
     for model in FIT_MODELS:
@@ -659,6 +661,8 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
         if rest.is_file():
             parts.append(_figures([rest]))
         rows = []
+        quality = doc.get("quality")
+        flags = parameter_flags(quality) if isinstance(quality, Mapping) else {}
         for name, e in doc["parameters"].items():
             if not isinstance(e, Mapping):
                 continue
@@ -671,6 +675,7 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
                 fmt(e.get("std"), unit, 3), _interval(e, "interval_90", unit),
                 esc(e.get("uncertainty") or "-"), _interval(e, "laplace_interval_90", unit),
                 widening_label(e.get("interval_widening")),
+                f"<strong>{esc(flags[name])}</strong>" if name in flags else "",
             ])  # fmt: skip
         parts.append(
             table(
@@ -683,6 +688,7 @@ def _parameter_section(run: _Run) -> tuple[str, str, str]:
                     "from",
                     "Laplace 90 % interval",
                     "widened",
+                    "flag",
                 ],
                 rows,
                 caption=f"Estimated parameters ({path})",

@@ -199,6 +199,7 @@ def run_case(
         "recordings": [c.as_dict() for c in q.channels],
         "figures": figures, "verdict": q.verdict(), "problems": q.problems(),
         "outside_interval": list(q.outside_interval), "at_bounds": list(q.at_bounds),
+        "undetermined": [item.split(" ", 1)[0] for item in q.undetermined],
         "one_recording": q.as_dict()["one_recording"],
         "recording_kinds": sorted({r.kind for r in camp.recordings}),
         "truth_file": run.truth.get("truth_model", {}).get("name", preset),
@@ -222,9 +223,9 @@ def table(rows: list[dict[str, Any]]) -> str:
     head = (
         "| case | protocol | seed | friction law | p RMS/noise fit | p RMS/noise held-out "
         "| held-out, recorded commands | lambda_ref err | F_s err | F_c err "
-        "| truth in 90 % (of 3) | at bound | verdict |"
+        "| truth in 90 % (of 3) | at bound | not determined | verdict |"
     )
-    lines = [head, "|" + "---|" * 13]
+    lines = [head, "|" + "---|" * 14]
     for r in rows:
         f = r["figures"]
         inside = sum(bool(v["contains_truth"]) for v in f.values())
@@ -236,6 +237,7 @@ def table(rows: list[dict[str, Any]]) -> str:
             + " | ".join(f"{100 * f[k]['rel_error']:+.0f} %" for k in
                          ("lambda_reference", "friction_static", "friction_coulomb"))
             + f" | {inside} | {', '.join(_short(a) for a in r['at_bounds']) or '-'} | "
+            f"{', '.join(r.get('undetermined', ())) or '-'} | "
             f"{'ok' if not r['problems'] else 'flagged'} |"
         )  # fmt: skip
     return "\n".join(lines) + "\n"
@@ -331,6 +333,9 @@ def main(argv: list[str] | None = None) -> int:
             not v["contains_truth"] and v.get("one_recording", False) for v in pairs
         ),
         "said_one_recording": sum(v.get("one_recording", False) for v in pairs),
+        # free parameters the fit said the recordings do not determine
+        # (quality.undetermined_problems), over the mismatched cases
+        "undetermined": sum(len(r.get("undetermined", ())) for r in rows_m),
         "estimates_outside_interval": sum(len(r["outside_interval"]) for r in rows),
         "flagged": sum(bool(r["problems"]) for r in rows_m),
         "control_pressure_ratio": max((r[k] for r in control for k in

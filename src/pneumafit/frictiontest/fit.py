@@ -530,7 +530,10 @@ def identify_friction(
         at_bounds=bound_problems(parameters, parameters.free_names),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
-        undetermined=undetermined_problems(parameters, parameters.free_names),
+        undetermined=undetermined_problems(
+            parameters, parameters.free_names,
+            bound_problems(parameters, parameters.free_names),
+        ),
         unconverged=[] if est.success else [f"joint: {est.message}"],
     )  # fmt: skip
     n_data = int(sum(o.n for o in problem.observations))

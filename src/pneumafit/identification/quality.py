@@ -967,7 +967,9 @@ def interval_problems(parameters: Iterable[Any]) -> list[str]:
     return out
 
 
-def undetermined_problems(parameters: Iterable[Any], free: Iterable[str]) -> list[str]:
+def undetermined_problems(
+    parameters: Iterable[Any], free: Iterable[str], at_bounds: Iterable[str] = ()
+) -> list[str]:
     """Free estimates whose 90 % interval leaves their order of magnitude open.
 
     A parameter that cannot be negative (lower bound >= 0) with a positive
@@ -975,10 +977,11 @@ def undetermined_problems(parameters: Iterable[Any], free: Iterable[str]) -> lis
     :data:`UNDETERMINED_FACTOR` apart. Any other with finite bounds: its
     interval covers more than :data:`UNDETERMINED_SHARE` of its range.
     Initial states, rig constants and estimates at a bound
-    (:func:`bound_problems`) are not judged. Each item is
-    ``"name value unit, 90 % [lo, hi]: why"``.
+    (:func:`bound_problems`; also any named in ``at_bounds``, its items,
+    such as the static friction on its Coulomb level) are not judged. Each
+    item is ``"name value unit, 90 % [lo, hi]: why"``.
     """
-    names = set(free)
+    names = set(free) - {item.split(" ", 1)[0] for item in at_bounds}
     out = []
     for p in parameters:
         iv = p.interval_90

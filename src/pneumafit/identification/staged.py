@@ -2500,7 +2500,7 @@ def assess(
         at_bounds=bound_problems(parameters, free),
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
-        undetermined=undetermined_problems(parameters, free),
+        undetermined=undetermined_problems(parameters, free, bound_problems(parameters, free)),
         one_recording=dict(one_recording or {}),
         rest_positions=rest,
         sensor_zeros=zeros,

@@ -705,9 +705,9 @@ class FitQuality:
                 f"{UNDETERMINED_SHARE:.0%} of its range): "
                 + "; ".join(self.undetermined)
                 + ": these values mean little on their own (a combination with a "
-                "correlated partner may still be determined, as lambda at the reference "
-                "state is for xi and beta: see the posterior correlation); a test that "
-                "moves them would determine them"
+                "correlated partner may still be determined, as lambda at the "
+                "reference state can be for xi and beta: see the posterior "
+                "correlation); a test that moves them would determine them"
             )
         out += [
             f"sensor offset {line}; the held-out recordings start from this sensor's "

@@ -825,13 +825,15 @@ def test_an_interval_that_leaves_the_order_of_magnitude_open_is_named() -> None:
         par("held", 3.0, (0.1, 9.0)),  # not free
     ]
     free = [p.name for p in pars if p.name != "held"]
-    items = undetermined_problems(pars, free)
+    at_bounds = bound_problems(pars, free)
+    assert at_bounds == ["at_bound (lower bound 0)"]
+    items = undetermined_problems(pars, free, at_bounds)
     assert [i.split(" ", 1)[0] for i in items] == ["eleven", "zero", "signed_wide"]
     assert items[0] == "eleven 3 N, 90 % [1, 11]: a factor 11"
     assert items[1].endswith(": reaches 0") and items[2].endswith(": 60% of its range")
     # a parameter named at a bound or constraint (friction_static on its
     # Coulomb level, bound_problems' CONSTRAINTS) is named there only
-    assert undetermined_problems(pars, free, ["eleven (= zero: no drop)"]) == items[1:]
+    assert undetermined_problems(pars, free, [*at_bounds, "eleven (= zero: no drop)"]) == items[1:]
     quality = FitQuality([], undetermined=items, at_bounds=["at_bound (lower bound 0)"])
     (caveat,) = quality.caveats()
     assert caveat.startswith("not determined by the fit recordings") and items[1] in caveat

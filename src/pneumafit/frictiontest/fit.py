@@ -525,15 +525,13 @@ def identify_friction(
         by_rec[t.file] = float(np.sqrt(np.mean(r * r)))
         sq[t.role].extend((r * r).tolist())
     rmse = {role: {"F": float(np.sqrt(np.mean(v)))} for role, v in sq.items() if v}
+    at_bounds = bound_problems(parameters, parameters.free_names)
     quality = FitQuality(
         channels=assess_residuals(campaign, residuals, ["F"]),
-        at_bounds=bound_problems(parameters, parameters.free_names),
+        at_bounds=at_bounds,
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
-        undetermined=undetermined_problems(
-            parameters, parameters.free_names,
-            bound_problems(parameters, parameters.free_names),
-        ),
+        undetermined=undetermined_problems(parameters, parameters.free_names, at_bounds),
         unconverged=[] if est.success else [f"joint: {est.message}"],
     )  # fmt: skip
     n_data = int(sum(o.n for o in problem.observations))

@@ -968,7 +968,7 @@ def interval_problems(parameters: Iterable[Any]) -> list[str]:
 
 
 def undetermined_problems(
-    parameters: Iterable[Any], free: Iterable[str], at_bounds: Iterable[str] = ()
+    parameters: Iterable[Any], free: Iterable[str], at_bounds: Iterable[str]
 ) -> list[str]:
     """Free estimates whose 90 % interval leaves their order of magnitude open.
 
@@ -976,10 +976,11 @@ def undetermined_problems(
     estimate: its interval reaches 0 or its ends are more than
     :data:`UNDETERMINED_FACTOR` apart. Any other with finite bounds: its
     interval covers more than :data:`UNDETERMINED_SHARE` of its range.
-    Initial states, rig constants and estimates at a bound
-    (:func:`bound_problems`; also any named in ``at_bounds``, its items,
-    such as the static friction on its Coulomb level) are not judged. Each
-    item is ``"name value unit, 90 % [lo, hi]: why"``.
+    Initial states, rig constants and the parameters named in
+    ``at_bounds`` (the items of :func:`bound_problems` for the same
+    parameters: a bound, or a constraint such as the static friction on its
+    Coulomb level) are not judged. Each item is ``"name value unit, 90 %
+    [lo, hi]: why"``.
     """
     names = set(free) - {item.split(" ", 1)[0] for item in at_bounds}
     out = []
@@ -988,12 +989,8 @@ def undetermined_problems(
         if p.name not in names or iv is None or p.group in ("initial", "rig"):
             continue
         lo, hi = float(iv[0]), float(iv[1])
-        if (
-            not (math.isfinite(lo) and math.isfinite(hi))
-            or hi <= lo
-            or bound_problems([p], [p.name])
-        ):
-            continue  # an estimate at a bound is named as such (bound_problems)
+        if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+            continue
         why = ""
         if p.lower >= 0.0 and p.value > 0.0:
             if lo <= 0.0:

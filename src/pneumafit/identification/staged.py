@@ -2495,12 +2495,13 @@ def assess(
     # one zero per pressure sensor: nothing fitted to a held-out recording
     # enters its figure
     zeros = rep.sensor_zeros() if zeros is None else dict(zeros)
+    at_bounds = bound_problems(parameters, free)
     quality = FitQuality(
         channels=assess_residuals(campaign, rep.sensor_offset_free(zeros), channels),
-        at_bounds=bound_problems(parameters, free),
+        at_bounds=at_bounds,
         outside_interval=interval_problems(parameters),
         unreliable=chain_problems(runs),
-        undetermined=undetermined_problems(parameters, free, bound_problems(parameters, free)),
+        undetermined=undetermined_problems(parameters, free, at_bounds),
         one_recording=dict(one_recording or {}),
         rest_positions=rest,
         sensor_zeros=zeros,

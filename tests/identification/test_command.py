@@ -15,7 +15,7 @@ from pneumafit.cli import fit as cli_fit
 from pneumafit.cli.fit import fit_command
 from pneumafit.identification import likelihood as likelihood_module
 from pneumafit.identification.fitfile import WIDENING_SHOWN, widening_label
-from pneumafit.identification.problem import OFFSET_AGREEMENT, OFFSET_LIMIT
+from pneumafit.identification.problem import OFFSET_AGREEMENT, OFFSET_DETERMINED, OFFSET_LIMIT
 from pneumafit.parameters_io import read_parameter_file
 
 #: Short chains: these tests check the plumbing, not the posteriors.
@@ -102,13 +102,17 @@ def test_fit_json_keeps_the_contract(fitted: tuple[Path, dict], small: tuple) ->
     assert set(metrics["rmse"]["fit"]) >= {"p_P", "p_N", "y", "qm_P", "qm_N"}
     assert 200.0 < metrics["rmse"]["validate"]["p_N"] < 5000.0  # Pa: noise is 400 Pa
     # the pressure sensors' offsets: each sensor's estimates and their test,
-    # applied (in nuisance, for the held-out replays) exactly where they agree
-    # and are plausible (problem.pressure_offsets)
+    # applied (in nuisance, for the held-out replays) exactly where they agree,
+    # are plausible and are told from 0 (problem.pressure_offsets)
     offsets = metrics["sensor_offsets"]
     assert set(offsets) == {"p_P", "p_N"}  # 4 and 3 fit recordings
     for channel, entry in offsets.items():
         assert entry["unit"] == "Pa" and len(entry["estimates"]) >= 3
-        agrees = entry["p_value"] >= OFFSET_AGREEMENT and abs(entry["value"]) <= OFFSET_LIMIT
+        agrees = (
+            entry["p_value"] >= OFFSET_AGREEMENT
+            and abs(entry["value"]) <= OFFSET_LIMIT
+            and abs(entry["value"]) >= OFFSET_DETERMINED * entry["standard_error"]
+        )
         assert entry["applied"] is agrees
         assert (f"offset:{channel}" in doc["nuisance"]) is agrees
     mcmc = doc["mcmc"]

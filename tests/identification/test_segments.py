@@ -17,6 +17,7 @@ from pneumafit.identification.problem import (
     MIN_MOVING,
     MOVING_AT_START,
     OFFSET_AGREEMENT,
+    OFFSET_DETERMINED,
     OFFSET_LIMIT,
     OFFSET_PREFIX,
     Problem,
@@ -269,6 +270,24 @@ def test_a_sensor_offset_is_applied_only_where_its_recordings_agree(
     assert far.agrees and not far.plausible and not far.applies
     assert far.value == pytest.approx(-10000.0) and OFFSET_LIMIT == 7500.0
     assert "not applied" in far.describe() and "7500 Pa" in far.describe()
+    # the weighted mean's standard error: 1 / sqrt(sum of the weights), times
+    # the Birge ratio sqrt(chi-square / (n - 1)) when that exceeds 1
+    assert good.standard_error == pytest.approx(100.0 / math.sqrt(3.0))
+    assert good.determined and far.determined
+    spread = offsets((1000.0, 2000.0, 3000.0), 500.0)  # chi-square 8 on 2 dof
+    assert spread.p_value == pytest.approx(math.exp(-4.0)) and spread.agrees
+    assert spread.standard_error == pytest.approx(math.sqrt(4.0 * 500.0**2 / 3.0))
+    assert spread.applies
+    # estimates that agree only because each is wide do not tell the zero from
+    # 0 (the novel truth's chamber N, 2026-12-05: +5.1, -5.4, +3.4, +1.2 kPa
+    # with sds 13-101 kPa applied at +3486 Pa against the truth's -304 Pa):
+    # not applied (OFFSET_DETERMINED, sqrt 2 standard errors)
+    wide = offsets((5000.0, -5000.0, 3000.0), 20000.0)
+    assert wide.value == pytest.approx(1000.0) and wide.agrees and wide.plausible
+    assert wide.standard_error == pytest.approx(20000.0 / math.sqrt(3.0))
+    assert not wide.determined and not wide.applies
+    assert "not told from 0" in wide.describe() and "not applied" in wide.describe()
+    assert OFFSET_DETERMINED == pytest.approx(math.sqrt(2.0))
     # the fit's verdict carries a refused offset as a caveat (console summary
     # in yellow, the report's notes, fit.json quality.caveats)
     from pneumafit.identification.quality import FitQuality

@@ -242,6 +242,18 @@ OFFSET_AGREEMENT = 1e-4
 #: the polytropic fit's three chamber N estimates agreed within their wide
 #: sds (-18.0 to -5.1 kPa, chance 0.04) on -10.9 kPa.
 OFFSET_LIMIT = 3.0 * OFFSET_TOLERANCE["pressure"]
+#: Smallest |offset| / standard error at which an offset is taken off the
+#: held-out recordings' initial readings (:attr:`SensorOffset.determined`).
+#: Taking the estimate o_hat off a reading leaves an error of its standard
+#: error s; leaving the reading as it is, the true offset o. Taking it off is
+#: better when o^2 > s^2, and o_hat^2 - s^2 estimates o^2 without bias: so
+#: when o_hat^2 > 2 s^2. Estimates that agree only because each is wide are
+#: not a zero: on the novel truth's sparse-long campaign (seed 2, 2026-12-05)
+#: chamber N's four estimates (+5.1, -5.4, +3.4, +1.2 kPa, sds 13-101 kPa:
+#: initial pressures of step segments, which a per-recording offset leaves
+#: to the dynamics) agreed at chance 0.999 on +3486 Pa, standard error 9.3
+#: kPa, against the truth's -304 Pa, and were applied.
+OFFSET_DETERMINED = math.sqrt(2.0)
 
 
 #: Bounds of a fitted sensor lag (s): :func:`fit_sensor_lag`, and each lag
@@ -646,6 +658,10 @@ class SensorOffset:
         freedom were the estimates one offset's; None without sds.
     moving : int
         Recordings left out because they start on a moving piston.
+    standard_error : float or None
+        Standard error of ``value`` (Pa): 1 / sqrt(sum of the weights), times
+        the Birge ratio sqrt(chi_square / (n - 1)) when the estimates scatter
+        more than their sds say; None without sds.
     """
 
     channel: str
@@ -654,6 +670,7 @@ class SensorOffset:
     chi_square: float | None = None
     p_value: float | None = None
     moving: int = 0
+    standard_error: float | None = None
 
     @property
     def n(self) -> int:
@@ -672,9 +689,17 @@ class SensorOffset:
         return abs(self.value) <= OFFSET_LIMIT
 
     @property
+    def determined(self) -> bool:
+        """The recordings pin it down: |value| at least :data:`OFFSET_DETERMINED`
+        standard errors (or no standard error known)."""
+        se = self.standard_error
+        return se is None or abs(self.value) >= OFFSET_DETERMINED * se
+
+    @property
     def applies(self) -> bool:
-        """Taken off held-out recordings' initial readings: it agrees and is plausible."""
-        return self.agrees and self.plausible
+        """Taken off held-out recordings' initial readings: it agrees, is
+        plausible and is determined."""
+        return self.agrees and self.plausible and self.determined
 
     def describe(self) -> str:
         """One line: the value, the recordings, and whether they agree."""
@@ -694,6 +719,11 @@ class SensorOffset:
             return (
                 f"{head}: beyond {OFFSET_LIMIT:.0f} Pa, three times a transducer's static "
                 "error band, so the model's initial pressures, not the sensor's zero; not applied)"
+            )
+        if not self.determined:
+            return (
+                f"{head}: standard error {self.standard_error:.0f} Pa, so not told from 0 "
+                "(taken off a reading it would add more error than it removes); not applied)"
             )
         return head + ")"
 
@@ -716,15 +746,17 @@ def pressure_offsets(
     against -960 and +589, the five at rest -852 to -999 and +408 to +649.)
     With ``stds``, the offset is the estimates' inverse-variance weighted
     mean, and a chi-square about it tests whether they are one offset's
-    (:attr:`SensorOffset.agrees`, :data:`OFFSET_AGREEMENT`); without, their
-    median. A sensor's offset is taken as the campaign's, as a transducer's
-    zero is between tests: a held-out recording, whose initial state is not
-    fitted, then starts from its reading less that offset
-    (:data:`OFFSET_PREFIX`) where the recordings agree on it. On the fitted
-    laws' own truth (sparse-long plan, seed 1; offsets -960 and +589 Pa)
-    started from its readings the held-out 8-s step test's piston was up to
-    0.7 mm off in its first two seconds (29x the position noise), from the
-    offset-free pressures 0.07 mm.
+    (:attr:`SensorOffset.agrees`, :data:`OFFSET_AGREEMENT`), and its standard
+    error whether they pin it down (:attr:`SensorOffset.determined`,
+    :data:`OFFSET_DETERMINED`); without, their median. A sensor's offset is
+    taken as the campaign's, as a transducer's zero is between tests: a
+    held-out recording, whose initial state is not fitted, then starts from
+    its reading less that offset (:data:`OFFSET_PREFIX`) where the
+    recordings agree on it and pin it down. On the fitted laws' own truth
+    (sparse-long plan, seed 1; offsets -960 and +589 Pa) started from its
+    readings the held-out 8-s step test's piston was up to 0.7 mm off in its
+    first two seconds (29x the position noise), from the offset-free
+    pressures 0.07 mm.
 
     Parameters
     ----------
@@ -761,13 +793,17 @@ def pressure_offsets(
             [problem.measured_initial_se.get(n, {}).get(c, 0.0) for n, _r, _k in at_rest]
         )
         sd = np.hypot(fitted_sd, read_se)
-        value, stat, p = float(np.median(diffs)), None, None
+        value, stat, p, se = float(np.median(diffs)), None, None, None
         if stds is not None and np.all(np.isfinite(sd) & (sd > 0.0)):
             w = 1.0 / sd**2
             value = float(np.sum(w * diffs) / np.sum(w))
             stat = float(np.sum(w * (diffs - value) ** 2))
             p = float(chi2.sf(stat, len(diffs) - 1))
-        out[c] = SensorOffset(c, value, tuple(map(float, diffs)), stat, p, len(rows) - len(at_rest))
+            birge = max(1.0, stat / (len(diffs) - 1))
+            se = math.sqrt(birge / float(np.sum(w)))
+        out[c] = SensorOffset(
+            c, value, tuple(map(float, diffs)), stat, p, len(rows) - len(at_rest), se
+        )
     return out
 
 

@@ -498,9 +498,10 @@ class FitQuality:
         Pressure sensors whose offset the fit did not apply to the held-out
         recordings, each described (:meth:`SensorOffset.describe
         <pneumafit.identification.problem.SensorOffset.describe>`): the fit
-        recordings' initial pressures disagree on it, or agree on more than a
-        transducer's zero can be off. A caveat: the model bends its initial
-        pressures to follow recordings it cannot.
+        recordings' initial pressures disagree on it, agree on more than a
+        transducer's zero can be off, or leave it within 1.4 standard errors
+        of 0. A caveat: the model bends its initial pressures to follow
+        recordings it cannot, or they do not tell its zero.
     sensor_zeros : dict of str to float
         Pressure channel -> the zero (Pa) taken off every recording's
         pressure residual before its RMS (``channels``). A fit takes the

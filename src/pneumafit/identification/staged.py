@@ -2097,8 +2097,8 @@ def identify(
         say(
             "pressure sensors' offsets (initial readings less the fitted initial pressures "
             "of the fit recordings started at rest, their weighted mean; taken off the "
-            "held-out recordings' initial readings where the recordings agree on it): "
-            + "; ".join(o.describe() for o in offsets.values())
+            "held-out recordings' initial readings where the recordings agree on it and "
+            "pin it down): " + "; ".join(o.describe() for o in offsets.values())
         )
 
     # ------------------------------------------------------------ metrics
@@ -2108,7 +2108,8 @@ def identify(
         metrics["sensor_offsets"] = {
             c: {
                 "value": o.value, "unit": "Pa", "estimates": list(o.estimates),
-                "chi_square": o.chi_square, "p_value": o.p_value, "applied": o.applies,
+                "chi_square": o.chi_square, "p_value": o.p_value,
+                "standard_error": o.standard_error, "applied": o.applies,
             }
             for c, o in offsets.items()
         }  # fmt: skip

@@ -193,7 +193,17 @@ def run_case(
          if c.role == "validate" and c.ratio is not None and c.channel.startswith("p_")),
         default=math.nan,
     )  # fmt: skip
+    # each pressure sensor's offset as the fit saw it, against the truth's
+    # (problem.pressure_offsets: applied only where the fit recordings agree
+    # on it and pin it down)
+    true_offsets = (run.truth.get("sensors") or {}).get("pressure_offsets") or {}
+    offsets = {
+        c: {"estimate": o.get("value"), "standard_error": o.get("standard_error"),
+            "applied": o.get("applied"), "truth": true_offsets.get(c)}
+        for c, o in (result.metrics.get("sensor_offsets") or {}).items()
+    }  # fmt: skip
     return {
+        "sensor_offsets": offsets,
         "pressure_ratio_validate_recorded_commands": recorded,
         "stops_elsewhere": [r.describe() for r in q.stops_elsewhere()],
         "case": preset, "protocol": protocol, "seed": seed, "valve": valve,

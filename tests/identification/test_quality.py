@@ -843,3 +843,70 @@ def test_an_interval_that_leaves_the_order_of_magnitude_open_is_named() -> None:
         "eleven": "not determined", "zero": "not determined",
         "signed_wide": "not determined", "at_bound": "at bound",
     }  # fmt: skip
+
+
+def test_two_valve_laws_the_flow_tests_tie_on_are_compared_where_none_measured(
+    small: tuple,
+) -> None:
+    """Plumbing and arithmetic, exact (float round-off): ``extrapolation_spread``
+    compares two characteristics' net valve flows into a chamber at the mean
+    of the supply and exhaust pressures, at five commands of each range no
+    flow level measured (the small campaign's -8 V discharge, its steps'
+    +-1 V), and gives the largest difference relative to the kept law's flow
+    or 1 % of the full-opening flow, whichever is larger, and where it is. The
+    same law gives 0; a knee on the exhaust path changes the -8 V range only
+    (at +1 V the exhaust path is closed). The valve stage's warning
+    (``_shape_tie_warning``) names it only when the two laws' scores are
+    within ``SHAPE_TIE`` and the difference is at least ``SPREAD_NAMED``."""
+    from types import SimpleNamespace
+
+    from pneumafit.identification.coverage import (
+        SPREAD_FLOOR,
+        SPREAD_POINTS,
+        extrapolation_spread,
+    )
+    from pneumafit.identification.staged import SHAPE_TIE, _shape_tie_warning
+    from pneumafit.physics.valve import valve_flows
+
+    _, campaign, truth = small
+    same = extrapolation_spread(campaign, truth, truth)
+    assert same and all(row[4] == 0.0 for row in same)
+    other = dict(truth, valve_knee_exhaust=2.0)
+    rows = extrapolation_spread(campaign, truth, other)
+    pres = 0.5 * (truth["supply_pressure"] + truth["exhaust_pressure"])
+
+    def flow(values: dict[str, float], u: float) -> float:
+        names = ("valve_C_supply", "valve_b_supply", "valve_C_exhaust", "valve_b_exhaust",
+                 "valve_m", "valve_x_laminar", "valve_overlap", "valve_u_sat", "valve_C_leak",
+                 "valve_leak_width", "valve_n_supply", "valve_n_exhaust", "valve_full_supply",
+                 "valve_full_exhaust", "valve_null_offset", "valve_knee_supply",
+                 "valve_knee_exhaust")  # fmt: skip
+        return valve_flows(u, pres, truth["ambient_temperature"], truth["supply_pressure"],
+                           truth["ambient_temperature"], truth["exhaust_pressure"],
+                           *(values[n] for n in names))[0]  # fmt: skip
+
+    full = {s: abs(flow(truth, s * truth["valve_u_sat"])) for s in (-1.0, 1.0)}
+    for _valve, lo, hi, _shown, d, u in rows:
+        by_hand = [
+            abs(flow(other, x) - flow(truth, x))
+            / max(abs(flow(truth, x)), SPREAD_FLOOR * full[1.0 if x >= 0.0 else -1.0])
+            for x in np.linspace(lo, hi, SPREAD_POINTS)
+        ]
+        assert d == pytest.approx(max(by_hand), rel=1e-9, abs=1e-12)
+        assert lo <= u <= hi
+        if lo > 0.0:
+            assert d == 0.0  # the exhaust path closed: its knee does not act
+    assert max(row[4] for row in rows if row[2] < 0.0) > 0.01
+
+    def end(ll: float, values: dict[str, float]) -> tuple:
+        return (ll, SimpleNamespace(log_likelihood=ll), values, (), [])
+
+    orders = [[((), "knee exponents", None)], [((), "full-opening fractions", None)]]
+    kept, alternative = end(100.0, truth), end(100.0 - SHAPE_TIE, other)
+    line = _shape_tie_warning(campaign, kept, alternative, orders, [kept, alternative])
+    # the -8 V discharge's range (-8.25..-7.75 V) and the steps' -1 V and -6 V
+    assert "V of valve P, used by discharge_P.h5" in line and "the first kept" in line
+    assert "knee exponents tested first" in line and "+0.75" not in line
+    far = end(100.0 - SHAPE_TIE - 0.1, other)
+    assert _shape_tie_warning(campaign, kept, far, orders, [kept, far]) == ""
+    assert _shape_tie_warning(campaign, kept, end(99.0, truth), orders, [kept, kept]) == ""

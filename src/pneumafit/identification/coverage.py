@@ -33,9 +33,11 @@ __all__ = [
     "MIN_SHARE",
     "TOLERANCE",
     "centre_measured",
+    "extrapolation_spread",
     "opened_paths",
     "unbracketed_edges",
     "uncovered_commands",
+    "uncovered_ranges",
 ]
 
 #: Largest distance (fraction of u_sat) from a flow level for a command to
@@ -57,6 +59,12 @@ EDGE_GAP = 0.1
 #: Command bins (fraction of u_sat) of :func:`unbracketed_edges`: 0.1 V of a
 #: 10-V valve, finer than a dead band.
 EDGE_BIN = 0.01
+#: Commands compared per range by :func:`extrapolation_spread`.
+SPREAD_POINTS = 5
+#: Share of the full-opening flow below which :func:`extrapolation_spread`
+#: compares flows to it rather than to the kept law's own flow: 1 %, about a
+#: centre leakage's share of a servo-valve's rated flow.
+SPREAD_FLOOR = 0.01
 
 
 def _levels(campaign: Campaign) -> dict[str, np.ndarray]:
@@ -213,10 +221,35 @@ def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[
     levels = _levels(campaign)
     if not any(v.size for v in levels.values()):
         return _unused_without_flow(campaign, width)
+    return [
+        f"valve {valve}: commands {lo:+.2f}..{hi:+.2f} V, used by {shown}, were not "
+        f"measured by any flow test{source}: the valve flows there are extrapolated "
+        "from the fitted characteristic"
+        for valve, lo, hi, shown, source in uncovered_ranges(campaign, values)
+    ]
+
+
+def uncovered_ranges(
+    campaign: Campaign, values: Mapping[str, float]
+) -> list[tuple[str, float, float, str, str]]:
+    """The command ranges of :func:`uncovered_commands` (campaigns with a flow test).
+
+    Returns
+    -------
+    list of (str, float, float, str, str)
+        Valve (``"P"`` or ``"N"``), lowest and highest command (V), the
+        recordings that use them (shown), and the source of the levels
+        (empty, or a parenthesis naming the other valve's flow test).
+    """
+    u_sat = float(values.get("valve_u_sat", 10.0))
+    width = TOLERANCE * u_sat
+    levels = _levels(campaign)
     out = []
     for valve in ("P", "N"):
         own = levels[valve]
         ref = own if own.size else levels["N" if valve == "P" else "P"]
+        if not ref.size:
+            continue
         source = "" if own.size else f" (no flow test of valve {valve}: valve "
         if not own.size:
             source += f"{'N' if valve == 'P' else 'P'}'s levels used)"
@@ -227,12 +260,70 @@ def uncovered_commands(campaign: Campaign, values: Mapping[str, float]) -> list[
             for b in _bins(rec, valve, width):
                 if not _covered(b * width, ref, width, u_sat):
                     users.setdefault(b, []).append(rec.file)
-        for lo, hi, shown in _ranges(users, width):
-            out.append(
-                f"valve {valve}: commands {lo:+.2f}..{hi:+.2f} V, used by {shown}, were not "
-                f"measured by any flow test{source}: the valve flows there are extrapolated "
-                "from the fitted characteristic"
-            )
+        out.extend((valve, lo, hi, shown, source) for lo, hi, shown in _ranges(users, width))
+    return out
+
+
+def extrapolation_spread(
+    campaign: Campaign,
+    kept: Mapping[str, float],
+    alternative: Mapping[str, float],
+    *,
+    valve_law: int = 0,
+    points: int = SPREAD_POINTS,
+) -> list[tuple[str, float, float, str, float, float]]:
+    """How far apart two valve characteristics are where no flow test measured.
+
+    Two laws that the flow tests fit about equally (a knee and a corner at
+    full opening: :func:`pneumafit.identification.staged.identify`'s valve
+    stage) may still differ between the flow levels, where the other tests
+    use the valve: by as much as the flows there are uncertain, which no
+    interval of the kept law's parameters shows.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    kept, alternative : mapping of str to float
+        Model values (SI) of the two characteristics (rig values included).
+    valve_law : int
+        Kernel code of their valve law (0: ISO 6358).
+    points : int
+        Commands compared per range, evenly spaced from its lowest to its
+        highest.
+
+    Returns
+    -------
+    list of (str, float, float, str, float, float)
+        Per range of :func:`uncovered_ranges`: valve, lowest and highest
+        command (V), the recordings that use it (shown), the largest
+        difference |q_alt - q_kept| of the valve's net mass flow into a
+        chamber at the mean of the supply and exhaust pressures and at the
+        ambient temperature, over |q_kept| or :data:`SPREAD_FLOOR` times the
+        flow at full opening on the same side (u_sat or -u_sat), whichever
+        is larger (-): near the centre the net flow crosses zero and a ratio
+        to it means nothing; and the command where it is (V).
+    """
+    from pneumafit.models.kernel import static_valve_flows
+    from pneumafit.models.parameters import parameter_vector
+
+    pk, pa = parameter_vector(kept), parameter_vector(alternative)
+    pres = 0.5 * (float(kept["supply_pressure"]) + float(kept["exhaust_pressure"]))
+    temp = float(kept["ambient_temperature"])
+    u_sat = float(kept.get("valve_u_sat", 10.0))
+    full = {
+        side: abs(static_valve_flows(pk, valve_law, side * u_sat, pres, temp)[0])
+        for side in (-1.0, 1.0)
+    }  # fmt: skip
+    out = []
+    for valve, lo, hi, shown, _ in uncovered_ranges(campaign, kept):
+        worst, where = 0.0, lo
+        for u in np.linspace(lo, hi, max(int(points), 2)):
+            q_k = static_valve_flows(pk, valve_law, float(u), pres, temp)[0]
+            q_a = static_valve_flows(pa, valve_law, float(u), pres, temp)[0]
+            scale = max(abs(q_k), SPREAD_FLOOR * full[1.0 if u >= 0.0 else -1.0])
+            if scale > 0.0 and abs(q_a - q_k) / scale > worst:
+                worst, where = abs(q_a - q_k) / scale, float(u)
+        out.append((valve, lo, hi, shown, worst, where))
     return out
 
 

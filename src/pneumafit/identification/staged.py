@@ -48,6 +48,7 @@ from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.errors import PneumafitComputationError, PneumafitInputError
 from pneumafit.identification.coverage import (
     centre_measured,
+    extrapolation_spread,
     full_informed,
     opened_paths,
     shape_informed,
@@ -322,6 +323,18 @@ NULL_STARTS = (-0.05, 0.05)
 #: per exponent): 0.999, so a linear valve keeps its linear law in all but
 #: one fit in a thousand.
 SHAPE_CONFIDENCE = 0.999
+#: Largest score difference (log-likelihood less the tests' price) between
+#: the valve laws of the two orders (knees or full-opening fractions first)
+#: at which the one not kept counts as about as good: 3, a likelihood ratio
+#: of e^3 ~ 20 (2 ln B = 6, "positive" but not "strong" evidence on Kass
+#: and Raftery's scale, JASA 1995). Where the flow tests did not measure,
+#: the fit then names how far the two laws' flows differ
+#: (:func:`~pneumafit.identification.coverage.extrapolation_spread`). On
+#: the bundled demo the two scores are 5.7 apart.
+SHAPE_TIE = 3.0
+#: Smallest flow difference (relative) between those two laws that is named:
+#: 1 %, a flow meter's accuracy class.
+SPREAD_NAMED = 0.01
 
 
 #: Starting exponents of the shaped valve law besides the linear ramp's
@@ -574,6 +587,40 @@ def _distinct_optima(
 #: was still gaining 330 in log-likelihood when stopped at 200 per round; the
 #: demo's fits converge in under 60.
 JOINT_NFEV = 500
+
+
+def _shape_tie_warning(
+    campaign: Campaign, best: tuple, other: tuple, orders: list, ends: list
+) -> str:
+    """The valve stage's warning when the law not kept fits the flow tests
+    about as well (:data:`SHAPE_TIE`) and differs from the kept one by
+    :data:`SPREAD_NAMED` or more where no flow level was measured; empty
+    otherwise. ``best`` and ``other`` are items of ``ends`` (score,
+    estimate, values, free, notes), in the order of ``orders``."""
+    if best[0] - other[0] > SHAPE_TIE:
+        return ""
+    spread = [
+        row for row in extrapolation_spread(campaign, best[2], other[2])
+        if row[4] >= SPREAD_NAMED
+    ]  # fmt: skip
+    if not spread:
+        return ""
+    spread.sort(key=lambda row: -row[4])
+    where = "; ".join(
+        f"{100 * d:.1f} % at {u:+.2f} V of valve {v}, used by {shown}"
+        for v, _lo, _hi, shown, d, u in spread[:4]
+    )
+    fits = " and ".join(
+        f"{e[1].log_likelihood:.1f} with the {o[0][1]} tested first"
+        for e, o in zip(ends, orders, strict=True)
+    )
+    return (
+        f"valve: the flow tests fit two characteristics about equally (log-likelihood {fits}; "
+        f"the {'first' if best is ends[0] else 'second'} kept), and where no flow level was "
+        f"measured their flows (into a chamber at mid pressure; near the centre, against 1 % "
+        f"of the full-opening flow) differ by up to {where}: the flows there are that "
+        "uncertain, which no interval shows; a flow level there would tell the two apart"
+    )
 
 
 #: Walkers per sampled parameter, by stage (:func:`default_walkers`).
@@ -1461,6 +1508,12 @@ def identify(
             )
         for line in notes:
             say(f"valve: {line}")
+        if len(ends) > 1:
+            other = ends[1] if best is ends[0] else ends[0]
+            line = _shape_tie_warning(campaign, best, other, orders, ends)
+            if line:
+                warns.append(line)
+                say(f"warning: {line}")
         stage.free = valve_free
         if notes:
             stage.note = "; ".join(notes)

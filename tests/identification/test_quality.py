@@ -856,10 +856,9 @@ def test_two_valve_laws_the_flow_tests_tie_on_are_compared_where_none_measured(
     or 1 % of the full-opening flow, whichever is larger, and where it is. The
     same law gives 0; a knee on the exhaust path changes the -8 V range only
     (at +1 V the exhaust path is closed). The valve stage's warning
-    (``_shape_tie_warning``) names it only when the two laws' scores are
-    within ``SHAPE_TIE`` and the difference is at least ``SPREAD_NAMED``."""
-    from types import SimpleNamespace
-
+    (``_shape_tie_warning``) names it only for a law whose log-likelihood is
+    within ``SHAPE_TIE`` of the kept one's and where the difference is at
+    least ``SPREAD_NAMED``."""
     from pneumafit.identification.coverage import (
         SPREAD_FLOOR,
         SPREAD_POINTS,
@@ -898,15 +897,12 @@ def test_two_valve_laws_the_flow_tests_tie_on_are_compared_where_none_measured(
             assert d == 0.0  # the exhaust path closed: its knee does not act
     assert max(row[4] for row in rows if row[2] < 0.0) > 0.01
 
-    def end(ll: float, values: dict[str, float]) -> tuple:
-        return (ll, SimpleNamespace(log_likelihood=ll), values, (), [])
-
-    orders = [[((), "knee exponents", None)], [((), "full-opening fractions", None)]]
-    kept, alternative = end(100.0, truth), end(100.0 - SHAPE_TIE, other)
-    line = _shape_tie_warning(campaign, kept, alternative, orders, [kept, alternative])
+    kept = ("kept", 100.0, truth)
+    line = _shape_tie_warning(campaign, 100.0, [kept, ("knee 2", 100.0 - SHAPE_TIE, other)])
     # the -8 V discharge's range (-8.25..-7.75 V) and the steps' -1 V and -6 V
-    assert "V of valve P, used by discharge_P.h5" in line and "the first kept" in line
-    assert "knee exponents tested first" in line and "+0.75" not in line
-    far = end(100.0 - SHAPE_TIE - 0.1, other)
-    assert _shape_tie_warning(campaign, kept, far, orders, [kept, far]) == ""
-    assert _shape_tie_warning(campaign, kept, end(99.0, truth), orders, [kept, kept]) == ""
+    assert "V of valve P (knee 2), used by discharge_P.h5" in line
+    assert "within 3 of its 100.0" in line and "+0.75" not in line
+    beyond = ("knee 2", 100.0 - SHAPE_TIE - 0.1, other)
+    assert _shape_tie_warning(campaign, 100.0, [kept, beyond]) == ""
+    assert _shape_tie_warning(campaign, 100.0, [kept, ("same", 100.0, truth)]) == ""
+    assert _shape_tie_warning(campaign, 100.0, [("knee 2", 100.0, other)]) == ""  # no kept law

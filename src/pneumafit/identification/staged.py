@@ -335,6 +335,16 @@ SHAPE_TIE = 3.0
 #: Smallest flow difference (relative) between those two laws that is named:
 #: 1 %, a flow meter's accuracy class.
 SPREAD_NAMED = 0.01
+#: Full-opening fractions and knee exponents each path is held at, one at a
+#: time, with the rest of the valve refitted to the flow tests, after the
+#: valve stage: the laws among them within :data:`SHAPE_TIE` of the kept one
+#: fit the flow tests about as well, and where no flow level was measured
+#: their flows say how uncertain the kept law's are. Fractions of 0.9 and
+#: 0.95: a port uncovered at 9-9.5 V of 10 (the independently written rigs'
+#: paths saturate at 9.1-9.8 V); knees of 1.5 and 2.5: a gentle and a
+#: marked S (the starts of the knee test go to 5).
+VARIANT_FULLS = (0.9, 0.95)
+VARIANT_KNEES = (1.5, 2.5)
 
 
 #: Starting exponents of the shaped valve law besides the linear ramp's
@@ -590,37 +600,50 @@ JOINT_NFEV = 500
 
 
 def _shape_tie_warning(
-    campaign: Campaign, best: tuple, other: tuple, orders: list, ends: list
+    campaign: Campaign, kept_ll: float, alternatives: Sequence[tuple[str, float, Mapping]]
 ) -> str:
-    """The valve stage's warning when the law not kept fits the flow tests
-    about as well (:data:`SHAPE_TIE`) and differs from the kept one by
-    :data:`SPREAD_NAMED` or more where no flow level was measured; empty
-    otherwise. ``best`` and ``other`` are items of ``ends`` (score,
-    estimate, values, free, notes), in the order of ``orders``."""
-    if best[0] - other[0] > SHAPE_TIE:
+    """The valve stage's warning when characteristics other than the kept one
+    fit the flow tests about as well (``alternatives``: label,
+    log-likelihood, values; those within :data:`SHAPE_TIE` of ``kept_ll``
+    count) and differ from the kept one by :data:`SPREAD_NAMED` or more where
+    no flow level was measured (:func:`~pneumafit.identification.coverage.
+    extrapolation_spread`, the largest over them per range); empty otherwise.
+    The kept law is the item labelled ``"kept"``."""
+    kept = next((v for label, _ll, v in alternatives if label == "kept"), None)
+    if kept is None:
         return ""
-    spread = [
-        row for row in extrapolation_spread(campaign, best[2], other[2])
-        if row[4] >= SPREAD_NAMED
-    ]  # fmt: skip
-    if not spread:
+    worst: dict[tuple[str, float], tuple[float, float, str, str]] = {}
+    for label, ll, values in alternatives:
+        if label == "kept" or not kept_ll - ll <= SHAPE_TIE:
+            continue
+        for v, lo, _hi, shown, d, u in extrapolation_spread(campaign, kept, values):
+            if d >= SPREAD_NAMED and d > worst.get((v, lo), (0.0,))[0]:
+                worst[(v, lo)] = (d, u, shown, label)
+    if not worst:
         return ""
-    spread.sort(key=lambda row: -row[4])
+    rows = sorted(((d, u, v, shown, label) for (v, _), (d, u, shown, label) in worst.items()),
+                  key=lambda row: -row[0])  # fmt: skip
     where = "; ".join(
-        f"{100 * d:.1f} % at {u:+.2f} V of valve {v}, used by {shown}"
-        for v, _lo, _hi, shown, d, u in spread[:4]
-    )
-    fits = " and ".join(
-        f"{e[1].log_likelihood:.1f} with the {o[0][1]} tested first"
-        for e, o in zip(ends, orders, strict=True)
+        f"{100 * d:.1f} % at {u:+.2f} V of valve {v} ({label}), used by {shown}"
+        for d, u, v, shown, label in rows[:4]
     )
     return (
-        f"valve: the flow tests fit two characteristics about equally (log-likelihood {fits}; "
-        f"the {'first' if best is ends[0] else 'second'} kept), and where no flow level was "
-        f"measured their flows (into a chamber at mid pressure; near the centre, against 1 % "
-        f"of the full-opening flow) differ by up to {where}: the flows there are that "
-        "uncertain, which no interval shows; a flow level there would tell the two apart"
+        f"valve: other characteristics fit the flow tests about as well as the kept one "
+        f"(log-likelihood within {SHAPE_TIE:g} of its {kept_ll:.1f}), and where no flow level "
+        f"was measured their flows (into a chamber at mid pressure; near the centre, against "
+        f"1 % of the full-opening flow) differ from the kept one's by up to {where}: the flows "
+        "there are that uncertain, which no interval shows; a flow level there would tell "
+        "them apart"
     )
+
+
+def _shape_variants(
+    knees: Sequence[str], fulls: Sequence[str]
+) -> list[tuple[str, tuple[float, ...]]]:
+    """Each informed knee and full-opening fraction with the values it is held
+    at by the valve stage's profile of the shape (:data:`VARIANT_KNEES`,
+    :data:`VARIANT_FULLS`)."""
+    return [*((n, VARIANT_FULLS) for n in fulls), *((n, VARIANT_KNEES) for n in knees)]
 
 
 #: Walkers per sampled parameter, by stage (:func:`default_walkers`).
@@ -1508,12 +1531,41 @@ def identify(
             )
         for line in notes:
             say(f"valve: {line}")
+        # characteristics the flow tests fit about as well: the other order's
+        # law, and each path's corner and knee held at a few values (a
+        # profile of the shape the flow levels leave open), refitted
+        kept_ll = stage.estimate.log_likelihood
+        kept_state = (stage.estimate, dict(values), stage.seconds)
+        alternatives: list[tuple[str, float, Mapping[str, float]]] = [
+            ("kept", kept_ll, kept_state[1])
+        ]
         if len(ends) > 1:
-            other = ends[1] if best is ends[0] else ends[0]
-            line = _shape_tie_warning(campaign, best, other, orders, ends)
-            if line:
-                warns.append(line)
-                say(f"warning: {line}")
+            k = 1 if best is ends[0] else 0
+            other, first = ends[k], orders[k][0][1]
+            alternatives.append(
+                (f"the law with the {first} tested first", other[1].log_likelihood, other[2])
+            )
+        t_variants = time.perf_counter()
+        for name, grid in _shape_variants(knees, fulls):
+            for value in grid:
+                if abs(float(kept_state[1][name]) - value) < 1e-9:
+                    continue
+                values.clear()
+                values.update(kept_state[1])
+                values[name] = value
+                free = tuple(n for n in valve_free if n != name)
+                run_stage(stage, flows, free, [dict(values)], seeds[0])
+                ll = stage.estimate.log_likelihood
+                if math.isfinite(ll):
+                    alternatives.append((f"{name} = {value:g}", ll, dict(values)))
+        stage.estimate = kept_state[0]
+        values.clear()
+        values.update(kept_state[1])
+        stage.seconds = kept_state[2] + time.perf_counter() - t_variants
+        line = _shape_tie_warning(campaign, kept_ll, alternatives)
+        if line:
+            warns.append(line)
+            say(f"warning: {line}")
         stage.free = valve_free
         if notes:
             stage.note = "; ".join(notes)

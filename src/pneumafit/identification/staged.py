@@ -1546,18 +1546,18 @@ def identify(
                 (f"the law with the {first} tested first", other[1].log_likelihood, other[2])
             )
         t_variants = time.perf_counter()
-        for name, grid in _shape_variants(knees, fulls):
+        for held, grid in _shape_variants(knees, fulls):
             for value in grid:
-                if abs(float(kept_state[1][name]) - value) < 1e-9:
+                if abs(float(kept_state[1][held]) - value) < 1e-9:
                     continue
                 values.clear()
                 values.update(kept_state[1])
-                values[name] = value
-                free = tuple(n for n in valve_free if n != name)
+                values[held] = value
+                free = tuple(n for n in valve_free if n != held)
                 run_stage(stage, flows, free, [dict(values)], seeds[0])
                 ll = stage.estimate.log_likelihood
                 if math.isfinite(ll):
-                    alternatives.append((f"{name} = {value:g}", ll, dict(values)))
+                    alternatives.append((f"{held} = {value:g}", ll, dict(values)))
         stage.estimate = kept_state[0]
         values.clear()
         values.update(kept_state[1])

@@ -1535,33 +1535,37 @@ def identify(
         # law, and each path's corner and knee held at a few values (a
         # profile of the shape the flow levels leave open), refitted
         kept_ll = stage.estimate.log_likelihood
-        kept_state = (stage.estimate, dict(values), stage.seconds)
-        alternatives: list[tuple[str, float, Mapping[str, float]]] = [
-            ("kept", kept_ll, kept_state[1])
-        ]
-        if len(ends) > 1:
-            k = 1 if best is ends[0] else 0
-            other, first = ends[k], orders[k][0][1]
-            alternatives.append(
-                (f"the law with the {first} tested first", other[1].log_likelihood, other[2])
-            )
-        t_variants = time.perf_counter()
-        for held, grid in _shape_variants(knees, fulls):
-            for value in grid:
-                if abs(float(kept_state[1][held]) - value) < 1e-9:
-                    continue
-                values.clear()
-                values.update(kept_state[1])
-                values[held] = value
-                free = tuple(n for n in valve_free if n != held)
-                run_stage(stage, flows, free, [dict(values)], seeds[0])
-                ll = stage.estimate.log_likelihood
-                if math.isfinite(ll):
-                    alternatives.append((f"{held} = {value:g}", ll, dict(values)))
-        stage.estimate = kept_state[0]
-        values.clear()
-        values.update(kept_state[1])
-        stage.seconds = kept_state[2] + time.perf_counter() - t_variants
+
+        def shape_profile() -> list[tuple[str, float, Mapping[str, float]]]:
+            # in a scope of its own: its loop names cannot shadow identify's
+            kept_state = (stage.estimate, dict(values), stage.seconds)
+            out: list[tuple[str, float, Mapping[str, float]]] = [("kept", kept_ll, kept_state[1])]
+            if len(ends) > 1:
+                k = 1 if best is ends[0] else 0
+                out.append(
+                    (f"the law with the {orders[k][0][1]} tested first",
+                     ends[k][1].log_likelihood, ends[k][2])
+                )  # fmt: skip
+            t_variants = time.perf_counter()
+            for held, grid in _shape_variants(knees, fulls):
+                for value in grid:
+                    if abs(float(kept_state[1][held]) - value) < 1e-9:
+                        continue
+                    values.clear()
+                    values.update(kept_state[1])
+                    values[held] = value
+                    free = tuple(n for n in valve_free if n != held)
+                    run_stage(stage, flows, free, [dict(values)], seeds[0])
+                    ll = stage.estimate.log_likelihood
+                    if math.isfinite(ll):
+                        out.append((f"{held} = {value:g}", ll, dict(values)))
+            stage.estimate = kept_state[0]
+            values.clear()
+            values.update(kept_state[1])
+            stage.seconds = kept_state[2] + time.perf_counter() - t_variants
+            return out
+
+        alternatives = shape_profile()
         line = _shape_tie_warning(campaign, kept_ll, alternatives)
         if line:
             warns.append(line)

@@ -897,15 +897,13 @@ def test_two_valve_laws_the_flow_tests_tie_on_are_compared_where_none_measured(
             assert d == 0.0  # the exhaust path closed: its knee does not act
     assert max(row[4] for row in rows if row[2] < 0.0) > 0.01
 
-    kept = ("kept", 100.0, truth)
-    line = _shape_tie_warning(campaign, 100.0, [kept, ("knee 2", 100.0 - SHAPE_TIE, other)])
+    line = _shape_tie_warning(campaign, 100.0, truth, [("knee 2", 100.0 - SHAPE_TIE, other)])
     # the -8 V discharge's range (-8.25..-7.75 V) and the steps' -1 V and -6 V
     assert "V of valve P (knee 2), used by discharge_P.h5" in line
     assert "within 3 of its 100.0" in line and "+0.75" not in line
     beyond = ("knee 2", 100.0 - SHAPE_TIE - 0.1, other)
-    assert _shape_tie_warning(campaign, 100.0, [kept, beyond]) == ""
-    assert _shape_tie_warning(campaign, 100.0, [kept, ("same", 100.0, truth)]) == ""
-    assert _shape_tie_warning(campaign, 100.0, [("knee 2", 100.0, other)]) == ""  # no kept law
+    assert _shape_tie_warning(campaign, 100.0, truth, [beyond]) == ""
+    assert _shape_tie_warning(campaign, 100.0, truth, [("same", 100.0, truth)]) == ""
 
 
 def test_a_sparse_flow_test_leaves_the_valve_shape_open_and_the_fit_says_so(

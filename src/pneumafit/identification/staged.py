@@ -600,21 +600,21 @@ JOINT_NFEV = 500
 
 
 def _shape_tie_warning(
-    campaign: Campaign, kept_ll: float, alternatives: Sequence[tuple[str, float, Mapping]]
+    campaign: Campaign,
+    kept_ll: float,
+    kept: Mapping[str, float],
+    alternatives: Sequence[tuple[str, float, Mapping[str, float]]],
 ) -> str:
     """The valve stage's warning when characteristics other than the kept one
-    fit the flow tests about as well (``alternatives``: label,
-    log-likelihood, values; those within :data:`SHAPE_TIE` of ``kept_ll``
-    count) and differ from the kept one by :data:`SPREAD_NAMED` or more where
-    no flow level was measured (:func:`~pneumafit.identification.coverage.
-    extrapolation_spread`, the largest over them per range); empty otherwise.
-    The kept law is the item labelled ``"kept"``."""
-    kept = next((v for label, _ll, v in alternatives if label == "kept"), None)
-    if kept is None:
-        return ""
+    (values ``kept``, log-likelihood ``kept_ll``) fit the flow tests about as
+    well (``alternatives``: label, log-likelihood, values; those within
+    :data:`SHAPE_TIE` of ``kept_ll`` count) and differ from the kept one by
+    :data:`SPREAD_NAMED` or more where no flow level was measured
+    (:func:`~pneumafit.identification.coverage.extrapolation_spread`, the
+    largest over them per range); empty otherwise."""
     worst: dict[tuple[str, float], tuple[float, float, str, str]] = {}
     for label, ll, values in alternatives:
-        if label == "kept" or not kept_ll - ll <= SHAPE_TIE:
+        if not kept_ll - ll <= SHAPE_TIE:
             continue
         for v, lo, _hi, shown, d, u in extrapolation_spread(campaign, kept, values):
             if d >= SPREAD_NAMED and d > worst.get((v, lo), (0.0,))[0]:
@@ -1535,11 +1535,11 @@ def identify(
         # law, and each path's corner and knee held at a few values (a
         # profile of the shape the flow levels leave open), refitted
         kept_ll = stage.estimate.log_likelihood
+        kept_state = (stage.estimate, dict(values), stage.seconds)
 
         def shape_profile() -> list[tuple[str, float, Mapping[str, float]]]:
             # in a scope of its own: its loop names cannot shadow identify's
-            kept_state = (stage.estimate, dict(values), stage.seconds)
-            out: list[tuple[str, float, Mapping[str, float]]] = [("kept", kept_ll, kept_state[1])]
+            out: list[tuple[str, float, Mapping[str, float]]] = []
             if len(ends) > 1:
                 k = 1 if best is ends[0] else 0
                 out.append(
@@ -1565,8 +1565,7 @@ def identify(
             stage.seconds = kept_state[2] + time.perf_counter() - t_variants
             return out
 
-        alternatives = shape_profile()
-        line = _shape_tie_warning(campaign, kept_ll, alternatives)
+        line = _shape_tie_warning(campaign, kept_ll, kept_state[1], shape_profile())
         if line:
             warns.append(line)
             say(f"warning: {line}")

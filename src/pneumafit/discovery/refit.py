@@ -1184,7 +1184,8 @@ def _statement(
     if at_noise:
         moved = "falls" if fit_after < fit_before else "goes"
         head = (
-            f"With {', '.join(selected)} the pressure residual of the fit recordings {moved} "
+            f"With {', '.join(selected)} the pressure residual of the fit recordings (each "
+            f"less its mean: the offset the fit profiles) {moved} "
             f"from {fit_before:.0f} to {fit_after:.0f} Pa RMS, at the sensor noise "
             f"({noise:.0f} Pa)"
         )
@@ -1193,7 +1194,8 @@ def _statement(
         return False, head + ": explained."
     if selected:
         return True, (
-            f"With {', '.join(selected)} the pressure residual of the fit recordings goes from "
+            f"With {', '.join(selected)} the pressure residual of the fit recordings (each less "
+            f"its mean: the offset the fit profiles) goes from "
             f"{fit_before:.0f} to {fit_after:.0f} Pa RMS but stays above the sensor noise "
             f"({noise:.0f} Pa): partly explained; the rest is not described by any catalog "
             "effect the data support." + held_note

@@ -478,6 +478,11 @@ def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
     else:
         lines.append("No candidate was supported enough to be refitted.")
     lines += ["", "## Errors before and after", ""]
+    lines += [
+        "RMSE of each role's recordings as replayed, nothing taken off (the statement "
+        "above takes each fit recording's mean pressure residual off first).",
+        "",
+    ]
     lines += ["| role | channel | before | after | unit |", "|---|---|---|---|---|"]
     units = {"p_P": "Pa", "p_N": "Pa", "y": "m", "T_P": "K", "T_N": "K", "qm_P": "kg/s",
              "qm_N": "kg/s"}  # fmt: skip

@@ -69,7 +69,12 @@ class LogLikelihood:
         A nuisance parameter of the problem is missing from ``parameters``.
     """
 
-    def __init__(self, problem: Problem, parameters: ParameterSet) -> None:
+    def __init__(
+        self,
+        problem: Problem,
+        parameters: ParameterSet,
+        ties: Mapping[str, str] | None = None,
+    ) -> None:
         missing = [n for n in problem.lag_names if n not in parameters]
         if missing:
             raise PneumafitInputError(
@@ -78,6 +83,15 @@ class LogLikelihood:
             )
         self.problem = problem
         self.parameters = parameters
+        unknown = [n for pair in (ties or {}).items() for n in pair if n not in parameters]
+        if unknown:
+            raise PneumafitInputError(
+                f"likelihood: ties: expected parameters of the set, found {unknown}"
+            )
+        #: Parameters simulated at another's value (name -> partner), e.g. a
+        #: friction law without its Stribeck drop: friction_static at
+        #: friction_coulomb (:func:`pneumafit.identification.staged`).
+        self.ties = dict(ties or {})
         self._lower, self._upper = parameters.internal_bounds()
         self._unaffected: NDArray[np.bool_] | None = None
 
@@ -96,8 +110,12 @@ class LogLikelihood:
         return self.problem.n_evaluations
 
     def values(self, z: ArrayLike) -> dict[str, NDArray[np.float64]]:
-        """Internal vectors -> values by name (all parameters)."""
-        return self.parameters.to_values(z)
+        """Internal vectors -> values by name (all parameters; a tied one at
+        its partner's value, :attr:`ties`)."""
+        out = self.parameters.to_values(z)
+        for name, partner in self.ties.items():
+            out[name] = np.array(out[partner], dtype=float, copy=True)
+        return out
 
     def inside(self, z: ArrayLike) -> NDArray[np.bool_]:
         """True where every free coordinate is finite and within its bounds."""

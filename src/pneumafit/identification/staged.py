@@ -217,6 +217,17 @@ JOINT_SCREEN_NFEV = 20
 #: recovered at most 24 % (2026-11-29; docs/identification.md, "Friction
 #: law: the switch model from LuGre's levels").
 FRICTION_DECISIVE = 10.0
+#: Before a friction chain, a Stribeck drop (friction_static over
+#: friction_coulomb) that the joint estimate leaves unresolved is tested
+#: (:func:`_stribeck_drop`): static within this share of the Coulomb level
+#: (on the kernel's constraint static >= Coulomb) ...
+DROP_UNRESOLVED = 0.01
+#: ... or the Stribeck velocity within this factor of its lower bound (a
+#: drop over before the bristles have deflected).
+DROP_VELOCITY_FLOOR = 3.0
+#: The law without the drop: friction_static simulated at friction_coulomb
+#: (the Stribeck velocity then acts on nothing).
+DROP_TIE = {"friction_static": "friction_coulomb"}
 #: The joint stage solves the switch model too when the law kept at stage (c)
 #: is LuGre and its joint bristle stiffness ends within this fraction of its
 #: log range under the upper bound (1e3-1e8 N/m: above 3.2e7 N/m, a bristle
@@ -1212,6 +1223,71 @@ def _pressure_rms(
     return float(np.sqrt(np.mean(res * res))) if res.size else None
 
 
+def _stribeck_drop(
+    problem: Problem, parameters: ParameterSet, values: Mapping[str, float], seed: int
+) -> tuple[ParameterSet, dict[str, str], str]:
+    """The friction chain's set with or without the Stribeck drop.
+
+    On a rig whose friction has no drop the recordings' posterior is an L
+    (docs/identification.md, "The main job on a campaign none of the presets
+    made"): with static on the Coulomb level the Stribeck velocity is free
+    over its four decades, and with the velocity under a millimetre a second
+    the static level is free up to the actuator's force; no move mixes that.
+    Where the joint estimate leaves the drop unresolved
+    (:data:`DROP_UNRESOLVED`, :data:`DROP_VELOCITY_FLOOR`), the law with the
+    drop and the law without it (friction_static tied to friction_coulomb,
+    :data:`DROP_TIE`, the Stribeck velocity held) are both solved on the
+    chain's own problem, whose likelihood is tempered (its log-likelihoods
+    count effective samples), and the drop is kept when it gains more than
+    BIC's penalty for its two parameters, ln n_eff.
+
+    Returns
+    -------
+    parameters : ParameterSet
+        The set to sample (the law without the drop: friction_static and
+        stribeck_velocity fixed, at the tied optimum).
+    ties : dict
+        :data:`DROP_TIE`, or empty when the drop is kept or not tested.
+    note : str
+        What was tested and decided; empty when nothing was.
+    """
+    names = ("friction_static", "friction_coulomb", "stribeck_velocity")
+    if not set(names) <= set(parameters.free_names):
+        return parameters, {}, ""
+    f_s, f_c, v_s = (float(values[n]) for n in names)
+    floor = float(parameters["stribeck_velocity"].lower)
+    if not (f_s <= f_c * (1.0 + DROP_UNRESOLVED) or v_s <= DROP_VELOCITY_FLOOR * floor):
+        return parameters, {}, ""
+    start = parameters.values()
+    full = fit_least_squares(LogLikelihood(problem, parameters), starts=[start], seed=seed)
+    tied_set = parameters.with_values({"friction_static": f_c}).with_fixed(
+        ["friction_static", "stribeck_velocity"]
+    )
+    tied = fit_least_squares(
+        LogLikelihood(problem, tied_set, ties=DROP_TIE), starts=[tied_set.values()], seed=seed
+    )
+    weights = zip(problem.observations, problem.tempering, strict=True)
+    n_eff = float(sum(o.n * w for o, w in weights))
+    penalty = math.log(max(n_eff, 2.0))
+    gain = full.log_likelihood - tied.log_likelihood
+    what = (
+        f"the Stribeck drop (friction_static {f_s:.4g} N over friction_coulomb {f_c:.4g} N, "
+        f"stribeck_velocity {v_s:.3g} m/s at the joint estimate) tested: the law with it gains "
+        f"{gain:.1f} in log-likelihood over the law without it (effective samples) against "
+        f"BIC's ln n_eff = {penalty:.1f} for its two parameters"
+    )
+    if (math.isfinite(gain) and gain > penalty) or not math.isfinite(tied.log_likelihood):
+        return parameters, {}, what + ": kept"
+    fitted = tied.parameters.values()
+    fitted["friction_static"] = fitted["friction_coulomb"]
+    return (
+        tied_set.with_values(fitted),
+        dict(DROP_TIE),
+        what + ": not resolved; the chain samples the law without it (friction_static = "
+        "friction_coulomb, stribeck_velocity acting on nothing)",
+    )
+
+
 def _least_squares(
     problem: Problem,
     parameters: ParameterSet,
@@ -2126,6 +2202,16 @@ def identify(
             like = LogLikelihood(prob, ps)
             if opts.temper:
                 like.temper(ps.to_internal())
+            ties: dict[str, str] = {}
+            if stage_name == "friction":
+                ps, ties, drop = _stribeck_drop(prob, ps, values, seeds[4 + k])
+                if drop:
+                    say(f"mcmc friction: {drop}")
+                    stage_obj = next(s for s in stages if s.name == stage_name)
+                    stage_obj.note = "; ".join(x for x in (stage_obj.note, drop) if x)
+                if ties:
+                    like = LogLikelihood(prob, ps, ties=ties)
+                    values.update(ps.values())
             post = LogPosterior(like)
             # a wide initial ensemble, not the Laplace ellipse (see run_mcmc)
             cov = None
@@ -2178,6 +2264,24 @@ def identify(
                     median=p.median, uncertainty="mcmc",
                 )  # fmt: skip
                 values[p.name] = value
+            for tied, partner in ties.items():
+                # a tied parameter is its partner: its posterior and its draws
+                # (not `name`: the model's name, read after the loop)
+                twin = final[partner]
+                final = final.replace(
+                    tied, value=twin.value, std=twin.std, interval_90=twin.interval_90,
+                    median=twin.median, uncertainty="mcmc",
+                )  # fmt: skip
+                values[tied] = values[partner]
+                if friction_draws is not None:
+                    friction_draws[tied] = np.array(friction_draws[partner], copy=True)
+            if ties:
+                # without a drop the Stribeck velocity acts on nothing: it
+                # is anywhere in its range
+                void = final["stribeck_velocity"]
+                final = final.replace(
+                    "stribeck_velocity", std=None, interval_90=(void.lower, void.upper)
+                )
             say(
                 f"mcmc {stage_name}: {res.seconds:.1f} s, acceptance {res.acceptance:.2f}, "
                 f"chain {res.tau_multiple:.0f} tau"

@@ -2183,6 +2183,9 @@ def identify(
     # -------------------------------------------------------------- MCMC
     heat_draws: dict[str, NDArray[np.float64]] | None = None
     friction_draws: dict[str, NDArray[np.float64]] | None = None
+    # the static friction's upper bound when the chain sampled the law without
+    # its Stribeck drop (_stribeck_drop); None otherwise
+    unresolved_drop: float | None = None
     if opts.mcmc:
         groups = {
             "valve": (flows + blocked, valve_free),
@@ -2265,16 +2268,23 @@ def identify(
                 )  # fmt: skip
                 values[p.name] = value
             for tied, partner in ties.items():
-                # a tied parameter is its partner: its posterior and its draws
-                # (not `name`: the model's name, read after the loop)
+                # a tied parameter is its partner's value and draws (not
+                # `name`: the model's name, read after the loop); its interval
+                # runs from the partner's lower end to its own upper bound: no
+                # drop was resolved, and one the recordings cannot resolve
+                # (the velocity under a millimetre a second) can be as high
+                # as the bound, as the chain with the drop free showed
                 twin = final[partner]
+                top = float(final[tied].upper)
+                span = (twin.interval_90[0], top) if twin.interval_90 is not None else None
                 final = final.replace(
-                    tied, value=twin.value, std=twin.std, interval_90=twin.interval_90,
+                    tied, value=twin.value, std=None, interval_90=span,
                     median=twin.median, uncertainty="mcmc",
                 )  # fmt: skip
                 values[tied] = values[partner]
                 if friction_draws is not None:
                     friction_draws[tied] = np.array(friction_draws[partner], copy=True)
+                unresolved_drop = top
             if ties:
                 # without a drop the Stribeck velocity acts on nothing: it
                 # is anywhere in its range
@@ -2336,6 +2346,12 @@ def identify(
         metrics["friction_reference"] = _friction_reference(
             structure, values, rig, laplace, est, friction_draws, seeds[7]
         )
+        static = metrics["friction_reference"].get("static")
+        if unresolved_drop is not None and static and static.get("interval_90"):
+            # no drop resolved: the static figure's interval up to the
+            # bound, as the parameter's (the seal term's share as at the value)
+            extra = static["value"] - float(values["friction_static"])
+            static["interval_90"] = [static["interval_90"][0], unresolved_drop + extra]
     runs = [s.mcmc for s in stages if s.mcmc is not None]
     # the verdict judges every recording's pressures less one zero per sensor:
     # its offset where the fit recordings agree on one (what the held-out

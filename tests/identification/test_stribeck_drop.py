@@ -121,3 +121,40 @@ def test_a_tie_names_parameters_of_the_set() -> None:
     problem = CurveProblem(_curve(30.0, 30.0, 0.02, 60.0, seed=4))
     with pytest.raises(PneumafitInputError, match="ties"):
         LogLikelihood(problem, _params(UNRESOLVED), ties={"friction_static": "nothing"})
+
+
+def test_a_dahl_rig_is_sampled_without_a_drop(tmp_path) -> None:
+    """Mismatched truth: ``dahl-bump-leak`` (Dahl friction, which has no
+    Stribeck drop, with an additive seal term; power-law valves), sparse plan,
+    seed 1, recorded by the virtual rig's own solver with sensor noise and
+    fitted with LuGre and MCMC as ``pneumafit fit`` does. The joint estimate
+    puts static on the Coulomb level; the test ties them, the chain
+    converges, and the static figure is the Coulomb level's, with an interval
+    up to the bound."""
+    from pneumafit.campaign import read_campaign
+    from pneumafit.identification.staged import FitOptions, identify
+    from pneumafit.virtual_rig import VirtualRig
+    from pneumafit.virtual_rig.truth import reference_quantities
+
+    rig = VirtualRig(truth="dahl-bump-leak", seed=1)
+    rig.write(tmp_path / "c", "sparse")
+    result = identify(read_campaign(tmp_path / "c"), "convection",
+                      options=FitOptions(mcmc=True), seed=1)  # fmt: skip
+    assert result.model == "convection"
+    friction = next(s for s in result.stages if s.name == "friction")
+    assert "not resolved" in friction.note
+    chain = friction.mcmc
+    assert "friction_static" not in chain.names
+    assert chain.tau_multiple >= 50.0 and max(chain.rhat.values()) <= 1.01
+    p = result.parameters
+    f_s, f_c, v_s = p["friction_static"], p["friction_coulomb"], p["stribeck_velocity"]
+    assert f_s.value == f_c.value
+    assert f_s.interval_90 == (f_c.interval_90[0], f_s.upper)
+    assert tuple(v_s.interval_90) == (v_s.lower, v_s.upper)
+    static = result.metrics["friction_reference"]["static"]
+    truth = reference_quantities(rig.truth, rig.parameters)["friction_static"]
+    # LuGre without a drop fitted to a Dahl curve: 1.1-1.6 % low on seeds
+    # 1-2 (docs/identification.md); 10 % fails the law with its drop free,
+    # whose static figure was +101 % here
+    assert static["value"] == pytest.approx(truth, rel=0.10)
+    assert static["interval_90"][1] > 5.0 * truth

@@ -14,6 +14,7 @@ mismatched friction (docs/identification.md).
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -132,14 +133,17 @@ def test_a_dahl_rig_is_sampled_without_a_drop(tmp_path) -> None:
     converges, and the static figure is the Coulomb level's, with an interval
     up to the bound."""
     from pneumafit.campaign import read_campaign
+    from pneumafit.comparison.information import DEFAULT_DRAWS, posterior_criteria
     from pneumafit.identification.staged import FitOptions, identify
     from pneumafit.virtual_rig import VirtualRig
     from pneumafit.virtual_rig.truth import reference_quantities
 
     rig = VirtualRig(truth="dahl-bump-leak", seed=1)
     rig.write(tmp_path / "c", "sparse")
-    result = identify(read_campaign(tmp_path / "c"), "convection",
-                      options=FitOptions(mcmc=True), seed=1)  # fmt: skip
+    campaign = read_campaign(tmp_path / "c")
+    chains = tmp_path / "chains.h5"
+    result = identify(campaign, "convection", options=FitOptions(mcmc=True), seed=1,
+                      chains=chains)  # fmt: skip
     assert result.model == "convection"
     friction = next(s for s in result.stages if s.name == "friction")
     assert "not resolved" in friction.note
@@ -158,3 +162,12 @@ def test_a_dahl_rig_is_sampled_without_a_drop(tmp_path) -> None:
     # whose static figure was +101 % here
     assert static["value"] == pytest.approx(truth, rel=0.10)
     assert static["interval_90"][1] > 5.0 * truth
+    # the chain's readers draw the tied parameter as its partner: every one
+    # of WAIC's draws simulates (drawn at the fit's static value, those whose
+    # Coulomb level lies above it break the kernel's static >= Coulomb)
+    assert chain.ties == DROP_TIE and chain.as_dict()["ties"] == DROP_TIE
+    result.save(tmp_path / "fit.json")
+    document = json.loads((tmp_path / "fit.json").read_text())
+    assert document["mcmc"]["stages"]["friction"]["ties"] == DROP_TIE
+    criteria = posterior_criteria(campaign, document, chains, n_draws=DEFAULT_DRAWS)
+    assert criteria["available"] and criteria["n_draws"] == DEFAULT_DRAWS

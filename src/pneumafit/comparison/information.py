@@ -81,7 +81,10 @@ def _draws(
     }
     rng = np.random.default_rng(seed)
     flats: dict[str, tuple[list[str], NDArray[np.float64]]] = {}
+    ties: dict[str, str] = {}
     for group, stage in stages.items():
+        tied = stage.get("ties")
+        ties.update(tied if isinstance(tied, Mapping) else {})
         backend = emcee.backends.HDFBackend(os.fspath(chains), name=group, read_only=True)
         chain = backend.get_chain()
         start = max(int(stage.get("discard", 0)), chain.shape[0] // 2)
@@ -94,6 +97,11 @@ def _draws(
         for j, name in enumerate(names):
             z = flat[pick, j]
             out[name] = np.exp(z) if scales.get(name) == "log" else z
+    # a parameter the chain simulated at another's value (a friction law
+    # without its Stribeck drop: MCMCResult.ties) is drawn as its partner
+    for name, partner in ties.items():
+        if partner in out:
+            out[name] = np.array(out[partner], copy=True)
     return out, list(flats), n
 
 

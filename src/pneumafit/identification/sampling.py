@@ -290,6 +290,10 @@ class MCMCResult:
     fallback_after: int | None = None
     phase_fits: list[int] = field(default_factory=list)
     seed: int = 0
+    #: Parameters the chain's likelihood simulated at another's value (name
+    #: -> partner; ``LogLikelihood.ties``): a reader of the chain draws them
+    #: as their partners. Written to fit.json only when there are any.
+    ties: dict[str, str] = field(default_factory=dict)
 
     def to_inference_data(self) -> Any:
         """The kept chain as an ArviZ ``InferenceData`` (walkers as chains, SI values).
@@ -318,7 +322,8 @@ class MCMCResult:
 
     def as_dict(self) -> dict[str, Any]:
         """The summary written to fit.json (no chains)."""
-        return {
+        ties = {"ties": dict(self.ties)} if self.ties else {}
+        return ties | {
             "walkers": self.n_walkers,
             "steps": self.n_steps,
             "discard": self.discard,

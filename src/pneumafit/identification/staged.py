@@ -2238,6 +2238,7 @@ def identify(
                     adapt_check=int(ADAPT_FRACTION * n_steps) // ADAPT_CHECKS if check else 0,
                 )  # fmt: skip
             evaluations += res.evaluations
+            res.ties = dict(ties)
             stage_obj = next(s for s in stages if s.name == stage_name)
             stage_obj.mcmc = res
             warns.extend(res.warnings)

@@ -19,28 +19,24 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from test_tempering import LineProblem  # the stand-in Problem, same folder
 
 from pneumafit.errors import PneumafitInputError
 from pneumafit.identification import LogLikelihood, Parameter, ParameterSet
-from pneumafit.identification.noise import Gaussian
 from pneumafit.identification.staged import DROP_TIE, _stribeck_drop
 
 V = np.linspace(-0.2, 0.2, 80)  # m/s
 SIGMA = 0.3  # N
 
 
-class CurveProblem:
-    """One block of steady friction against velocity."""
+class CurveProblem(LineProblem):
+    """One block of steady friction against velocity (the stand-in Problem of
+    test_tempering with another model and length)."""
 
     def __init__(self, y: np.ndarray) -> None:
-        self.y = y
-        self.observations = [
-            SimpleNamespace(noise=Gaussian(), floor=0.0, weight=None, recording="r.h5",
-                            channel="p_P", n=V.size, data=y)
-        ]  # fmt: skip
-        self.tempering = np.ones(1)
-        self.lag_names: tuple[str, ...] = ()
-        self.n_evaluations = 0
+        super().__init__(y)
+        self.observations[0].n = V.size
+        self.observations[0].data = y
 
     def predict(self, values: dict[str, np.ndarray], n: int) -> SimpleNamespace:
         self.n_evaluations += n
@@ -48,12 +44,6 @@ class CurveProblem:
         v_s, f_v = values["stribeck_velocity"][:, None], values["friction_viscous"][:, None]
         g = f_c + (f_s - f_c) * np.exp(-((V[None, :] / v_s) ** 2))
         return SimpleNamespace(ok=np.ones(n, bool), model=np.sign(V) * g + f_v * V)
-
-    def residuals(self, prediction: SimpleNamespace) -> list[np.ndarray]:
-        return [self.y[None, :] - prediction.model]
-
-    def log_weight(self, index: int) -> float:
-        return 0.0
 
 
 def _curve(f_s: float, f_c: float, v_s: float, f_v: float, seed: int) -> np.ndarray:

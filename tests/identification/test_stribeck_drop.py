@@ -21,9 +21,10 @@ import numpy as np
 import pytest
 from test_tempering import LineProblem  # the stand-in Problem, same folder
 
+from pneumafit.discovery.refit import CONSTRAINT_MARGIN, BaseFit, _off_constraints
 from pneumafit.errors import PneumafitInputError
 from pneumafit.identification import LogLikelihood, Parameter, ParameterSet
-from pneumafit.identification.staged import DROP_TIE, _stribeck_drop
+from pneumafit.identification.staged import DROP_HELD, DROP_TIE, _stribeck_drop
 
 V = np.linspace(-0.2, 0.2, 80)  # m/s
 SIGMA = 0.3  # N
@@ -161,3 +162,23 @@ def test_a_dahl_rig_is_sampled_without_a_drop(tmp_path) -> None:
     assert document["mcmc"]["stages"]["friction"]["ties"] == DROP_TIE
     criteria = posterior_criteria(campaign, document, chains, n_draws=DEFAULT_DRAWS)
     assert criteria["available"] and criteria["n_draws"] == DEFAULT_DRAWS
+    # discovery's refits extend that law: the tie kept, the drop's two held
+    base = BaseFit.from_document(document)
+    assert base.ties == DROP_TIE
+    assert not set(DROP_HELD) & set(base.free) and "friction_coulomb" in base.free
+    assert base.values["friction_static"] == base.values["friction_coulomb"]
+
+
+def test_a_refit_starts_inside_the_static_coulomb_constraint() -> None:
+    """A start on static = Coulomb (a base sampled without a drop, or an
+    attribution's start clipped there) moves 1 % inside: on it the Coulomb
+    level's forward finite-difference step breaks the kernel's constraint."""
+    ps = _params(UNRESOLVED)
+    start = _off_constraints(ps.values(), ps)
+    assert start["friction_static"] == pytest.approx(30.0 * (1.0 + CONSTRAINT_MARGIN))
+    assert start["friction_coulomb"] == 30.0
+    inside = {**UNRESOLVED, "friction_static": 45.0}
+    assert _off_constraints(inside, _params(inside)) == inside
+    # a held static level is not moved (the tied law keeps it on Coulomb)
+    held = ps.with_fixed(list(DROP_HELD))
+    assert _off_constraints(held.values(), held)["friction_static"] == 30.0

@@ -78,11 +78,18 @@ from pneumafit.identification.problem import (
     Problem,
     pressure_offsets,
 )
-from pneumafit.identification.quality import THRESHOLD, campaign_noise, noise_estimates
+from pneumafit.identification.quality import (
+    CONSTRAINTS,
+    THRESHOLD,
+    campaign_noise,
+    noise_estimates,
+)
 from pneumafit.identification.replay import replay
 from pneumafit.identification.segments import segment_step_tests
 from pneumafit.identification.staged import (
     DEFAULT_CHANNELS,
+    DROP_HELD,
+    DROP_TIE,
     RMSE_CHANNELS,
     with_initial_states,
 )
@@ -235,6 +242,7 @@ class BaseFit:
     segments: str = "off"
     sensor_offsets: dict[str, float] = field(default_factory=dict)
     lead: TemperatureProbe | None = None
+    ties: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def from_document(cls, doc: Mapping[str, Any] | SavedFit) -> BaseFit:
@@ -254,6 +262,20 @@ class BaseFit:
         values = {k: v for k, v in fit.all_values.items() if not k.startswith(OFFSET_PREFIX)}
         joint = fit.stages.get("joint") or {}
         free = tuple(joint.get("free") or ())
+        # a base whose friction chain sampled the law without its Stribeck
+        # drop (mcmc.stages.friction.ties) is that law: its refits keep the
+        # tie and hold the drop's parameters, as the chain did
+        stages = (fit.mcmc or {}).get("stages") or {}
+        ties = {
+            str(k): str(v)
+            for stage in stages.values() if isinstance(stage, Mapping)
+            for k, v in (stage.get("ties") or {}).items()
+        }  # fmt: skip
+        if ties == DROP_TIE:
+            free = tuple(n for n in free if n not in DROP_HELD)
+            values["friction_static"] = values["friction_coulomb"]
+        else:
+            ties = {}
         opts = fit.options or {}
         return cls(
             structure=structure,
@@ -269,6 +291,7 @@ class BaseFit:
             sensor_offsets={
                 k: float(v) for k, v in fit.all_values.items() if k.startswith(OFFSET_PREFIX)
             },
+            ties=ties,
         )
 
 
@@ -589,7 +612,7 @@ def evaluate_model(
     ps = _parameter_set(campaign, structure, values, base.free, prob, effects)
     if base.correct_solver:
         prob.correct_solver({k: v for k, v in values.items() if not k.startswith("initial:")})
-    like = LogLikelihood(prob, ps)
+    like = LogLikelihood(prob, ps, ties=base.ties)
     ll = like.at_values(ps.values())
     rmse, offset_free, probe = scores(
         campaign, structure, values, max_step=base.max_step, lead=base.lead
@@ -651,13 +674,14 @@ def refit(
     model_vals = {k: v for k, v in values.items() if not k.startswith("initial:")}
     if base.correct_solver:
         prob.correct_solver({**model_vals, **dict(starts[0])} if starts else model_vals)
-    like = LogLikelihood(prob, ps)
+    like = LogLikelihood(prob, ps, ties=base.ties)
     # a suggested start on or beyond a bound (the attribution's regression
     # clips a level at 0, the lower end of its physical range) is moved inside
     # the fit bounds (with_values clips): 0 has no log-scale coordinate
     full_starts = [
-        ps.with_values({k: v for k, v in s.items() if k in ps}).values() for s in starts
-    ] or [ps.values()]
+        _off_constraints(ps.with_values({k: v for k, v in s.items() if k in ps}).values(), ps)
+        for s in starts
+    ] or [_off_constraints(ps.values(), ps)]
     # the joint stage's stall rule: a round stops when it gains less than a
     # one-sigma move of one parameter (in effective samples) over 10 points,
     # far below what the acceptance rule can resolve (a BIC threshold of
@@ -671,13 +695,14 @@ def refit(
     ll = est.log_likelihood
     if math.isfinite(ll):
         new_values.update(est.parameters.values())
+        new_values.update({k: new_values[v] for k, v in base.ties.items()})
         if base.correct_solver:
             # the correction at the estimate, as the joint stage does, then one
             # more round from there (REFIT_CORRECTED_ROUNDS)
             prob.correct_solver({k: v for k, v in new_values.items() if k in ps and
                                  not k.startswith("initial:")})  # fmt: skip
             ps2 = ps.with_values({k: v for k, v in new_values.items() if k in ps})
-            like = LogLikelihood(prob, ps2)
+            like = LogLikelihood(prob, ps2, ties=base.ties)
             est2 = fit_least_squares(
                 like, starts=[ps2.values()], seed=rng, max_nfev=max_nfev, stall=stall,
                 progress=progress, max_reweight=REFIT_CORRECTED_ROUNDS,
@@ -686,10 +711,11 @@ def refit(
             if math.isfinite(est2.log_likelihood):
                 est = est2
                 new_values.update(est.parameters.values())
+                new_values.update({k: new_values[v] for k, v in base.ties.items()})
         # the profile log-likelihood at the estimate (noise re-estimated there),
         # as the base model's is evaluated
         final_ps = ps.with_values({k: v for k, v in new_values.items() if k in ps})
-        ll = LogLikelihood(prob, final_ps).at_values(final_ps.values())
+        ll = LogLikelihood(prob, final_ps, ties=base.ties).at_values(final_ps.values())
     rmse, offset_free, probe = (
         scores(campaign, structure, new_values, max_step=base.max_step, lead=base.lead)
         if math.isfinite(ll)
@@ -1134,6 +1160,31 @@ def _near_vanishing(effect: str) -> dict[str, float]:
     if par.vanishes_at_upper:
         return {name: float(par.upper * math.exp(-0.5 * VANISHING))}
     return {name: float(par.lower * math.exp(0.5 * VANISHING))}
+
+
+#: A refit's start on one of the kernel's inequality constraints
+#: (:data:`~pneumafit.identification.quality.CONSTRAINTS`: static >= Coulomb
+#: friction) is moved this share inside it. On it, the smaller side's forward
+#: finite-difference step breaks the constraint and its Jacobian column
+#: fails: a base fit whose chain sampled the friction law without a Stribeck
+#: drop reports static = Coulomb, and discovery's refit of the novel truth
+#: (seed 5) from there ended 30773 BIC above the base instead of 7485 below
+#: (docs/identification.md, "The Stribeck drop tested before the friction
+#: chain").
+CONSTRAINT_MARGIN = 0.01
+
+
+def _off_constraints(start: Mapping[str, float], parameters: ParameterSet) -> dict[str, float]:
+    """``start`` with each free larger side of :data:`CONSTRAINTS` at least
+    :data:`CONSTRAINT_MARGIN` above its smaller side (within its bounds)."""
+    out = dict(start)
+    free = set(parameters.free_names)
+    for larger, smaller, _ in CONSTRAINTS:
+        if larger in free and smaller in out and larger in out:
+            floor = out[smaller] * (1.0 + CONSTRAINT_MARGIN)
+            if out[larger] < floor:
+                out[larger] = min(floor, float(parameters[larger].upper))
+    return out
 
 
 def _fmt_start(starts: Sequence[Mapping[str, float]]) -> str:

@@ -228,6 +228,9 @@ DROP_VELOCITY_FLOOR = 3.0
 #: The law without the drop: friction_static simulated at friction_coulomb
 #: (the Stribeck velocity then acts on nothing).
 DROP_TIE = {"friction_static": "friction_coulomb"}
+#: What the law without the drop holds: the tied static level and the
+#: Stribeck velocity, which then acts on nothing.
+DROP_HELD = ("friction_static", "stribeck_velocity")
 #: The joint stage solves the switch model too when the law kept at stage (c)
 #: is LuGre and its joint bristle stiffness ends within this fraction of its
 #: log range under the upper bound (1e3-1e8 N/m: above 3.2e7 N/m, a bristle
@@ -1260,9 +1263,7 @@ def _stribeck_drop(
         return parameters, {}, ""
     start = parameters.values()
     full = fit_least_squares(LogLikelihood(problem, parameters), starts=[start], seed=seed)
-    tied_set = parameters.with_values({"friction_static": f_c}).with_fixed(
-        ["friction_static", "stribeck_velocity"]
-    )
+    tied_set = parameters.with_values({"friction_static": f_c}).with_fixed(list(DROP_HELD))
     tied = fit_least_squares(
         LogLikelihood(problem, tied_set, ties=DROP_TIE), starts=[tied_set.values()], seed=seed
     )

@@ -790,7 +790,9 @@ def channel_losses(
     - a channel of the fit recordings that the fit's likelihood does not
       compare (``fitted`` given and the channel not in it: the gas
       temperatures by default) is judged as the held-out channels are,
-      together with every channel of the fit recordings. The likelihood
+      together with every channel of the fit recordings, and is a loss
+      only when it also rose by more than ``MAX_CHANNEL_LOSS`` (never
+      stricter than judged alone). The likelihood
       cannot trade a channel it does not see, so the proxy's reason to
       judge a channel alone does not hold for it; it is evidence about
       the model, weighed once among the measured quantities. Judged alone,
@@ -834,7 +836,11 @@ def channel_losses(
                 (rises if together else alone).append(rise)
         losses += [r for r in alone if r[0] > 1.0 + MAX_CHANNEL_LOSS]
         if log_sum > 0.0 and rises:
-            losses += [r for r in rises if r[0] > 1.0 + MAX_CHANNEL_LOSS] or [max(rises)]
+            large = [r for r in rises if r[0] > 1.0 + MAX_CHANNEL_LOSS]
+            # the largest riser stands in on the held-out recordings only: on
+            # the fit recordings an unfitted channel is never judged more
+            # strictly than a fitted one (the rule before it was weighed)
+            losses += large or ([max(rises)] if role == "validate" else [])
     return [text for _r, text in sorted(losses, reverse=True)]
 
 

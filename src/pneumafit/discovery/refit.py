@@ -1068,6 +1068,7 @@ def discover(
             say(
                 f"  {c.effect}: score {c.score:.3f}, inclusion {c.inclusion_probability:.2f}, "
                 f"R2 {c.variance_explained:.3f}, phase match {c.phase_match:.2f}"
+                + (" (on the rest and relaxation rows)" if c.rows == "quiet" else "")
                 + ("" if c.supported else " (not supported)")
             )
         tried = att.supported()[:per_round]

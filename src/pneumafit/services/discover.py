@@ -449,8 +449,8 @@ def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
             f"{_fmt(att['explained'], 3)}, {att['n_bootstrap']} bootstrap fits.",
             "",
             "| effect | score | inclusion | R^2 alone | phase match | coefficient | unit "
-            "| supported |",
-            "|---|---|---|---|---|---|---|---|",
+            "| rows | supported |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for c in rnd["candidates"]:
             ev = c["evidence"]
@@ -458,7 +458,8 @@ def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
                 f"| `{c['effect']}` | {_fmt(c['score'], 3)} | "
                 f"{_fmt(ev['inclusion_probability'], 2)} | {_fmt(ev['variance_explained'], 3)} | "
                 f"{_fmt(ev['phase_match'], 2)} | {_fmt(ev['coefficient'], 3)} | "
-                f"{ev['coefficient_unit']} | {'yes' if ev['supported'] else 'no'} |"
+                f"{ev['coefficient_unit']} | {ev.get('rows', 'pressure')} | "
+                f"{'yes' if ev['supported'] else 'no'} |"
             )
         lines.append("")
     lines += ["## Refits", ""]

@@ -1,0 +1,47 @@
+"""Round 1 of discovery's attribution for pairs of campaign and fit.
+
+Usage::
+
+    python benchmarks/probe_attribution.py CAMPAIGN FIT.json [CAMPAIGN FIT.json ...]
+
+Prints, per campaign, the number of rows of the ``quiet`` row set (the
+pressure rows of the rest and relaxation phases) and the six best-ranked
+candidates with the row set their evidence was read on, as
+:func:`pneumafit.discovery.refit.discover` ranks them in its first round
+(100 bootstrap fits, seed 0; docs/effects.md, "Judged where it acts").
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from pneumafit import FitResult, read_campaign
+from pneumafit.discovery.attribution import attribute, build_rows
+from pneumafit.discovery.refit import BaseFit, _catalog_names, _rate_parameters
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) < 2 or len(argv) % 2:
+        print(__doc__)
+        return 2
+    for folder, fit in zip(argv[::2], argv[1::2], strict=True):
+        campaign = read_campaign(folder)
+        base = BaseFit.from_document(FitResult.load(fit))
+        rows = build_rows(campaign, base.structure, base.values, parameters=_rate_parameters(base))
+        effects = [e for e in _catalog_names() if e not in base.structure.effects]
+        att = attribute(rows, rng=np.random.default_rng(0), n_bootstrap=100, effects=effects)
+        print(f"{folder}: {att.channels.get('quiet', {}).get('n_rows', 0)} quiet rows")
+        for c in att.candidates[:6]:
+            print(
+                f"  {c.effect:22s} {c.rows:8s} score {c.score:.3f} inclusion "
+                f"{c.inclusion_probability:.2f} R2 {c.variance_explained:.3f} match "
+                f"{c.phase_match:.2f} coefficient {c.coefficient:.3g}"
+                + (" supported" if c.supported else "")
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

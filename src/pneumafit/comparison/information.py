@@ -50,6 +50,7 @@ from pneumafit.comparison.elpd import WAIC_VARIANCE_LIMIT, psis_loo, waic
 from pneumafit.comparison.evaluate import fit_values
 from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.fitfile import noise_pooling_of, offset_scope_of
+from pneumafit.identification.likelihood import tied
 from pneumafit.identification.noise import AR1, Gaussian
 from pneumafit.identification.problem import MAX_STEP, Problem
 from pneumafit.identification.staged import DEFAULT_CHANNELS
@@ -83,8 +84,8 @@ def _draws(
     flats: dict[str, tuple[list[str], NDArray[np.float64]]] = {}
     ties: dict[str, str] = {}
     for group, stage in stages.items():
-        tied = stage.get("ties")
-        ties.update(tied if isinstance(tied, Mapping) else {})
+        stage_ties = stage.get("ties")
+        ties.update(stage_ties if isinstance(stage_ties, Mapping) else {})
         backend = emcee.backends.HDFBackend(os.fspath(chains), name=group, read_only=True)
         chain = backend.get_chain()
         start = max(int(stage.get("discard", 0)), chain.shape[0] // 2)
@@ -99,10 +100,7 @@ def _draws(
             out[name] = np.exp(z) if scales.get(name) == "log" else z
     # a parameter the chain simulated at another's value (a friction law
     # without its Stribeck drop: MCMCResult.ties) is drawn as its partner
-    for name, partner in ties.items():
-        if partner in out:
-            out[name] = np.array(out[partner], copy=True)
-    return out, list(flats), n
+    return tied(out, ties), list(flats), n
 
 
 def pointwise_log_likelihood(

@@ -67,7 +67,7 @@ from pneumafit.discovery.attribution import (
 from pneumafit.discovery.catalog import get_effect
 from pneumafit.errors import PneumafitInputError
 from pneumafit.identification.fitfile import SavedFit
-from pneumafit.identification.likelihood import LogLikelihood
+from pneumafit.identification.likelihood import LogLikelihood, tied
 from pneumafit.identification.optimise import (
     fit_least_squares,
     information_stall,
@@ -705,8 +705,7 @@ def refit(
     new_values = dict(values)
     ll = est.log_likelihood
     if math.isfinite(ll):
-        new_values.update(est.parameters.values())
-        new_values.update({k: new_values[v] for k, v in base.ties.items()})
+        new_values = tied({**new_values, **est.parameters.values()}, base.ties)
         if base.correct_solver:
             # the correction at the estimate, as the joint stage does, then one
             # more round from there (REFIT_CORRECTED_ROUNDS)
@@ -721,8 +720,7 @@ def refit(
             evaluations += est2.n_evaluations
             if math.isfinite(est2.log_likelihood):
                 est = est2
-                new_values.update(est.parameters.values())
-                new_values.update({k: new_values[v] for k, v in base.ties.items()})
+                new_values = tied({**new_values, **est.parameters.values()}, base.ties)
         # the profile log-likelihood at the estimate (noise re-estimated there),
         # as the base model's is evaluated
         final_ps = ps.with_values({k: v for k, v in new_values.items() if k in ps})

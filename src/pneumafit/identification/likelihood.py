@@ -12,8 +12,10 @@ noise estimate gives -inf; nothing raises for bad parameter values.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -23,7 +25,32 @@ from pneumafit.identification.noise import correlation_time
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import Prediction, Problem
 
-__all__ = ["Evaluation", "LogLikelihood", "LogPosterior"]
+__all__ = ["Evaluation", "LogLikelihood", "LogPosterior", "tied"]
+
+
+def tied(values: Mapping[str, Any], ties: Mapping[str, str]) -> dict[str, Any]:
+    """``values`` with each tied parameter at a copy of its partner's value.
+
+    Parameters
+    ----------
+    values : mapping of str to float or ndarray
+        Parameter values by name (SI).
+    ties : mapping of str to str
+        Tied parameter -> the partner whose value it takes (a friction law
+        without its Stribeck drop simulates the static level at the Coulomb
+        one: ``MCMCResult.ties``). A tie whose partner is not in ``values``
+        is skipped.
+
+    Returns
+    -------
+    dict
+        A new mapping; arrays are copied, not shared with the partner.
+    """
+    out = dict(values)
+    for name, partner in ties.items():
+        if partner in out:
+            out[name] = copy.copy(out[partner])
+    return out
 
 
 @dataclass
@@ -112,10 +139,7 @@ class LogLikelihood:
     def values(self, z: ArrayLike) -> dict[str, NDArray[np.float64]]:
         """Internal vectors -> values by name (all parameters; a tied one at
         its partner's value, :attr:`ties`)."""
-        out = self.parameters.to_values(z)
-        for name, partner in self.ties.items():
-            out[name] = np.array(out[partner], dtype=float, copy=True)
-        return out
+        return tied(self.parameters.to_values(z), self.ties)
 
     def inside(self, z: ArrayLike) -> NDArray[np.bool_]:
         """True where every free coordinate is finite and within its bounds."""

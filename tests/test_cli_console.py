@@ -15,6 +15,7 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     LOG_RULE_WIDTH,
     LogConsole,
+    ShownWarnings,
     configure_output,
     folder_problem,
     int_problem,
@@ -154,3 +155,22 @@ def test_a_folder_that_refuses_even_root_is_found_by_the_probe() -> None:
     problem = output_problem("/proc/pneumafit-out", "folder")
     assert problem is not None and problem.startswith("cannot write /proc/pneumafit-out: ")
     assert "/proc refuses new files (" in problem and "choose another --out" in problem
+
+
+def test_a_warning_already_shown_is_counted_not_repeated() -> None:
+    """``pneumafit run``'s three fits judge one campaign: its warnings are
+    printed by the first fit, and a later fit's repeats become one count
+    line, printed before the next other line."""
+    lines: list[str] = []
+    memo = ShownWarnings()
+    say = memo.log(lines.append)
+    for line in ("warning: a", "warning: b", "valve: 1.5 s", "warning: a", "warning: b",
+                 "warning: c", "warning: a", "heat: 2.0 s"):  # fmt: skip
+        say(line)
+    assert lines == [
+        "warning: a", "warning: b", "valve: 1.5 s",
+        "(2 warnings as printed above, not repeated)", "warning: c",
+        "(1 warning as printed above, not repeated)", "heat: 2.0 s",
+    ]  # fmt: skip
+    memo.flush(lines.append)  # nothing held: nothing printed
+    assert len(lines) == 7

@@ -62,6 +62,7 @@ from pneumafit.campaign.errors import PneumafitInputError
 from pneumafit.cli.console import (
     EXIT_BAD_INPUT,
     EXIT_UNTRUSTWORTHY,
+    ShownWarnings,
     console_log,
     folder_problem,
     int_problem,
@@ -434,7 +435,9 @@ def _fits(
         partial_path,
     )
 
-    say = console_log(console)
+    # the campaign's warnings, which every fit judges again, printed once
+    live, summaries = ShownWarnings(), ShownWarnings()
+    say = live.log(console_log(console))
     options = FitOptions(
         mcmc=mcmc,
         walkers=walkers,
@@ -479,7 +482,8 @@ def _fits(
                     partial_path(f) if mcmc else None
                 ),
             )  # fmt: skip
-            report_fit(result, folder, console)
+            live.flush(say)
+            report_fit(result, folder, console, summaries)
             timings[name] = time.perf_counter() - t0
             sims[name] = counter.simulations() - n0
             if law is None:

@@ -37,6 +37,7 @@ __all__ = [
     "EXIT_UNTRUSTWORTHY",
     "LOGGER",
     "LogConsole",
+    "ShownWarnings",
     "check_output",
     "configure_output",
     "console_log",
@@ -151,6 +152,46 @@ def console_log(console: Console) -> Callable[[str], None]:
         console.print(Text(line))
 
     return say
+
+
+class ShownWarnings:
+    """Warning lines a command has already printed, so that a repeat is
+    counted instead of printed again.
+
+    ``pneumafit run`` fits three models to one campaign, and every fit
+    judges the campaign again (commands no flow test measured, valve edges
+    between flow levels): without this the same lines filled its console six
+    times. Each fit's fit.json keeps all of its own warnings.
+    """
+
+    def __init__(self) -> None:
+        self.seen: set[str] = set()
+        self.held = 0
+
+    def new(self, line: str) -> bool:
+        """True (and remembered) for a line not shown before; a repeat is counted."""
+        if line in self.seen:
+            self.held += 1
+            return False
+        self.seen.add(line)
+        return True
+
+    def flush(self, say: Callable[[str], None]) -> None:
+        """One line for the repeats counted since the last flush, if any."""
+        if self.held:
+            n, self.held = self.held, 0
+            say(f"({n} warning{'s' if n > 1 else ''} as printed above, not repeated)")
+
+    def log(self, say: Callable[[str], None]) -> Callable[[str], None]:
+        """``say`` with its repeated ``warning:`` lines counted instead."""
+
+        def out(line: str) -> None:
+            if line.startswith("warning: ") and not self.new(line):
+                return
+            self.flush(say)
+            say(line)
+
+        return out
 
 
 def run_guarded(

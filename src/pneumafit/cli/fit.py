@@ -42,6 +42,7 @@ from pneumafit.cli.console import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_UNTRUSTWORTHY,
+    ShownWarnings,
     console_log,
     folder_problem,
     int_problem,
@@ -255,10 +256,14 @@ def fit_status(result: FitResult, strict: bool) -> int:
     return EXIT_OK
 
 
-def report_fit(result: FitResult, out: Path, console: Console) -> None:
+def report_fit(
+    result: FitResult, out: Path, console: Console, shown: ShownWarnings | None = None
+) -> None:
     """The console output of a finished fit written to ``out``: the summary,
-    the files written and, for a fit that is not trustworthy, why."""
-    _summary(result, console)
+    the files written and, for a fit that is not trustworthy, why. With
+    ``shown`` (``pneumafit run``'s fits) a warning an earlier summary printed
+    is counted, not printed again."""
+    _summary(result, console, shown)
     console.print(written_line(out))
     quality = result.quality
     if quality is not None and not quality.trustworthy:
@@ -355,7 +360,7 @@ def _reference_lines(metrics: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _summary(result: FitResult, console: Console) -> None:
+def _summary(result: FitResult, console: Console, shown: ShownWarnings | None = None) -> None:
     """The verdict first, then the fitted parameters with their uncertainty and
     MCMC diagnostics, and the residual over noise per recording."""
     quality = result.quality
@@ -418,5 +423,8 @@ def _summary(result: FitResult, console: Console) -> None:
                 f"RMSE {role}: " + ", ".join(_with_unit(c, v) for c, v in rmse[role].items())
             )
     for w in result.warnings:
-        console.print(Text(f"warning: {w}", style="yellow"))
+        if shown is None or shown.new(w):
+            console.print(Text(f"warning: {w}", style="yellow"))
+    if shown is not None:
+        shown.flush(lambda line: console.print(Text(line, style="yellow")))
     console.print(f"{result.seconds:.1f} s, {result.evaluations} parameter sets simulated")

@@ -176,3 +176,42 @@ def test_unfitted_channel_is_never_judged_more_strictly_than_alone() -> None:
     before = {"fit": NOVEL_BEFORE["fit"]}
     assert channel_losses(_model(0.0, worse), _model(0.0, before), NOISE, FITTED) == []
     assert channel_losses(_model(0.0, worse), _model(0.0, before), NOISE) == []
+
+
+# the second truth outside the presets on the sparse plan, seed 11
+# (benchmarks/truths/novel2.toml: an undeclared orifice leak to atmosphere),
+# its round-1 refits with the two leakages, 2026-12-06
+NOVEL2_BEFORE = {
+    "fit": {"qm_P": 7.883e-05, "p_P": 2193.6, "T_P": 3.0207, "p_N": 902.02, "y": 2.9467e-4},
+    "validate": {"p_P": 3850.5, "p_N": 5491.9, "y": 4.4883e-4, "T_P": 1.2858, "T_N": 0.86574},
+}  # fmt: skip
+NOVEL2_EXTERNAL = {
+    "fit": {"qm_P": 3.0637e-05, "p_P": 544.39, "T_P": 0.061408, "p_N": 1111.87, "y": 1.5988e-4},
+    "validate": {"p_P": 936.11, "p_N": 2366.47, "y": 2.8970e-4, "T_P": 0.16527, "T_N": 0.17078},
+}  # fmt: skip
+NOVEL2_CHAMBER = {
+    "fit": {"qm_P": 3.1896e-05, "p_P": 614.76, "T_P": 0.32673, "p_N": 1240.23, "y": 2.4151e-4},
+    "validate": {"p_P": 2193.0, "p_N": 5380.37, "y": 4.6847e-4, "T_P": 0.68470, "T_N": 0.54237},
+}  # fmt: skip
+
+
+def test_a_fitted_rise_the_held_out_recordings_contradict_is_not_a_loss() -> None:
+    """The external leak: p_N of the fit recordings 23 % worse (the catalog's
+    laminar leak over-corrects the one step test's N chamber for an orifice
+    leak), but p_N held out 57 % better, every held-out channel better:
+    kept. The chamber leak's p_N, 37 % worse on the fit recordings and 2 %
+    better held out (under the 5 % held-out gain), is still a loss; so is a
+    fitted channel the held-out recordings do not measure (the proxy's
+    flows, above)."""
+    base = _model(-11065.4, NOVEL2_BEFORE)
+    external = _model(-9819.1, NOVEL2_EXTERNAL, ("supply_pressure_drop",))
+    assert channel_losses(external, base, NOISE, FITTED) == []
+    ok, reason = _accept(external, base, NOISE, FITTED)
+    assert ok, reason
+    chamber = _model(-10015.2, NOVEL2_CHAMBER, ("supply_pressure_drop",))
+    assert channel_losses(chamber, base, NOISE, FITTED) == ["p_N (fit) 902 -> 1.24e+03"]
+    # held out, p_N 10 % better but the other channels 50 % worse (worse
+    # together): the fit channel is judged alone again
+    held = {c: (0.9 if c == "p_N" else 1.5) * v for c, v in NOVEL2_BEFORE["validate"].items()}
+    worse = _model(0.0, {**NOVEL2_EXTERNAL, "validate": held})
+    assert "p_N (fit) 902 -> 1.11e+03" in channel_losses(worse, base, NOISE, FITTED)

@@ -142,3 +142,31 @@ def test_the_quiet_rows_need_enough_blocks() -> None:
     result = att.attribute(short, rng=np.random.default_rng(0), n_bootstrap=20)
     assert "quiet" not in result.channels
     assert all(c.rows == "pressure" for c in result.candidates)
+
+
+def _candidate(rows: str, score: float, supported: bool) -> att.Candidate:
+    return att.Candidate(
+        effect="external_leakage", score=score, inclusion_probability=0.9 if supported else 0.4,
+        variance_explained=score, phase_match=1.0, coefficient=1e-11,
+        coefficient_interval=(5e-12, 2e-11), coefficient_unit="kg/s/Pa", suggested={},
+        phases={}, supported=supported, rows=rows,
+    )  # fmt: skip
+
+
+def test_the_quiet_rows_are_a_second_route_to_support() -> None:
+    """Merging the quiet row set's evidence: a supported one replaces an
+    unsupported channel evidence even with a lower score, an unsupported
+    one never replaces a supported one, and otherwise the better rank wins
+    (as between the two channels)."""
+    best = {"external_leakage": _candidate("pressure", 0.20, False)}
+    att._keep_best(best, [_candidate("quiet", 0.06, True)], supported_first=True)
+    assert best["external_leakage"].rows == "quiet"
+    best = {"external_leakage": _candidate("pressure", 0.03, True)}
+    att._keep_best(best, [_candidate("quiet", 0.20, False)], supported_first=True)
+    assert best["external_leakage"].rows == "pressure"
+    att._keep_best(best, [_candidate("quiet", 0.05, True)], supported_first=True)
+    assert best["external_leakage"].rows == "quiet"
+    # between channels, rank alone (the rule before the quiet rows)
+    best = {"external_leakage": _candidate("pressure", 0.20, False)}
+    att._keep_best(best, [_candidate("motion", 0.06, True)])
+    assert best["external_leakage"].rows == "pressure"

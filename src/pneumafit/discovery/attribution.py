@@ -1093,7 +1093,9 @@ def attribute(
     An effect whose catalog phases all lie in :data:`QUIET_PHASES` (a leak,
     the wall's heat capacity) is also judged on the ``quiet`` row set: the
     pressure rows of those phases, regressed on every effect, drawn after
-    the channels (so their evidence does not depend on it). Where the
+    the channels (so their evidence does not depend on it); its evidence
+    there is kept when it is supported and the channels' is not, else by
+    rank. Where the
     model's laws are not the rig's, the valves' and the friction's misfit
     makes most of the residual rate while the valves open and the piston
     moves, and a leak explains only a few % of it; at rest, where those
@@ -1148,7 +1150,8 @@ def attribute(
             rows, quiet, names, rng, n_bootstrap, threshold, label="quiet"
         )
         summaries["quiet"] = summary
-        _keep_best(best, [c for c in cands if c.effect in local])
+        # a second route to "supported": supported evidence first, then rank
+        _keep_best(best, [c for c in cands if c.effect in local], supported_first=True)
     out = sorted(best.values(), key=_rank_key)
     head = summaries.get("pressure") or next(iter(summaries.values()))
     return Attribution(
@@ -1166,11 +1169,18 @@ def _rank_key(c: Candidate) -> tuple[float, float, float, str]:
     return (-c.score, -c.inclusion_probability, -c.variance_explained, c.effect)
 
 
-def _keep_best(best: dict[str, Candidate], cands: Sequence[Candidate]) -> None:
-    """Keep in ``best`` each effect's better-ranked evidence."""
+def _keep_best(
+    best: dict[str, Candidate], cands: Sequence[Candidate], *, supported_first: bool = False
+) -> None:
+    """Keep in ``best`` each effect's better-ranked evidence (with
+    ``supported_first``, a supported evidence before an unsupported one)."""
+
+    def key(c: Candidate) -> tuple[Any, ...]:
+        return ((not c.supported) if supported_first else False, *_rank_key(c))
+
     for c in cands:
         old = best.get(c.effect)
-        if old is None or _rank_key(c) < _rank_key(old):
+        if old is None or key(c) < key(old):
             best[c.effect] = c
 
 

@@ -42,7 +42,15 @@ evaluated on the same problem at the base estimate.
 
 BIC rather than AIC decides (both are reported): with n ~ 10^3 to 10^4
 compared samples BIC asks ~3.5 to 4.6 log-likelihood units per added parameter, AIC only 1,
-which a chance improvement on a misspecified model easily gives.
+which a chance improvement on a misspecified model easily gives. Both count
+**effective samples** (since 2026-12-06): a model that does not reach the
+noise leaves residuals correlated over tau samples, and its iid
+log-likelihood counts each independent piece of information about tau
+times. The criteria divide every log-likelihood by the base model's
+overcount sum(n) / sum(n / tau) (:meth:`LogLikelihood.overcount`, the
+residuals of the base estimate) and take ln of n / overcount, as the fit's
+choice of friction law does (``staged._lower_bic``); one overcount for
+every model of a discovery, so that their differences compare.
 """
 
 from __future__ import annotations
@@ -326,6 +334,11 @@ class Model:
         Free parameters plus the noise parameters and nuisances profiled out.
     n_data : int
         Compared samples.
+    overcount : float
+        By how much the iid log-likelihood overcounts the information
+        (>= 1): the base model's (:meth:`LogLikelihood.overcount` at its
+        estimate), carried by every model of one discovery. ``aic`` and
+        ``bic`` count effective samples with it (module doc).
     rmse : dict
         ``fit`` and ``validate``: channel -> RMSE (SI), every sample.
     offset_free : dict
@@ -348,6 +361,7 @@ class Model:
     n_parameters: int
     n_data: int
     rmse: dict[str, dict[str, float]]
+    overcount: float = 1.0
     offset_free: dict[str, float] = field(default_factory=dict)
     held_out: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
@@ -355,12 +369,22 @@ class Model:
     probe: TemperatureProbe | None = None
 
     @property
+    def n_effective(self) -> float:
+        """Compared samples over the overcount: the independent ones."""
+        return self.n_data / self.overcount
+
+    @property
     def aic(self) -> float:
-        return 2.0 * self.n_parameters - 2.0 * self.log_likelihood
+        """AIC in effective samples: 2 k - 2 ll / overcount."""
+        return 2.0 * self.n_parameters - 2.0 * self.log_likelihood / self.overcount
 
     @property
     def bic(self) -> float:
-        return self.n_parameters * math.log(max(self.n_data, 1)) - 2.0 * self.log_likelihood
+        """BIC in effective samples: k ln(n / overcount) - 2 ll / overcount."""
+        return (
+            self.n_parameters * math.log(max(self.n_effective, 1.0))
+            - 2.0 * self.log_likelihood / self.overcount
+        )
 
     def pressure_rmse(self, role: str) -> float:
         """Root of the mean square of the pressure RMSEs of ``role`` (Pa)."""
@@ -625,13 +649,16 @@ def evaluate_model(
         prob.correct_solver({k: v for k, v in values.items() if not k.startswith("initial:")})
     like = LogLikelihood(prob, ps, ties=base.ties)
     ll = like.at_values(ps.values())
+    # the criteria's effective samples (module doc); 1 where the fit counted
+    # every sample (FitOptions.temper off) or the simulation failed
+    over = like.overcount(ps.to_internal(ps.values())) if base.temper and math.isfinite(ll) else 1.0
     rmse, offset_free, probe = scores(
         campaign, structure, values, max_step=base.max_step, lead=base.lead
     )
     return Model(
         effects=tuple(effects), structure=structure, values=dict(values), parameters=None,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
-        rmse=rmse, offset_free=offset_free,
+        rmse=rmse, offset_free=offset_free, overcount=over,
         seconds=time.perf_counter() - t0, evaluations=prob.n_evaluations, probe=probe,
     )  # fmt: skip
 
@@ -735,7 +762,7 @@ def refit(
     return Model(
         effects=effects, structure=structure, values=new_values, parameters=est.parameters,
         log_likelihood=ll, n_parameters=_n_parameters(prob, ps), n_data=prob.n_data,
-        rmse=rmse, offset_free=offset_free,
+        rmse=rmse, offset_free=offset_free, overcount=current.overcount,
         seconds=time.perf_counter() - t0, evaluations=evaluations, probe=probe,
     )  # fmt: skip
 
@@ -1072,7 +1099,8 @@ def discover(
     # by the base's probe (BaseFit.lead)
     base = dataclasses.replace(base, lead=current.probe)
     say(
-        f"base: log-likelihood {current.log_likelihood:.1f}, BIC {current.bic:.1f}; pressure "
+        f"base: log-likelihood {current.log_likelihood:.1f}, BIC {current.bic:.1f} (in "
+        f"{current.n_effective:.0f} effective samples of {current.n_data}); pressure "
         f"RMSE fit {current.pressure_rmse('fit'):.0f} Pa, validate "
         f"{current.pressure_rmse('validate'):.0f} Pa (sensor noise {noise:.0f} Pa)"
     )

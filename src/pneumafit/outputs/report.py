@@ -1053,8 +1053,11 @@ def _discovery_section(run: _Run) -> tuple[str, str, str]:
                                                   for r in refits],
                   caption="Refits tried (scalar fields)")
         )  # fmt: skip
-    aic = [("AIC", doc.get("aic_before"), doc.get("aic_after")),
-           ("BIC", doc.get("bic_before"), doc.get("bic_after"))]  # fmt: skip
+    # since 2026-12-06 discovery's criteria count effective samples
+    # (discovery.json's n_effective); an older file's count every sample
+    counted = " (effective samples)" if doc.get("n_effective") is not None else ""
+    aic = [("AIC" + counted, doc.get("aic_before"), doc.get("aic_after")),
+           ("BIC" + counted, doc.get("bic_before"), doc.get("bic_after"))]  # fmt: skip
     aic_rows = [[k, fmt(b), fmt(a), fmt(a - b) if isinstance(a, int | float)
                  and isinstance(b, int | float) else "-"]
                 for k, b, a in aic if b is not None or a is not None]  # fmt: skip

@@ -299,6 +299,10 @@ def discovery_document(
         "n_parameters_before": base.n_parameters,
         "n_parameters_after": final.n_parameters,
         "n_data": base.n_data,
+        # the criteria count effective samples: n_data over the base model's
+        # overcount (discovery.refit, module doc)
+        "n_effective": base.n_effective,
+        "overcount": base.overcount,
         "effect_parameters": _effect_parameters(final),
         "parameters_after": {k: final.values[k] for k in model_names},
         "noise_pressure": result.noise,
@@ -500,7 +504,9 @@ def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
         f"Log-likelihood {_fmt(doc['log_likelihood_before'], 8)} -> "
         f"{_fmt(doc['log_likelihood_after'], 8)}; AIC {_fmt(doc['aic_before'], 8)} -> "
         f"{_fmt(doc['aic_after'], 8)}; BIC {_fmt(doc['bic_before'], 8)} -> "
-        f"{_fmt(doc['bic_after'], 8)} ({doc['n_data']} compared samples).",
+        f"{_fmt(doc['bic_after'], 8)} (in effective samples: "
+        f"{_fmt(doc.get('n_effective'), 4)} of {doc['n_data']} compared samples; "
+        'docs/effects.md, "Effective samples").',
         "",
         "## Effect parameters",
         "",

@@ -18,8 +18,8 @@ import sys
 import numpy as np
 
 from pneumafit import FitResult, read_campaign
-from pneumafit.discovery.attribution import attribute, build_rows
-from pneumafit.discovery.refit import BaseFit, _catalog_names, _rate_parameters
+from pneumafit.discovery.refit import BaseFit, attribute_residual
+from pneumafit.identification.segments import segment_step_tests
 
 
 def main(argv: list[str]) -> int:
@@ -27,11 +27,10 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 2
     for folder, fit in zip(argv[::2], argv[1::2], strict=True):
-        campaign = read_campaign(folder)
         base = BaseFit.from_document(FitResult.load(fit))
-        rows = build_rows(campaign, base.structure, base.values, parameters=_rate_parameters(base))
-        effects = [e for e in _catalog_names() if e not in base.structure.effects]
-        att = attribute(rows, rng=np.random.default_rng(0), n_bootstrap=100, effects=effects)
+        # the step tests cut as the base fit cut them, as discover does
+        campaign = segment_step_tests(read_campaign(folder), base.segments)[0]
+        att = attribute_residual(campaign, base, rng=np.random.default_rng(0), n_bootstrap=100)
         print(f"{folder}: {att.channels.get('quiet', {}).get('n_rows', 0)} quiet rows")
         for c in att.candidates[:6]:
             print(

@@ -119,6 +119,7 @@ __all__ = [
     "Discovery",
     "Model",
     "Step",
+    "attribute_residual",
     "channel_losses",
     "channel_noise",
     "discover",
@@ -1113,13 +1114,7 @@ def discover(
             say(f"round {r}: the fit residual is at the sensor noise; nothing left to explain")
             break
         say(f"round {r}: attribution of the residual rates ...")
-        rows = build_rows(
-            campaign, current.structure, current.values, parameters=_rate_parameters(base)
-        )
-        att = attribute(
-            rows, rng=next(stream), n_bootstrap=n_bootstrap,
-            effects=[e for e in _catalog_names() if e not in current.structure.effects],
-        )  # fmt: skip
+        att = attribute_residual(campaign, base, current, rng=next(stream), n_bootstrap=n_bootstrap)
         attributions.append(att)
         for c in att.candidates[:4]:
             say(
@@ -1248,6 +1243,48 @@ def _best(passed: Sequence[tuple[Candidate, Model]]) -> tuple[Candidate, Model] 
     low = min(m.bic for _c, m in passed)
     near = [(c, m) for c, m in passed if m.bic - low < BIC_TIE]
     return min(near, key=lambda cm: (cm[1].pressure_rmse("validate"), cm[1].bic))
+
+
+def attribute_residual(
+    campaign: Campaign,
+    base: BaseFit,
+    model: Model | None = None,
+    *,
+    rng: np.random.Generator,
+    n_bootstrap: int = 60,
+) -> Attribution:
+    """One round's attribution of a model's residual rates, as :func:`discover` makes it.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign as discovery sees it: its step tests cut as the base fit
+        cut them (``segment_step_tests(campaign, base.segments)[0]``, what
+        :func:`discover` does first).
+    base : BaseFit
+        The fit discovery starts from; its free valve, heat and friction
+        parameters are the attribution's nuisance directions.
+    model : Model, optional
+        The model whose residual is attributed (None: the base model, round
+        1). Catalog effects it already has are not candidates.
+    rng : numpy.random.Generator
+        Seeds the block bootstrap.
+    n_bootstrap : int
+        Bootstrap fits.
+
+    Returns
+    -------
+    Attribution
+        The candidates ranked, each with the row set its evidence was read
+        on (docs/effects.md, "Judged where it acts").
+    """
+    structure = base.structure if model is None else model.structure
+    values = base.values if model is None else model.values
+    rows = build_rows(campaign, structure, values, parameters=_rate_parameters(base))
+    return attribute(
+        rows, rng=rng, n_bootstrap=n_bootstrap,
+        effects=[e for e in _catalog_names() if e not in structure.effects],
+    )  # fmt: skip
 
 
 def _rate_parameters(base: BaseFit) -> list[str]:

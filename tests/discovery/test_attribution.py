@@ -122,6 +122,13 @@ def test_a_leak_is_judged_on_the_rest_phases_where_it_acts() -> None:
     assert found["external_leakage"].coefficient == pytest.approx(leak, rel=0.01)
     assert found["forced_convection"].rows == "pressure"
     assert found["valve_dynamics"].rows == "pressure"
+    # both readings are kept: the pressure rows' is the one the whole-row
+    # regression above gives (the same rows, effects and seed)
+    other = result.other_evidence("external_leakage")
+    assert [c.rows for c in other] == ["pressure"] and not other[0].supported
+    assert other[0].variance_explained == pytest.approx(on_all.variance_explained)
+    assert set(result.by_rows["external_leakage"]) == {"pressure", "quiet"}
+    assert "quiet" not in result.by_rows["forced_convection"]
     clean = att.attribute(_quiet_rows(0.0, seed=3), rng=np.random.default_rng(0), n_bootstrap=60)
     assert not {c.effect: c for c in clean.candidates}["external_leakage"].supported
 

@@ -993,6 +993,11 @@ class Attribution:
     channels : dict of str to dict
         Per row set (``pressure``, ``motion``, ``quiet``): ``n_rows``,
         ``rate_rms``, ``residual_phases``, ``explained``.
+    by_rows : dict of str to dict of str to Candidate
+        Every effect's evidence on each row set it was regressed on (effect
+        -> row set -> candidate); ``candidates`` holds the one that ranks it
+        (:func:`attribute`). The quiet rows' is kept for the effects judged
+        there only (:data:`QUIET_PHASES`).
     """
 
     candidates: list[Candidate]
@@ -1002,10 +1007,17 @@ class Attribution:
     explained: float
     n_bootstrap: int
     channels: dict[str, dict[str, Any]] = field(default_factory=dict)
+    by_rows: dict[str, dict[str, Candidate]] = field(default_factory=dict)
 
     def supported(self) -> list[Candidate]:
         """Supported candidates, best first."""
         return [c for c in self.candidates if c.supported]
+
+    def other_evidence(self, effect: str) -> list[Candidate]:
+        """``effect``'s evidence on the row sets other than the one that
+        ranks it (:attr:`by_rows`), in the order the sets are regressed."""
+        ranked = next((c.rows for c in self.candidates if c.effect == effect), None)
+        return [c for rows, c in self.by_rows.get(effect, {}).items() if rows != ranked]
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -1127,6 +1139,7 @@ def attribute(
     names = [n for n in (effects or list(EFFECTS)) if n in rows.features]
     chan = rows.channels()
     best: dict[str, Candidate] = {}
+    by_rows: dict[str, dict[str, Candidate]] = {}
     summaries: dict[str, dict[str, Any]] = {}
     for channel in ROW_CHANNELS:
         sel = chan == channel
@@ -1143,6 +1156,8 @@ def attribute(
         )
         summaries[channel] = summary
         _keep_best(best, cands)
+        for c in cands:
+            by_rows.setdefault(c.effect, {})[channel] = c
     local = [n for n in names if set(get_effect(n).phases) <= set(QUIET_PHASES)]
     quiet = (chan == "pressure") & np.isin(rows.phase, QUIET_PHASES)
     if local and np.unique(rows.group[quiet]).size >= MIN_QUIET_BLOCKS:
@@ -1152,6 +1167,9 @@ def attribute(
         summaries["quiet"] = summary
         # a second route to "supported": supported evidence first, then rank
         _keep_best(best, [c for c in cands if c.effect in local], supported_first=True)
+        for c in cands:
+            if c.effect in local:
+                by_rows.setdefault(c.effect, {})["quiet"] = c
     out = sorted(best.values(), key=_rank_key)
     head = summaries.get("pressure") or next(iter(summaries.values()))
     return Attribution(
@@ -1162,6 +1180,7 @@ def attribute(
         explained=head["explained"],
         n_bootstrap=n_bootstrap,
         channels=summaries,
+        by_rows=by_rows,
     )
 
 

@@ -257,7 +257,17 @@ def discovery_document(
                 "round": i,
                 "attribution": att.as_dict(),
                 "candidates": [
-                    {"effect": c.effect, "score": c.score, "evidence": c.evidence()}
+                    {
+                        "effect": c.effect,
+                        "score": c.score,
+                        "evidence": c.evidence(),
+                        # the same effect read on its other row sets (the
+                        # ranked evidence is the one above)
+                        "other_rows": [
+                            {"score": o.score, "evidence": o.evidence()}
+                            for o in att.other_evidence(c.effect)
+                        ],
+                    }
                     for c in att.candidates
                 ],
             }
@@ -465,6 +475,19 @@ def _markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
                 f"{ev['coefficient_unit']} | {ev.get('rows', 'pressure')} | "
                 f"{'yes' if ev['supported'] else 'no'} |"
             )
+        # an effect also judged on the quiet rows: its evidence on the set
+        # that does not rank it (the two routes to support, side by side)
+        also = [
+            f"`{c['effect']}` on the {o['evidence']['rows']} rows: score "
+            f"{_fmt(o['score'], 3)}, R^2 alone {_fmt(o['evidence']['variance_explained'], 3)}, "
+            + ("supported" if o["evidence"]["supported"] else "not supported")
+            for c in rnd["candidates"]
+            for o in c.get("other_rows", [])
+            if "quiet" in (o["evidence"].get("rows"), c["evidence"].get("rows"))
+            and ((o["score"] or 0.0) > 0.0 or o["evidence"]["supported"])
+        ]
+        if also:
+            lines += ["", "Also read on another row set: " + "; ".join(also) + "."]
         lines.append("")
     lines += ["## Refits", ""]
     if doc["refits"]:

@@ -437,7 +437,8 @@ def _fits(
 
     # the campaign's warnings, which every fit judges again, printed once
     live, summaries = ShownWarnings(), ShownWarnings()
-    say = live.log(console_log(console))
+    raw = console_log(console)
+    say = live.log(raw)
     options = FitOptions(
         mcmc=mcmc,
         walkers=walkers,
@@ -482,7 +483,7 @@ def _fits(
                     partial_path(f) if mcmc else None
                 ),
             )  # fmt: skip
-            live.flush(say)
+            live.flush(raw)
             report_fit(result, folder, console, summaries)
             timings[name] = time.perf_counter() - t0
             sims[name] = counter.simulations() - n0

@@ -210,6 +210,9 @@ def run_case(
         "friction_law": result.structure.friction
         + ("+seal" if result.structure.effects.get("seal_friction") else ""),
         "record_s": round(t_rec, 1), "fit_s": round(result.seconds, 1),
+        # the final estimate's log-likelihood (fit recordings; comparable
+        # between two fits of the same campaign and structure)
+        "log_likelihood": result.metrics.get("log_likelihood"),
         "pressure_ratio_fit": ratios["fit"], "pressure_ratio_validate": ratios["validate"],
         "recordings": [c.as_dict() for c in q.channels],
         "figures": figures, "verdict": q.verdict(), "problems": q.problems(),

@@ -1165,11 +1165,11 @@ def attribute(
             rows, quiet, names, rng, n_bootstrap, threshold, label="quiet"
         )
         summaries["quiet"] = summary
+        judged = [c for c in cands if c.effect in local]
         # a second route to "supported": supported evidence first, then rank
-        _keep_best(best, [c for c in cands if c.effect in local], supported_first=True)
-        for c in cands:
-            if c.effect in local:
-                by_rows.setdefault(c.effect, {})["quiet"] = c
+        _keep_best(best, judged, supported_first=True)
+        for c in judged:
+            by_rows.setdefault(c.effect, {})["quiet"] = c
     out = sorted(best.values(), key=_rank_key)
     head = summaries.get("pressure") or next(iter(summaries.values()))
     return Attribution(

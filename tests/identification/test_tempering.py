@@ -135,6 +135,12 @@ def test_overcount_and_the_stall_rule_scale_with_the_correlation_time(phi: float
     z = _params().to_internal({"a": A, "b": B})
     tau = max(correlation_time((y - A - B * (T - 0.5)) / np.std(y - A - B * (T - 0.5))), 1.0)
     assert like.overcount(z) == pytest.approx(tau, rel=1e-6)
+    # from an evaluation the caller has already (discovery's evaluate_model):
+    # the same number, no second simulation
+    ev = like.evaluate(z[None, :])
+    before = like.problem.n_evaluations
+    assert like.overcount(z, ev) == like.overcount(z)
+    assert like.problem.n_evaluations == before + 1  # only the call without it
     window, gain = information_stall(like, z)
     assert window == STALL_RULE[0] and gain == pytest.approx(STALL_RULE[1] * tau, rel=1e-6)
     assert information_stall(like, z, scaled=False) == STALL_RULE

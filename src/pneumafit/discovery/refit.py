@@ -649,10 +649,13 @@ def evaluate_model(
     if base.correct_solver:
         prob.correct_solver({k: v for k, v in values.items() if not k.startswith("initial:")})
     like = LogLikelihood(prob, ps, ties=base.ties)
-    ll = like.at_values(ps.values())
-    # the criteria's effective samples (module doc); 1 where the fit counted
-    # every sample (FitOptions.temper off) or the simulation failed
-    over = like.overcount(ps.to_internal(ps.values())) if base.temper and math.isfinite(ll) else 1.0
+    z = ps.to_internal(ps.values())
+    ev = like.evaluate(z[None, :])
+    ll = float(ev.log_likelihood[0])
+    # the criteria's effective samples (module doc), from the same
+    # simulation; 1 where the fit counted every sample (FitOptions.temper
+    # off) or the simulation failed
+    over = like.overcount(z, ev) if base.temper and math.isfinite(ll) else 1.0
     rmse, offset_free, probe = scores(
         campaign, structure, values, max_step=base.max_step, lead=base.lead
     )

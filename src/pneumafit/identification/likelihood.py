@@ -201,13 +201,21 @@ class LogLikelihood:
         blocks[~ok] = -np.inf
         return Evaluation(total, blocks, residuals, noise, ok, pred)
 
-    def correlation_times(self, z: ArrayLike) -> NDArray[np.float64]:
+    def correlation_times(
+        self, z: ArrayLike, evaluation: Evaluation | None = None
+    ) -> NDArray[np.float64]:
         """Correlation time (samples) of each block's whitened residuals at one set.
 
         See :func:`~pneumafit.identification.noise.correlation_time`; NaN
-        for every block when the simulation fails.
+        for every block when the simulation fails. ``evaluation``: this
+        likelihood's :meth:`evaluate` of ``z`` (its first set), when the
+        caller has it already; otherwise ``z`` is simulated.
         """
-        ev = self.evaluate(np.atleast_2d(np.asarray(z, dtype=float))[:1])
+        ev = (
+            self.evaluate(np.atleast_2d(np.asarray(z, dtype=float))[:1])
+            if evaluation is None
+            else evaluation
+        )
         out = np.full(len(ev.residuals), np.nan)
         if not ev.ok[0]:
             return out
@@ -216,14 +224,15 @@ class LogLikelihood:
             out[j] = correlation_time(obs.noise.whiten(r[0], **state))
         return out
 
-    def overcount(self, z: ArrayLike) -> float:
+    def overcount(self, z: ArrayLike, evaluation: Evaluation | None = None) -> float:
         """By how much the iid log-likelihood overcounts the data's information.
 
         sum(n) / sum(n / tau) over the blocks at ``z``, tau the correlation
         time of each block's whitened residuals (:meth:`temper`): 1 for white
-        residuals, or when the simulation fails.
+        residuals, or when the simulation fails. ``evaluation`` as in
+        :meth:`correlation_times`.
         """
-        taus = self.correlation_times(z)
+        taus = self.correlation_times(z, evaluation)
         if not np.all(np.isfinite(taus)):
             return 1.0
         n = np.array([o.n for o in self.problem.observations], dtype=float)

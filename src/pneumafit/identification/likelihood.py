@@ -148,7 +148,12 @@ class LogLikelihood:
             (zz >= self._lower) & (zz <= self._upper), axis=1
         )
 
-    def evaluate(self, z: ArrayLike, moved: ArrayLike | None = None) -> Evaluation:
+    def evaluate(
+        self,
+        z: ArrayLike,
+        moved: ArrayLike | None = None,
+        prediction: Prediction | None = None,
+    ) -> Evaluation:
         """Simulate and score a batch; see :class:`Evaluation`.
 
         ``moved`` (n_sets,) of int, optional: for a batch whose set i differs
@@ -156,10 +161,18 @@ class LogLikelihood:
         finite-difference Jacobian's, the recordings that parameter cannot
         affect (:meth:`Problem.unaffected`) are not simulated again: they
         take set 0's simulation, which is what simulating them gives.
+
+        ``prediction``, optional: the problem's prediction of this very
+        batch, from an earlier evaluation of it (its
+        :attr:`Evaluation.prediction`): scored again without simulating,
+        under the problem's present weights and tempering. The caller
+        vouches that the problem's predictions have not changed since.
         """
         zz = np.atleast_2d(np.asarray(z, dtype=float))
         n = zz.shape[0]
         inside = self.inside(zz)
+        if prediction is not None:
+            return self._score(prediction, inside, n)
         # simulate only the sets inside the bounds; others stay NaN / -inf
         z_run = np.where(inside[:, None], zz, self.parameters.to_internal()[None, :])
         values = self.values(z_run)
@@ -181,6 +194,10 @@ class LogLikelihood:
             if same is None
             else self.problem.predict(values, n, same_as_first=same)
         )
+        return self._score(pred, inside, n)
+
+    def _score(self, pred: Prediction, inside: NDArray[np.bool_], n: int) -> Evaluation:
+        """Residuals, noise estimates and log-likelihoods of a batch's prediction."""
         residuals = self.problem.residuals(pred)
         ok = pred.ok & inside
         blocks = np.empty((n, len(residuals)))

@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 
 from pneumafit.identification.likelihood import LogLikelihood
 from pneumafit.identification.parameters import ParameterSet
+from pneumafit.identification.problem import Prediction
 from pneumafit.identification.segments import source_recording
 from pneumafit.progress import Progress
 
@@ -103,16 +104,52 @@ def _fd_steps(ps: ParameterSet, z: NDArray[np.float64]) -> NDArray[np.float64]:
     return h
 
 
+#: Finite-difference batches a :class:`_Whitened` keeps for the points it
+#: may be asked about again (the best points of the latest rounds).
+KEPT_BATCHES = 3
+
+
 class _Whitened:
-    """Whitened residuals with the noise state held; caches the last batch."""
+    """Whitened residuals with the noise state held.
+
+    It keeps the predictions of the finite-difference batches at a few
+    points (:meth:`keep`: the best point of each round, which the next
+    round, the reweighting and the final covariance evaluate again): a
+    point's batch is then scored anew under the present noise weights
+    without simulating it again, and a single evaluation at the point
+    takes the batch's first set. The numbers are those of simulating
+    again (the same prediction, scored by the same code); only the
+    simulations are saved (one single evaluation and one batch per
+    reweighting round).
+    """
 
     def __init__(self, like: LogLikelihood) -> None:
         self.like = like
         self.states: list[dict[str, Any]] = []
         self.lower, self.upper = like.parameters.internal_bounds()
+        self._last: tuple[bytes, bytes, Any] | None = None
+        self._kept: dict[bytes, tuple[bytes, Any]] = {}
+        self._prediction: Any = None
+
+    def keep(self, z: NDArray[np.float64]) -> None:
+        """Keep the last batch's prediction when it was made at ``z``."""
+        if self._last is not None and self._last[0] == z.tobytes():
+            key, pts, pred = self._last
+            self._kept.pop(key, None)
+            self._kept[key] = (pts, pred)
+            while len(self._kept) > KEPT_BATCHES:
+                del self._kept[next(iter(self._kept))]
+
+    def _first_set(self, z: NDArray[np.float64]) -> Prediction | None:
+        """The first set of a kept batch made at ``z`` (a Prediction of one set)."""
+        kept = self._kept.get(z.tobytes())
+        if kept is None or not isinstance(kept[1], Prediction):
+            return None  # a duck-typed problem's prediction: simulated again
+        pred = kept[1]
+        return Prediction([b[:1] for b in pred.blocks], pred.status[:1], pred.ok[:1])
 
     def set_state(self, z: NDArray[np.float64]) -> float:
-        ev = self.like.evaluate(z[None, :])
+        ev = self.like.evaluate(z[None, :], prediction=self._first_set(z))
         states = []
         for o, r in zip(self.like.problem.observations, ev.residuals, strict=True):
             rr = np.nan_to_num(r[0], nan=0.0)
@@ -126,11 +163,15 @@ class _Whitened:
         return float(ev.log_likelihood[0])
 
     def batch(
-        self, zz: NDArray[np.float64], moved: NDArray[np.int64] | None = None
+        self,
+        zz: NDArray[np.float64],
+        moved: NDArray[np.int64] | None = None,
+        prediction: Prediction | None = None,
     ) -> NDArray[np.float64]:
-        """Whitened residual vectors (n_sets, n_res) of a batch (``moved``:
-        see :meth:`LogLikelihood.evaluate`)."""
-        ev = self.like.evaluate(zz, moved=moved)
+        """Whitened residual vectors (n_sets, n_res) of a batch (``moved``,
+        ``prediction``: see :meth:`LogLikelihood.evaluate`)."""
+        ev = self.like.evaluate(zz, moved=moved, prediction=prediction)
+        self._prediction = ev.prediction
         parts = []
         power = np.sqrt(self.like.problem.tempering)
         for j, (o, r, st) in enumerate(
@@ -153,9 +194,16 @@ class _Whitened:
         sign = np.where(z + h > self.upper, -1.0, 1.0)
         pts = np.repeat(z[None, :], z.size + 1, axis=0)
         pts[1:] += np.diag(sign * h)
+        key, pts_key = z.tobytes(), pts.tobytes()
+        kept = self._kept.get(key)
         # set j + 1 moves coordinate j alone: the recordings it cannot affect
         # keep set 0's simulation (exactly what simulating them again gives)
-        res = self.batch(pts, moved=np.arange(-1, z.size))
+        res = self.batch(
+            pts,
+            moved=np.arange(-1, z.size),
+            prediction=kept[1] if kept is not None and kept[0] == pts_key else None,
+        )
+        self._last = (key, pts_key, self._prediction)
         jac = (res[1:] - res[0]).T / (sign * h)
         return res[0], jac
 
@@ -303,6 +351,8 @@ class _Cached:
             self.cost0 = cost
         if self.best is None or cost < self.best[0]:
             self.best = (cost, x.copy())
+            # the next round, the reweighting and the covariance start here
+            self.whitened.keep(x)
         assert self.best is not None
         self.history.append(self.best[0])
         if self.progress is not None:
@@ -488,7 +538,7 @@ def fit_least_squares(
     cov = _laplace(jac)
     values = {n: float(v[0]) for n, v in ps.to_values(z).items()}
     fitted = laplace_summary(ps.with_values(values), z, cov)
-    ev = likelihood.evaluate(z[None, :])
+    ev = likelihood.evaluate(z[None, :], prediction=wh._first_set(z))
     noise = [{k: float(v[0]) for k, v in est.items()} for est in ev.noise]
     return PointEstimate(
         parameters=fitted, z=z, log_likelihood=float(info["ll"]), log_posterior=float(lp),

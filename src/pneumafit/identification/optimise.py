@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from pneumafit.identification.likelihood import LogLikelihood
+from pneumafit.identification.likelihood import Evaluation, LogLikelihood
 from pneumafit.identification.parameters import ParameterSet
 from pneumafit.identification.problem import Prediction
 from pneumafit.identification.segments import source_recording
@@ -127,25 +127,25 @@ class _Whitened:
         self.like = like
         self.states: list[dict[str, Any]] = []
         self.lower, self.upper = like.parameters.internal_bounds()
-        self._last: tuple[bytes, bytes, Any] | None = None
-        self._kept: dict[bytes, tuple[bytes, Any]] = {}
-        self._prediction: Any = None
+        # (point, prediction) of the last finite-difference batch, and the
+        # kept ones by point (the batch's points follow from its point)
+        self._last: tuple[bytes, Any] | None = None
+        self._kept: dict[bytes, Any] = {}
 
     def keep(self, z: NDArray[np.float64]) -> None:
         """Keep the last batch's prediction when it was made at ``z``."""
         if self._last is not None and self._last[0] == z.tobytes():
-            key, pts, pred = self._last
+            key, pred = self._last
             self._kept.pop(key, None)
-            self._kept[key] = (pts, pred)
+            self._kept[key] = pred
             while len(self._kept) > KEPT_BATCHES:
                 del self._kept[next(iter(self._kept))]
 
     def _first_set(self, z: NDArray[np.float64]) -> Prediction | None:
         """The first set of a kept batch made at ``z`` (a Prediction of one set)."""
-        kept = self._kept.get(z.tobytes())
-        if kept is None or not isinstance(kept[1], Prediction):
-            return None  # a duck-typed problem's prediction: simulated again
-        pred = kept[1]
+        pred = self._kept.get(z.tobytes())
+        if not isinstance(pred, Prediction):
+            return None  # none kept, or a duck-typed problem's: simulated again
         return Prediction([b[:1] for b in pred.blocks], pred.status[:1], pred.ok[:1])
 
     def set_state(self, z: NDArray[np.float64]) -> float:
@@ -163,15 +163,14 @@ class _Whitened:
         return float(ev.log_likelihood[0])
 
     def batch(
-        self,
-        zz: NDArray[np.float64],
-        moved: NDArray[np.int64] | None = None,
-        prediction: Prediction | None = None,
+        self, zz: NDArray[np.float64], moved: NDArray[np.int64] | None = None
     ) -> NDArray[np.float64]:
-        """Whitened residual vectors (n_sets, n_res) of a batch (``moved``,
-        ``prediction``: see :meth:`LogLikelihood.evaluate`)."""
-        ev = self.like.evaluate(zz, moved=moved, prediction=prediction)
-        self._prediction = ev.prediction
+        """Whitened residual vectors (n_sets, n_res) of a batch (``moved``:
+        see :meth:`LogLikelihood.evaluate`)."""
+        return self._whitened(self.like.evaluate(zz, moved=moved), zz)
+
+    def _whitened(self, ev: Evaluation, zz: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Whitened residual vectors (n_sets, n_res) of an evaluation of ``zz``."""
         parts = []
         power = np.sqrt(self.like.problem.tempering)
         for j, (o, r, st) in enumerate(
@@ -194,16 +193,12 @@ class _Whitened:
         sign = np.where(z + h > self.upper, -1.0, 1.0)
         pts = np.repeat(z[None, :], z.size + 1, axis=0)
         pts[1:] += np.diag(sign * h)
-        key, pts_key = z.tobytes(), pts.tobytes()
-        kept = self._kept.get(key)
+        key = z.tobytes()
         # set j + 1 moves coordinate j alone: the recordings it cannot affect
         # keep set 0's simulation (exactly what simulating them again gives)
-        res = self.batch(
-            pts,
-            moved=np.arange(-1, z.size),
-            prediction=kept[1] if kept is not None and kept[0] == pts_key else None,
-        )
-        self._last = (key, pts_key, self._prediction)
+        ev = self.like.evaluate(pts, moved=np.arange(-1, z.size), prediction=self._kept.get(key))
+        self._last = (key, ev.prediction)
+        res = self._whitened(ev, pts)
         jac = (res[1:] - res[0]).T / (sign * h)
         return res[0], jac
 

@@ -83,7 +83,7 @@ from pneumafit.identification.optimise import (
     laplace_summary,
     recording_robust_covariance,
 )
-from pneumafit.identification.parameters import ParameterSet
+from pneumafit.identification.parameters import CONSTRAINTS, ParameterSet
 from pneumafit.identification.problem import (
     INITIAL_PREFIX,
     MAX_STEP,
@@ -94,7 +94,6 @@ from pneumafit.identification.problem import (
     pressure_offsets,
 )
 from pneumafit.identification.quality import (
-    CONSTRAINTS,
     THRESHOLD,
     campaign_noise,
     noise_estimates,
@@ -1350,7 +1349,7 @@ def _near_vanishing(effect: str) -> dict[str, float]:
 
 
 #: A refit's start on one of the kernel's inequality constraints
-#: (:data:`~pneumafit.identification.quality.CONSTRAINTS`: static >= Coulomb
+#: (:data:`~pneumafit.identification.parameters.CONSTRAINTS`: static >= Coulomb
 #: friction) is moved this share inside it. On it, the smaller side's forward
 #: finite-difference step breaks the constraint and its Jacobian column
 #: fails: a base fit whose chain sampled the friction law without a Stribeck

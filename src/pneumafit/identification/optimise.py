@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from pneumafit.identification.likelihood import Evaluation, LogLikelihood
-from pneumafit.identification.parameters import ParameterSet
+from pneumafit.identification.parameters import CONSTRAINTS, ParameterSet
 from pneumafit.identification.problem import Prediction
 from pneumafit.identification.segments import source_recording
 from pneumafit.progress import Progress
@@ -185,19 +185,67 @@ class _Whitened:
             res = np.concatenate([res, prior], axis=1)
         return res
 
+    def _inside_constraints(
+        self, z: NDArray[np.float64], h: NDArray[np.float64], sign: NDArray[np.float64]
+    ) -> bool:
+        """Turn ``sign`` (+-1 per coordinate, in place) backwards for the smaller
+        side of a :data:`~.parameters.CONSTRAINTS` inequality whose forward
+        step would break it (the Coulomb level above the static one); True
+        when it turned one. The values are the tied ones
+        (:meth:`LogLikelihood.values`: a level tied to its partner moves with
+        it and breaks nothing)."""
+        like = self.like
+        names = like.names
+        turned = False
+        for larger, smaller, _ in CONSTRAINTS:
+            if smaller not in names:
+                continue
+            j = names.index(smaller)
+            if sign[j] < 0.0:
+                continue
+            moved = z.copy()
+            moved[j] += h[j]
+            values = like.values(moved)
+            if larger in values and values[smaller][0] > values[larger][0]:
+                sign[j] = -1.0
+                turned = True
+        return turned
+
     def fun_and_jac(
-        self, z: NDArray[np.float64]
+        self, z: NDArray[np.float64], *, feasible: bool = False
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Whitened residuals at ``z`` and their forward-difference Jacobian
+        (backward where forward would leave the bounds).
+
+        ``feasible``: also backward where forward would break a
+        :data:`~.parameters.CONSTRAINTS` inequality (:meth:`_inside_constraints`),
+        as the covariances take it. The kernel refuses such a set, so its
+        residuals are the failed set's constant and the column
+        (FAILED_RESIDUAL - r) / h calls the parameter known to ~1e-10 of
+        itself: on a fit whose static friction ends on the Coulomb level
+        (mixed truth, sparse plan, seed 1, 2026-12-06) the Laplace standard
+        deviation of the Coulomb level's log was 1.7e-10 and its interval of
+        zero width. The least squares keeps the forward step (False): with
+        that column the trust region does not move the smaller side across
+        the constraint; with the backward one, 2 of the recovery matrix's
+        30 fits ended at another optimum, one 2750 log-likelihood units
+        better and one 3145 worse (docs/identification.md, "Finite
+        differences on the friction constraint"). A batch whose step was
+        turned is not kept (:meth:`keep`: a kept batch's points follow from
+        its point with the least squares' steps).
+        """
         h = _fd_steps(self.like.parameters, z)
         # step backwards where forwards would leave the bounds
         sign = np.where(z + h > self.upper, -1.0, 1.0)
+        turned = feasible and self._inside_constraints(z, h, sign)
         pts = np.repeat(z[None, :], z.size + 1, axis=0)
         pts[1:] += np.diag(sign * h)
         key = z.tobytes()
         # set j + 1 moves coordinate j alone: the recordings it cannot affect
         # keep set 0's simulation (exactly what simulating them again gives)
-        ev = self.like.evaluate(pts, moved=np.arange(-1, z.size), prediction=self._kept.get(key))
-        self._last = (key, ev.prediction)
+        kept = None if turned else self._kept.get(key)
+        ev = self.like.evaluate(pts, moved=np.arange(-1, z.size), prediction=kept)
+        self._last = None if turned else (key, ev.prediction)
         res = self._whitened(ev, pts)
         jac = (res[1:] - res[0]).T / (sign * h)
         return res[0], jac
@@ -529,7 +577,7 @@ def fit_least_squares(
         )  # fmt: skip
     lp, z, info = best
     wh.set_state(z)
-    _, jac = wh.fun_and_jac(z)
+    _, jac = wh.fun_and_jac(z, feasible=True)
     cov = _laplace(jac)
     values = {n: float(v[0]) for n, v in ps.to_values(z).items()}
     fitted = laplace_summary(ps.with_values(values), z, cov)
@@ -573,7 +621,7 @@ def laplace_covariance(
     wh = _Whitened(likelihood)
     zz = np.asarray(z, dtype=float)
     wh.set_state(zz)
-    _, jac = wh.fun_and_jac(zz)
+    _, jac = wh.fun_and_jac(zz, feasible=True)
     return _laplace(jac)
 
 
@@ -687,7 +735,7 @@ def recording_robust_covariance(
     wh = _Whitened(likelihood)
     zz = np.asarray(z, dtype=float)
     wh.set_state(zz)
-    res, jac = wh.fun_and_jac(zz)
+    res, jac = wh.fun_and_jac(zz, feasible=True)
     if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(res))):
         return None
     problem = likelihood.problem

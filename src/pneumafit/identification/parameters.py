@@ -42,6 +42,7 @@ from pneumafit.models.structure import (
 )
 
 __all__ = [
+    "CONSTRAINTS",
     "FORMAT",
     "NUISANCE_SPECS",
     "LogNormal",
@@ -59,6 +60,19 @@ FORMAT = "pneumafit-parameters"
 VERSION = 1
 
 SCALES = ("linear", "log")
+
+#: Inequality constraints between parameters (larger, smaller, what an
+#: estimate on the constraint means) that the kernel enforces by rejecting
+#: the parameter set (``kernel.check_parameters``: static friction below the
+#: Coulomb level). An estimate on one is as untrustworthy as one on a bound
+#: (its Laplace interval is squeezed by the wall, its partner unidentified:
+#: :func:`pneumafit.identification.quality.bound_problems`); the
+#: covariances' finite-difference steps do not cross one
+#: (:meth:`pneumafit.identification.optimise._Whitened.fun_and_jac`).
+CONSTRAINTS: tuple[tuple[str, str, str], ...] = (
+    ("friction_static", "friction_coulomb",
+     "no Stribeck drop resolved, stribeck_velocity not identified"),
+)  # fmt: skip
 
 
 # --------------------------------------------------------------------- JSON

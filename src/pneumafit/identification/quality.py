@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 
 from pneumafit.campaign.model import Campaign, Recording
 from pneumafit.identification.noise import detect_resolution
+from pneumafit.identification.parameters import CONSTRAINTS
 from pneumafit.identification.problem import OFFSET_LIMIT, QUANTITIES
 
 __all__ = [
@@ -898,16 +899,6 @@ def assess_residuals(
             )
         )
     return out
-
-
-#: Inequality constraints between parameters (larger, smaller, what an
-#: estimate on the constraint means) that the kernel enforces by rejecting
-#: the parameter set; an estimate on one is as untrustworthy as one on a bound
-#: (its Laplace interval is squeezed by the wall, its partner unidentified).
-CONSTRAINTS: tuple[tuple[str, str, str], ...] = (
-    ("friction_static", "friction_coulomb",
-     "no Stribeck drop resolved, stribeck_velocity not identified"),
-)  # fmt: skip
 
 
 #: Bounds that are the value of the law a parameter extends (name -> which

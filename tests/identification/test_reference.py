@@ -137,3 +137,113 @@ def test_laplace_draws_keep_each_coordinates_spread() -> None:
     assert draws is not None
     spread = np.array([np.std(draws[f"x{j}"]) for j in range(n)])
     assert spread / s == pytest.approx(np.ones(n), abs=0.06)
+
+
+def _levels(static: float, coulomb: float, cov: np.ndarray, scale: str = "linear"):
+    """A Laplace approximation of the two friction levels (internal
+    coordinates of ``scale``) with its estimate at ``static``, ``coulomb``."""
+    from types import SimpleNamespace
+
+    from pneumafit.identification.parameters import Parameter, ParameterSet
+
+    ps = ParameterSet([
+        Parameter("friction_static", static, "N", 0.01, 563.0, scale),
+        Parameter("friction_coulomb", coulomb, "N", 0.01, 563.0, scale),
+    ])  # fmt: skip
+    return ps, SimpleNamespace(covariance=cov, z=ps.to_internal())
+
+
+def _figures(ps, est) -> dict:
+    from pneumafit.identification.staged import _friction_reference
+    from pneumafit.models.structure import ModelStructure
+
+    rig = {"supply_pressure": 7e5, "exhaust_pressure": 1e5}
+    values = {p.name: p.value for p in ps}
+    return _friction_reference(ModelStructure("convection"), values, rig, ps, est, None, 4)
+
+
+def test_laplace_draws_stay_on_the_side_of_the_friction_constraint() -> None:
+    """An estimate on the constraint static friction = Coulomb level (the
+    kernel refuses static < Coulomb) gets reference figures from draws the
+    model accepts: each draw projected onto the constraint, as the draws
+    are clipped to the bounds. Until 2026-12-06 the Laplace draws kept the
+    refused half, and a sparse campaign of step tests alone quoted static
+    31.91 N against Coulomb 31.98 N. Exact by construction: every draw has
+    static >= Coulomb, so the static figure's median and interval ends are
+    at least the Coulomb one's (with the draws kept, the static interval's
+    lower end was below the Coulomb one's); about half the draws sit on the
+    constraint (binomial spread of 32 in 4000, so 1800-2200 is over six of
+    those)."""
+    from pneumafit.identification.staged import _laplace_draws
+
+    # static the wider, the two correlated as a fit that cannot tell them apart
+    cov = np.array([[5.2**2, 0.8 * 5.2 * 4.4], [0.8 * 5.2 * 4.4, 4.4**2]])
+    ps, est = _levels(32.0, 32.0, cov)
+    draws = _laplace_draws(ps, est, seed=4)
+    assert draws is not None
+    static, coulomb = draws["friction_static"], draws["friction_coulomb"]
+    assert static.size == coulomb.size == 4000
+    assert np.all(static >= coulomb)
+    assert 1800 <= np.count_nonzero(static == coulomb) <= 2200
+    fr = _figures(ps, est)
+    assert fr["static"]["value"] >= fr["coulomb"]["value"]
+    assert fr["static"]["interval_90"][0] >= fr["coulomb"]["interval_90"][0]
+    assert fr["static"]["interval_90"][1] >= fr["coulomb"]["interval_90"][1]
+
+
+def test_an_undetermined_static_level_on_the_constraint_is_quoted_from_it() -> None:
+    """The Dahl truth's sparse plan (seed 1, 2026-12-06): the static level on
+    the Coulomb one (37.04 N) and undetermined, a standard deviation of 18
+    in its log against the Coulomb level's 0.009. Its raw draws pile up at
+    both bounds (the static figure's median fell wherever the split did:
+    24.4 N); truncated to the constraint they kept only the ceiling (563 N,
+    an interval [112, 563] that left out the estimate). Projected, about
+    half the draws are Coulomb levels, so the figure's median is the upper
+    tail of the Coulomb draws (their ~98th percentile: 2 standard
+    deviations, 1.8 %), within 3 of its standard deviations (2.7 %) of the
+    estimate, and its interval holds the estimate and reaches the ceiling:
+    "at least Coulomb, else unknown"."""
+    cov = np.array([[18.07**2, 0.032 * 18.07 * 0.00889], [0.032 * 18.07 * 0.00889, 0.00889**2]])
+    ps, est = _levels(37.0389, 37.0382, cov, scale="log")
+    fr = _figures(ps, est)["static"]
+    assert fr["value"] == pytest.approx(37.04, rel=0.027)
+    lo, hi = fr["interval_90"]
+    assert lo <= 37.0389 <= hi
+    assert hi == pytest.approx(563.0)
+
+
+def test_laplace_draws_off_the_constraint_project_the_refused_sets() -> None:
+    """Off the constraint (static 4 N above Coulomb, standard deviations of
+    5.2 and 4.4 N, correlation 0.8: the difference has a standard deviation
+    of 3.1 N, so 10 % of the Gaussian breaks the constraint), those draws
+    are put on it and the rest left as drawn. Tolerance: 400 of 4000 have
+    a binomial spread of 19, so 300-500 is over five of those."""
+    from pneumafit.identification.staged import _laplace_draws
+
+    cov = np.array([[5.2**2, 0.8 * 5.2 * 4.4], [0.8 * 5.2 * 4.4, 4.4**2]])
+    ps, est = _levels(36.0, 32.0, cov)
+    draws = _laplace_draws(ps, est, seed=4)
+    assert draws is not None
+    static, coulomb = draws["friction_static"], draws["friction_coulomb"]
+    assert np.all(static >= coulomb)
+    assert 300 <= np.count_nonzero(static == coulomb) <= 500
+
+
+def test_draws_without_both_sides_of_a_constraint_are_kept() -> None:
+    """Only a constraint whose two sides are drawn changes draws (plumbing)."""
+    from pneumafit.identification.staged import _feasible_draws
+
+    one = {"friction_static": np.array([1.0, 2.0]), "xi": np.array([0.3, 0.4])}
+    kept = _feasible_draws(one)
+    assert {k: v.tolist() for k, v in kept.items()} == {
+        "friction_static": [1.0, 2.0],
+        "xi": [0.3, 0.4],
+    }
+    both = {
+        "friction_static": np.array([1.0, 2.0, 3.0]),
+        "friction_coulomb": np.array([1.0, 2.5, 2.0]),
+        "xi": np.array([0.1, 0.2, 0.3]),
+    }
+    kept = _feasible_draws(both)
+    assert kept["xi"].tolist() == [0.1, 0.2, 0.3]
+    assert kept["friction_static"].tolist() == [1.0, 2.5, 3.0]

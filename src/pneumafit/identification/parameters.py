@@ -68,7 +68,8 @@ SCALES = ("linear", "log")
 #: (its Laplace interval is squeezed by the wall, its partner unidentified:
 #: :func:`pneumafit.identification.quality.bound_problems`); the
 #: covariances' finite-difference steps do not cross one
-#: (:meth:`pneumafit.identification.optimise._Whitened.fun_and_jac`).
+#: (:meth:`pneumafit.identification.optimise._Whitened.fun_and_jac`), and the
+#: Laplace draws behind the reference figures stay on its allowed side.
 CONSTRAINTS: tuple[tuple[str, str, str], ...] = (
     ("friction_static", "friction_coulomb",
      "no Stribeck drop resolved, stribeck_velocity not identified"),

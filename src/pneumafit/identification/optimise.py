@@ -227,12 +227,12 @@ class _Whitened:
         deviation of the Coulomb level's log was 1.7e-10 and its interval of
         zero width. The least squares keeps the forward step (False): with
         that column the trust region does not move the smaller side across
-        the constraint; with the backward one, 2 of the recovery matrix's
-        30 fits ended at another optimum, one 2750 log-likelihood units
-        better and one 3145 worse (docs/identification.md, "Finite
-        differences on the friction constraint"). A batch whose step was
-        turned is not kept (:meth:`keep`: a kept batch's points follow from
-        its point with the least squares' steps).
+        the constraint; with the backward one, 4 of the recovery matrix's
+        30 fits ended elsewhere, one 2750 log-likelihood units better, one
+        3145 worse and two within 1.1 (docs/identification.md, "The friction
+        constraint in the covariances and the reference draws"). A batch
+        whose step was turned is not kept (:meth:`keep`: a kept batch's
+        points follow from its point with the least squares' steps).
         """
         h = _fd_steps(self.like.parameters, z)
         # step backwards where forwards would leave the bounds

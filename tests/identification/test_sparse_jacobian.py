@@ -169,9 +169,13 @@ def test_the_jacobian_and_a_solve_are_unchanged_bit_for_bit(small: tuple) -> Non
     a = fit_least_squares(like, starts=[start], max_reweight=1, max_nfev=4)
     original = _Whitened.fun_and_jac
 
-    def full_jacobian(self: _Whitened, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def full_jacobian(
+        self: _Whitened, z: np.ndarray, *, feasible: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
         hh = _fd_steps(self.like.parameters, z)
         sg = np.where(z + hh > self.upper, -1.0, 1.0)
+        if feasible:  # the covariance's steps, as _Whitened.fun_and_jac takes them
+            self._inside_constraints(z, hh, sg)
         pts = np.repeat(z[None, :], z.size + 1, axis=0)
         pts[1:] += np.diag(sg * hh)
         res = self.batch(pts)
